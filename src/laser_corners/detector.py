@@ -1,0 +1,631 @@
+"""The corner-like keypoint detector of Sousa et al. (ICARA 2024), section III.
+
+For every valid scan point p_j and every scale R_k the arrival neighbourhood (the run of
+consecutive valid points before p_j, up to the first point farther than R_k from p_j or a gap)
+and the departure neighbourhood (the same after p_j) are fitted with both closed-form line
+models; the lower-RMSE model of each is kept (eqs. 2-9) and the two lines are intersected
+(eqs. 10-13). Scale k *passes* when both neighbourhoods hold at least ``min_points`` points,
+both RMSEs are at most ``max_fit_rmse``, the opening angle lies in
+[``min_angle_deg``, ``max_angle_deg``] and the intersection lies within ``max_point_distance``
+of p_j. A point is a corner-like feature when at least ``min_consecutive_scales`` consecutive
+scales pass and all their intersections lie within ``max_centroid_distance`` of their
+centroid, which is the point's keypoint.
+
+Decisions the paper leaves open (see ``docs/method.md``):
+
+* several runs of passing scales at one point: the longest run that also meets the centroid
+  test wins; ties go to the run of smaller scales;
+* several scan points that see one corner: per-point candidates whose keypoints lie within
+  ``merge_radius`` of each other are merged by single linkage; the merged keypoint is the
+  keypoint of the cluster's best candidate, the one with the lowest worst-fit RMSE (ties: more
+  passing scales). Points beside the apex have a neighbourhood that straddles the corner, fit
+  worse and intersect off the corner, so averaging them would bias the keypoint.
+
+The hot loop is one numba kernel (``cache=True``). The arrival/departure sums of x, y, x², y²
+and xy come from prefix sums, so each fit is O(1) and a scan costs O(N·K) fits; neighbourhood
+bounds are found by walking outwards from p_j once for all scales.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Literal, overload
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.errors import InvalidScanError
+from laser_corners.keypoints import Keypoints
+from laser_corners.linefit import intersect, line_direction, select_from_sums
+from laser_corners.params import DetectorParams
+from laser_corners.scan import LaserScan
+
+__all__ = ["CornerDetector", "ScaleTable"]
+
+# indices into the per-point candidate table (float64, shape (N, _NC))
+_C_X, _C_Y, _C_NSC, _C_K0, _C_RMSE, _C_OPEN, _C_ORIENT = range(7)
+_NC = 7
+# indices into the merged keypoint table (float64, shape (N, _NM))
+_M_X, _M_Y, _M_BEAM, _M_OPEN, _M_ORIENT, _M_NSC, _M_RMSE, _M_NMERGED = range(8)
+_NM = 8
+
+
+@nb.njit(cache=True)
+def _candidates(
+    ranges: NDArray[np.float64],
+    cos_a: NDArray[np.float64],
+    sin_a: NDArray[np.float64],
+    range_min: float,
+    range_max: float,
+    scales: NDArray[np.float64],
+    min_points: int,
+    min_angle_deg: float,
+    max_angle_deg: float,
+    max_fit_rmse: float,
+    max_point_distance: float,
+    max_centroid_distance: float,
+    min_consecutive: int,
+    cand: NDArray[np.float64],
+    table: NDArray[np.float64],
+) -> None:
+    """Fill ``cand`` (N, _NC) with each point's candidate keypoint (n_scales 0: none).
+
+    When ``table`` has shape (N, K, 3) it also receives, per point and scale, the
+    intersection x, y and 1.0/0.0 for pass/fail (NaN where no intersection was computed).
+    """
+    n = ranges.shape[0]
+    n_scales = scales.shape[0]
+    want_table = table.shape[0] == n
+    # --- polar -> Cartesian, validity (gaps: NaN, inf, <= range_min, >= range_max)
+    valid = np.empty(n, dtype=np.bool_)
+    x = np.empty(n)
+    y = np.empty(n)
+    ox = 0.0
+    oy = 0.0
+    n_valid = 0
+    for i in range(n):
+        r = ranges[i]
+        ok = math.isfinite(r) and r > range_min and r < range_max
+        valid[i] = ok
+        if ok:
+            x[i] = r * cos_a[i]
+            y[i] = r * sin_a[i]
+            ox += x[i]
+            oy += y[i]
+            n_valid += 1
+        else:
+            x[i] = math.nan
+            y[i] = math.nan
+    # work relative to the centroid of the scan: smaller prefix sums, less cancellation
+    if n_valid > 0:
+        ox /= n_valid
+        oy /= n_valid
+    # --- prefix sums of x, y, x², y², xy (gaps contribute nothing)
+    psx = np.zeros(n + 1)
+    psy = np.zeros(n + 1)
+    psxx = np.zeros(n + 1)
+    psyy = np.zeros(n + 1)
+    psxy = np.zeros(n + 1)
+    for i in range(n):
+        if valid[i]:
+            xi = x[i] - ox
+            yi = y[i] - oy
+            psx[i + 1] = psx[i] + xi
+            psy[i + 1] = psy[i] + yi
+            psxx[i + 1] = psxx[i] + xi * xi
+            psyy[i + 1] = psyy[i] + yi * yi
+            psxy[i + 1] = psxy[i] + xi * yi
+        else:
+            psx[i + 1] = psx[i]
+            psy[i + 1] = psy[i]
+            psxx[i + 1] = psxx[i]
+            psyy[i + 1] = psyy[i]
+            psxy[i + 1] = psxy[i]
+
+    r2 = scales * scales
+    max_mse = max_fit_rmse * max_fit_rmse
+    # necessary condition on the undirected lines, checked before intersecting them:
+    # an opening angle in [min, max] has |cos| <= max(|cos min|, |cos max|)
+    max_abs_cos = max(
+        abs(math.cos(math.radians(min_angle_deg))), abs(math.cos(math.radians(max_angle_deg)))
+    )
+    max_pd2 = max_point_distance * max_point_distance
+    max_cd2 = max_centroid_distance * max_centroid_distance
+    start = np.empty(n_scales, dtype=np.int64)  # first index of the arrival neighbourhood
+    stop = np.empty(n_scales, dtype=np.int64)  # last index of the departure neighbourhood
+    passed = np.zeros(n_scales, dtype=np.bool_)
+    qx = np.empty(n_scales)
+    qy = np.empty(n_scales)
+    worst = np.empty(n_scales)
+    opening = np.empty(n_scales)
+    bis_x = np.empty(n_scales)
+    bis_y = np.empty(n_scales)
+
+    for j in range(n):
+        cand[j, _C_NSC] = 0.0
+        if not valid[j]:
+            if want_table:
+                for k in range(n_scales):
+                    table[j, k, 0] = math.nan
+                    table[j, k, 1] = math.nan
+                    table[j, k, 2] = 0.0
+            continue
+        xj = x[j]
+        yj = y[j]
+        # --- arrival bounds for all scales in one walk towards smaller indices
+        k = 0
+        i = j - 1
+        while k < n_scales:
+            if i < 0 or not valid[i]:
+                while k < n_scales:
+                    start[k] = i + 1
+                    k += 1
+                break
+            d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2
+            while k < n_scales and d2 > r2[k]:
+                start[k] = i + 1
+                k += 1
+            i -= 1
+        # --- departure bounds, towards larger indices
+        k = 0
+        i = j + 1
+        while k < n_scales:
+            if i >= n or not valid[i]:
+                while k < n_scales:
+                    stop[k] = i - 1
+                    k += 1
+                break
+            d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2
+            while k < n_scales and d2 > r2[k]:
+                stop[k] = i - 1
+                k += 1
+            i += 1
+
+        # --- per-scale test
+        for k in range(n_scales):
+            s = start[k]
+            e = stop[k]
+            if k > 0 and s == start[k - 1] and e == stop[k - 1]:
+                # same neighbourhoods as the previous scale: same fits, same verdict
+                passed[k] = passed[k - 1]
+                qx[k] = qx[k - 1]
+                qy[k] = qy[k - 1]
+                worst[k] = worst[k - 1]
+                opening[k] = opening[k - 1]
+                bis_x[k] = bis_x[k - 1]
+                bis_y[k] = bis_y[k - 1]
+                if want_table:
+                    table[j, k, 0] = table[j, k - 1, 0]
+                    table[j, k, 1] = table[j, k - 1, 1]
+                    table[j, k, 2] = table[j, k - 1, 2]
+                continue
+            passed[k] = False
+            qx[k] = math.nan
+            qy[k] = math.nan
+            na = j - s + 1
+            nd = e - j + 1
+            if na < min_points or nd < min_points:
+                if want_table:
+                    table[j, k, 0] = math.nan
+                    table[j, k, 1] = math.nan
+                    table[j, k, 2] = 0.0
+                continue
+            # arrival neighbourhood [s, j], departure [j, e]: sums from prefix sums
+            ma, a0, a1, mse_a = select_from_sums(
+                float(na),
+                psx[j + 1] - psx[s],
+                psy[j + 1] - psy[s],
+                psxx[j + 1] - psxx[s],
+                psyy[j + 1] - psyy[s],
+                psxy[j + 1] - psxy[s],
+            )
+            if want_table:
+                table[j, k, 0] = math.nan
+                table[j, k, 1] = math.nan
+                table[j, k, 2] = 0.0
+            if mse_a > max_mse:  # eqs. 8-9 against the RMSE threshold
+                continue
+            md, d0, d1, mse_d = select_from_sums(
+                float(nd),
+                psx[e + 1] - psx[j],
+                psy[e + 1] - psy[j],
+                psxx[e + 1] - psxx[j],
+                psyy[e + 1] - psyy[j],
+                psxy[e + 1] - psxy[j],
+            )
+            if mse_d > max_mse:
+                continue
+            ua_x, ua_y = line_direction(ma, a1)
+            ud_x, ud_y = line_direction(md, d1)
+            if abs(ua_x * ud_x + ua_y * ud_y) > max_abs_cos:
+                continue
+            ix, iy, ok = intersect(ma, a0, a1, md, d0, d1)  # eqs. 10-13
+            if not ok:
+                continue
+            ix += ox
+            iy += oy
+            qx[k] = ix
+            qy[k] = iy
+            if want_table:
+                table[j, k, 0] = ix
+                table[j, k, 1] = iy
+            if (ix - xj) ** 2 + (iy - yj) ** 2 > max_pd2:
+                continue
+            # opening angle between the lines, each directed from the corner towards the far
+            # end of its neighbourhood
+            if ua_x * (x[s] - ix) + ua_y * (y[s] - iy) < 0.0:
+                ua_x = -ua_x
+                ua_y = -ua_y
+            if ud_x * (x[e] - ix) + ud_y * (y[e] - iy) < 0.0:
+                ud_x = -ud_x
+                ud_y = -ud_y
+            cos_open = ua_x * ud_x + ua_y * ud_y
+            cos_open = min(1.0, max(-1.0, cos_open))
+            angle = math.degrees(math.acos(cos_open))
+            if angle < min_angle_deg or angle > max_angle_deg:
+                continue
+            passed[k] = True
+            worst[k] = math.sqrt(max(mse_a, mse_d))
+            opening[k] = angle
+            bx = ua_x + ud_x
+            by = ua_y + ud_y
+            norm = math.sqrt(bx * bx + by * by)
+            bis_x[k] = bx / norm if norm > 0.0 else 0.0
+            bis_y[k] = by / norm if norm > 0.0 else 0.0
+            if want_table:
+                table[j, k, 2] = 1.0
+
+        # --- runs of consecutive passing scales: longest valid run, ties -> smaller scales
+        best_len = 0
+        best_k0 = -1
+        best_cx = 0.0
+        best_cy = 0.0
+        k = 0
+        while k < n_scales:
+            if not passed[k]:
+                k += 1
+                continue
+            k0 = k
+            while k < n_scales and passed[k]:
+                k += 1
+            run = k - k0
+            if run < min_consecutive or run <= best_len:
+                continue
+            cx = 0.0
+            cy = 0.0
+            for kk in range(k0, k):
+                cx += qx[kk]
+                cy += qy[kk]
+            cx /= run
+            cy /= run
+            compact = True
+            for kk in range(k0, k):
+                if (qx[kk] - cx) ** 2 + (qy[kk] - cy) ** 2 > max_cd2:
+                    compact = False
+                    break
+            if compact:
+                best_len = run
+                best_k0 = k0
+                best_cx = cx
+                best_cy = cy
+        if best_len == 0:
+            continue
+        w = 0.0
+        o = 0.0
+        sbx = 0.0
+        sby = 0.0
+        for kk in range(best_k0, best_k0 + best_len):
+            w = max(w, worst[kk])
+            o += opening[kk]
+            sbx += bis_x[kk]
+            sby += bis_y[kk]
+        cand[j, _C_X] = best_cx
+        cand[j, _C_Y] = best_cy
+        cand[j, _C_NSC] = best_len
+        cand[j, _C_K0] = best_k0
+        cand[j, _C_RMSE] = w
+        cand[j, _C_OPEN] = o / best_len
+        cand[j, _C_ORIENT] = math.atan2(sby, sbx)
+
+
+@nb.njit(cache=True)
+def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.float64]) -> int:
+    """Merge per-point candidates by single linkage within ``merge_radius``.
+
+    Writes one row per merged keypoint into ``merged`` (_NM columns) and returns their count.
+    """
+    n = cand.shape[0]
+    idx = np.empty(n, dtype=np.int64)
+    m = 0
+    for j in range(n):
+        if cand[j, _C_NSC] > 0.0:
+            idx[m] = j
+            m += 1
+    parent = np.arange(m)
+    r2 = merge_radius * merge_radius
+    for a in range(m):
+        ja = idx[a]
+        for b in range(a + 1, m):
+            jb = idx[b]
+            d2 = (cand[ja, _C_X] - cand[jb, _C_X]) ** 2 + (cand[ja, _C_Y] - cand[jb, _C_Y]) ** 2
+            if d2 <= r2:
+                ra = a
+                while parent[ra] != ra:
+                    ra = parent[ra]
+                rb = b
+                while parent[rb] != rb:
+                    rb = parent[rb]
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+    # roots in order of first member: output ordered by beam index of the first candidate
+    label = np.empty(m, dtype=np.int64)
+    n_out = 0
+    root_label = np.full(m, -1, dtype=np.int64)
+    for a in range(m):
+        r = a
+        while parent[r] != r:
+            r = parent[r]
+        if root_label[r] < 0:
+            root_label[r] = n_out
+            n_out += 1
+        label[a] = root_label[r]
+    count = np.zeros(n_out, dtype=np.int64)
+    rep = np.full(n_out, -1, dtype=np.int64)
+    worst = np.zeros(n_out)
+    for a in range(m):
+        c = label[a]
+        j = idx[a]
+        count[c] += 1
+        worst[c] = max(worst[c], cand[j, _C_RMSE])
+        r = rep[c]
+        if (
+            r < 0
+            or cand[j, _C_RMSE] < cand[r, _C_RMSE]
+            or (cand[j, _C_RMSE] == cand[r, _C_RMSE] and cand[j, _C_NSC] > cand[r, _C_NSC])
+        ):
+            rep[c] = j
+    for c in range(n_out):
+        r = rep[c]
+        merged[c, _M_X] = cand[r, _C_X]
+        merged[c, _M_Y] = cand[r, _C_Y]
+        merged[c, _M_BEAM] = r
+        merged[c, _M_OPEN] = cand[r, _C_OPEN]
+        merged[c, _M_ORIENT] = cand[r, _C_ORIENT]
+        merged[c, _M_NSC] = cand[r, _C_NSC]
+        merged[c, _M_RMSE] = worst[c]
+        merged[c, _M_NMERGED] = count[c]
+    return n_out
+
+
+@nb.njit(cache=True, parallel=True)
+def _detect_batch(
+    ranges: NDArray[np.float64],
+    cos_a: NDArray[np.float64],
+    sin_a: NDArray[np.float64],
+    range_min: float,
+    range_max: float,
+    scales: NDArray[np.float64],
+    min_points: int,
+    min_angle_deg: float,
+    max_angle_deg: float,
+    max_fit_rmse: float,
+    max_point_distance: float,
+    max_centroid_distance: float,
+    min_consecutive: int,
+    merge_radius: float,
+    merged: NDArray[np.float64],
+    counts: NDArray[np.int64],
+) -> None:
+    """Detect keypoints in every row of ``ranges`` (S, N), in parallel over scans."""
+    n_scans, n = ranges.shape
+    no_table = np.empty((0, 0, 3))
+    for s in nb.prange(n_scans):
+        cand = np.empty((n, _NC))
+        _candidates(
+            ranges[s], cos_a, sin_a, range_min, range_max, scales, min_points,
+            min_angle_deg, max_angle_deg, max_fit_rmse, max_point_distance,
+            max_centroid_distance, min_consecutive, cand, no_table,
+        )  # fmt: skip
+        if merge_radius > 0.0:
+            counts[s] = _merge(cand, merge_radius, merged[s])
+        else:
+            counts[s] = _raw_rows(cand, merged[s])
+
+
+@nb.njit(cache=True)
+def _raw_rows(cand: NDArray[np.float64], out: NDArray[np.float64]) -> int:
+    """Copy every per-point candidate into ``out`` as an unmerged keypoint row."""
+    m = 0
+    for j in range(cand.shape[0]):
+        if cand[j, _C_NSC] > 0.0:
+            out[m, _M_X] = cand[j, _C_X]
+            out[m, _M_Y] = cand[j, _C_Y]
+            out[m, _M_BEAM] = j
+            out[m, _M_OPEN] = cand[j, _C_OPEN]
+            out[m, _M_ORIENT] = cand[j, _C_ORIENT]
+            out[m, _M_NSC] = cand[j, _C_NSC]
+            out[m, _M_RMSE] = cand[j, _C_RMSE]
+            out[m, _M_NMERGED] = 1
+            m += 1
+    return m
+
+
+def _keypoints_from_rows(rows: NDArray[np.float64], scan: LaserScan) -> Keypoints:
+    return Keypoints(
+        xy=rows[:, [_M_X, _M_Y]],
+        beam_index=rows[:, _M_BEAM].astype(np.int64),
+        opening_angle_deg=rows[:, _M_OPEN],
+        orientation=rows[:, _M_ORIENT],
+        n_scales=rows[:, _M_NSC].astype(np.int64),
+        rmse=rows[:, _M_RMSE],
+        n_merged=rows[:, _M_NMERGED].astype(np.int64),
+        stamp=scan.stamp,
+        frame_id=scan.frame_id,
+    )
+
+
+class ScaleTable:
+    """Per-point, per-scale intermediate results of one scan, for analysis and figures.
+
+    Attributes
+    ----------
+    intersections : ndarray, shape (N, K, 2)
+        Line intersection at each point and scale (NaN where none was computed).
+    passed : ndarray of bool, shape (N, K)
+        Whether the scale passed all per-scale tests.
+    scales : ndarray, shape (K,)
+        The radii R_k.
+    """
+
+    def __init__(self, table: NDArray[np.float64], scales: NDArray[np.float64]) -> None:
+        self.intersections = table[:, :, :2]
+        self.passed = table[:, :, 2] > 0.5
+        self.scales = scales
+
+
+class CornerDetector:
+    """Corner-like keypoint detector for 2D laser scans (Sousa et al., ICARA 2024).
+
+    Parameters
+    ----------
+    params : DetectorParams, optional
+        Detector parameters; the paper's defaults when omitted.
+
+    References
+    ----------
+    .. [1] Sousa, R. B., Sobreira, H. M., Petry, M. R., Moreira, A. P., "Line Fitting-Based
+       Corner-Like Detector for 2D Laser Scanners Data", ICARA 2024.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from laser_corners import CornerDetector, LaserScan
+    >>> from laser_corners.sim import corner_scan
+    >>> scan = corner_scan()   # a clean right-angle corner at (2, 1) seen by a UST-10LX
+    >>> kps = CornerDetector().detect(scan)
+    >>> len(kps), np.round(kps.xy, 3).tolist()
+    (1, [[2.0, 1.0]])
+    """
+
+    def __init__(self, params: DetectorParams | None = None) -> None:
+        self.params = params if params is not None else DetectorParams()
+        self._scales = np.asarray(self.params.scales, dtype=np.float64)
+        self._geometry: tuple[int, float, float] | None = None
+        self._cos = np.empty(0)
+        self._sin = np.empty(0)
+
+    def __repr__(self) -> str:
+        return f"CornerDetector({self.params!r})"
+
+    # ----------------------------------------------------------------- helpers
+    def _trig(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        geometry = (scan.n_beams, scan.angle_min, scan.angle_increment)
+        if geometry != self._geometry:
+            angles = scan.angles
+            self._cos = np.cos(angles)
+            self._sin = np.sin(angles)
+            self._geometry = geometry
+        return self._cos, self._sin
+
+    def _run_candidates(
+        self, scan: LaserScan, table: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        p = self.params
+        cos_a, sin_a = self._trig(scan)
+        cand = np.empty((scan.n_beams, _NC))
+        _candidates(
+            scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max, self._scales,
+            p.min_points, p.min_angle_deg, p.max_angle_deg, p.max_fit_rmse,
+            p.max_point_distance, p.max_centroid_distance, p.min_consecutive_scales,
+            cand, table,
+        )  # fmt: skip
+        return cand
+
+    # ----------------------------------------------------------------- public API
+    @overload
+    def detect(
+        self, scan: LaserScan, return_candidates: Literal[False] = ...
+    ) -> Keypoints: ...
+
+    @overload
+    def detect(
+        self, scan: LaserScan, return_candidates: Literal[True]
+    ) -> tuple[Keypoints, Keypoints]: ...
+
+    def detect(
+        self, scan: LaserScan, return_candidates: bool = False
+    ) -> Keypoints | tuple[Keypoints, Keypoints]:
+        """Detect corner-like keypoints in one scan.
+
+        Parameters
+        ----------
+        scan : LaserScan
+            The scan.
+        return_candidates : bool
+            Also return the raw per-point candidates (before duplicate merging).
+
+        Returns
+        -------
+        keypoints : Keypoints
+            One keypoint per physical corner, sensor frame.
+        candidates : Keypoints
+            Only with ``return_candidates``: every scan point that passed, with its own
+            keypoint (``n_merged`` is 1).
+        """
+        if not isinstance(scan, LaserScan):
+            raise InvalidScanError(f"detect() expects a LaserScan, got {type(scan).__name__}")
+        cand = self._run_candidates(scan, np.empty((0, 0, 3)))
+        rows = np.empty((scan.n_beams, _NM))
+        n_out = (
+            _merge(cand, self.params.merge_radius, rows)
+            if self.params.merge_radius > 0.0
+            else _raw_rows(cand, rows)
+        )
+        keypoints = _keypoints_from_rows(rows[:n_out], scan)
+        if not return_candidates:
+            return keypoints
+        raw = np.empty((scan.n_beams, _NM))
+        n_raw = _raw_rows(cand, raw)
+        return keypoints, _keypoints_from_rows(raw[:n_raw], scan)
+
+    def scale_table(self, scan: LaserScan) -> ScaleTable:
+        """Per-point, per-scale intersections and pass flags (for analysis and figures)."""
+        table = np.empty((scan.n_beams, self._scales.shape[0], 3))
+        self._run_candidates(scan, table)
+        return ScaleTable(table, self._scales.copy())
+
+    def detect_many(self, scans: Sequence[LaserScan] | Iterable[LaserScan]) -> list[Keypoints]:
+        """Detect keypoints in a batch of scans of the same geometry, in parallel over scans.
+
+        All scans must share ``len(ranges)``, ``angle_min``, ``angle_increment``,
+        ``range_min`` and ``range_max``; use :meth:`detect` otherwise.
+        """
+        scans = list(scans)
+        if not scans:
+            return []
+        first = scans[0]
+        geometry = (first.n_beams, first.angle_min, first.angle_increment,
+                    first.range_min, first.range_max)  # fmt: skip
+        for i, scan in enumerate(scans):
+            if (scan.n_beams, scan.angle_min, scan.angle_increment,
+                    scan.range_min, scan.range_max) != geometry:  # fmt: skip
+                raise InvalidScanError(
+                    f"detect_many: scan {i} has a different geometry from scan 0; "
+                    "call detect() per scan instead"
+                )
+        ranges = np.stack([scan.ranges for scan in scans])
+        cos_a, sin_a = self._trig(first)
+        p = self.params
+        merged = np.empty((len(scans), first.n_beams, _NM))
+        counts = np.zeros(len(scans), dtype=np.int64)
+        _detect_batch(
+            ranges, cos_a, sin_a, first.range_min, first.range_max, self._scales,
+            p.min_points, p.min_angle_deg, p.max_angle_deg, p.max_fit_rmse,
+            p.max_point_distance, p.max_centroid_distance, p.min_consecutive_scales,
+            p.merge_radius, merged, counts,
+        )  # fmt: skip
+        return [
+            _keypoints_from_rows(merged[s, : counts[s]], scan) for s, scan in enumerate(scans)
+        ]

@@ -1,0 +1,125 @@
+"""Keypoints: the detector's output, as plain numpy arrays."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.scan import Pose2D
+
+__all__ = ["KEYPOINT_DTYPE", "Keypoints"]
+
+KEYPOINT_DTYPE = np.dtype(
+    [
+        ("x", np.float64),
+        ("y", np.float64),
+        ("beam_index", np.int64),
+        ("opening_angle_deg", np.float64),
+        ("orientation", np.float64),
+        ("n_scales", np.int64),
+        ("rmse", np.float64),
+        ("n_merged", np.int64),
+    ]
+)
+"""Record layout of :meth:`Keypoints.to_records` (one row per keypoint)."""
+
+
+@dataclass(frozen=True)
+class Keypoints:
+    """Corner-like keypoints of one scan (sensor frame unless transformed).
+
+    Attributes
+    ----------
+    xy : ndarray, shape (M, 2), float64
+        Keypoint positions in metres.
+    beam_index : ndarray, shape (M,), int64
+        Index of the supporting scan point p_j (for merged keypoints: the representative
+        candidate's point, see ``docs/method.md``).
+    opening_angle_deg : ndarray, shape (M,)
+        Corner opening angle between the two fitted lines, degrees, measured between the
+        directions pointing from the corner into the arrival and departure neighbourhoods.
+    orientation : ndarray, shape (M,)
+        Direction of the opening's bisector, radians, in the same frame as ``xy``.
+    n_scales : ndarray, shape (M,), int64
+        Number of consecutive passing scales that support the keypoint.
+    rmse : ndarray, shape (M,)
+        Worst line-fit RMSE among the supporting fits, metres.
+    n_merged : ndarray, shape (M,), int64
+        Number of per-point candidates merged into the keypoint (1 for raw candidates).
+    stamp : float or None
+        Stamp of the scan.
+    frame_id : str
+        Frame of ``xy``.
+    """
+
+    xy: NDArray[np.float64]
+    beam_index: NDArray[np.int64]
+    opening_angle_deg: NDArray[np.float64]
+    orientation: NDArray[np.float64]
+    n_scales: NDArray[np.int64]
+    rmse: NDArray[np.float64]
+    n_merged: NDArray[np.int64]
+    stamp: float | None = None
+    frame_id: str = ""
+
+    def __post_init__(self) -> None:
+        xy = np.asarray(self.xy, dtype=np.float64).reshape(-1, 2)
+        object.__setattr__(self, "xy", xy)
+        m = xy.shape[0]
+        for name, dtype in (
+            ("beam_index", np.int64),
+            ("opening_angle_deg", np.float64),
+            ("orientation", np.float64),
+            ("n_scales", np.int64),
+            ("rmse", np.float64),
+            ("n_merged", np.int64),
+        ):
+            arr = np.asarray(getattr(self, name), dtype=dtype).reshape(-1)
+            if arr.shape[0] != m:
+                raise ValueError(f"Keypoints.{name} has {arr.shape[0]} entries, xy has {m}")
+            object.__setattr__(self, name, arr)
+
+    @classmethod
+    def empty(cls, stamp: float | None = None, frame_id: str = "") -> Keypoints:
+        """No keypoints."""
+        z = np.zeros(0)
+        zi = np.zeros(0, dtype=np.int64)
+        return cls(np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id)
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+    def to_records(self) -> np.recarray:
+        """One record per keypoint with the fields of :data:`KEYPOINT_DTYPE`."""
+        out = np.empty(len(self), dtype=KEYPOINT_DTYPE)
+        out["x"] = self.xy[:, 0]
+        out["y"] = self.xy[:, 1]
+        for name in KEYPOINT_DTYPE.names[2:]:
+            out[name] = getattr(self, name)
+        return out.view(np.recarray)
+
+    def to_dicts(self) -> list[dict[str, Any]]:
+        """One plain ``dict`` per keypoint (JSON-friendly Python scalars)."""
+        rec = self.to_records()
+        return [{name: row[name].item() for name in KEYPOINT_DTYPE.names} for row in rec]
+
+    def transformed(self, pose: Pose2D, frame_id: str = "map") -> Keypoints:
+        """The keypoints moved by the rigid transform ``pose = (x, y, theta)``.
+
+        Use the sensor pose in a map frame to get map-frame keypoints.
+        """
+        px, py, theta = pose
+        c, s = math.cos(theta), math.sin(theta)
+        rot = np.array([[c, -s], [s, c]])
+        xy = self.xy @ rot.T + np.array([px, py])
+        orientation = np.angle(np.exp(1j * (self.orientation + theta)))
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(xy=xy, orientation=orientation, frame_id=frame_id)
+        return Keypoints(**values)
+
+    def __repr__(self) -> str:
+        return f"Keypoints(n={len(self)}, stamp={self.stamp}, frame_id={self.frame_id!r})"

@@ -1,0 +1,204 @@
+"""Detector parameters: the paper's defaults, validated, loadable from YAML/TOML.
+
+The field names below are the one parameter vocabulary of the project: they are the YAML/TOML
+keys, the CLI's ``--set key=value`` keys, the ROS node's parameter names and what every output
+folder records.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from laser_corners.errors import InvalidParamsError
+
+__all__ = ["PAPER_SCALES", "DetectorParams"]
+
+PAPER_SCALES: tuple[float, ...] = tuple(round(0.05 + 0.025 * k, 6) for k in range(9))
+"""The paper's neighbourhood radii R_k: 0.05, 0.075, ..., 0.25 m."""
+
+
+class DetectorParams(BaseModel):
+    """Parameters of :class:`~laser_corners.CornerDetector` (defaults: the paper's, section III).
+
+    Parameters
+    ----------
+    scales : tuple of float
+        Neighbourhood radii R_k in metres, strictly increasing and positive.
+    min_points : int
+        Minimum number of points in each of the arrival and departure neighbourhoods
+        (the scan point itself included in both).
+    min_angle_deg, max_angle_deg : float
+        Accepted interval of the corner opening angle between the two fitted lines, degrees.
+    max_fit_rmse : float
+        Maximum RMSE of each neighbourhood's selected line fit (eqs. 8-9), metres.
+    max_point_distance : float
+        Maximum distance from the scale's line intersection to the scan point p_j, metres.
+    max_centroid_distance : float
+        Maximum distance from each accepted scale's intersection to their centroid, metres.
+    min_consecutive_scales : int
+        Minimum number of consecutive passing scales for a corner-like feature.
+    merge_radius : float
+        Per-point candidates whose keypoints lie within this distance of each other (single
+        linkage) are merged into one keypoint per physical corner; 0 disables merging.
+        Not in the paper: see ``docs/method.md``.
+
+    Examples
+    --------
+    >>> DetectorParams().scales[:3]
+    (0.05, 0.075, 0.1)
+    >>> DetectorParams().with_overrides(["min_points=6"]).min_points
+    6
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True)
+
+    scales: tuple[float, ...] = Field(default=PAPER_SCALES)
+    min_points: int = 5
+    min_angle_deg: float = 45.0
+    max_angle_deg: float = 135.0
+    max_fit_rmse: float = 0.025
+    max_point_distance: float = 0.05
+    max_centroid_distance: float = 0.025
+    min_consecutive_scales: int = 3
+    merge_radius: float = 0.05
+
+    def __init__(self, **data: Any) -> None:
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            raise InvalidParamsError(_one_line(exc)) from None
+
+    @field_validator("scales")
+    @classmethod
+    def _check_scales(cls, scales: tuple[float, ...]) -> tuple[float, ...]:
+        if len(scales) == 0:
+            raise ValueError("scales must not be empty")
+        if any(not (s > 0.0) or s == float("inf") for s in scales):
+            raise ValueError(f"scales must be positive and finite, got {list(scales)}")
+        if any(b <= a for a, b in zip(scales, scales[1:], strict=False)):
+            raise ValueError(f"scales must be strictly increasing, got {list(scales)}")
+        return tuple(float(s) for s in scales)
+
+    @field_validator("min_points")
+    @classmethod
+    def _check_min_points(cls, value: int) -> int:
+        if value < 2:
+            raise ValueError(f"min_points must be >= 2 (a line needs two points), got {value}")
+        return value
+
+    @field_validator("min_consecutive_scales")
+    @classmethod
+    def _check_min_scales(cls, value: int) -> int:
+        if value < 1:
+            raise ValueError(f"min_consecutive_scales must be >= 1, got {value}")
+        return value
+
+    @field_validator(
+        "max_fit_rmse", "max_point_distance", "max_centroid_distance", "merge_radius"
+    )
+    @classmethod
+    def _check_non_negative(cls, value: float) -> float:
+        if not (value >= 0.0) or value == float("inf"):
+            raise ValueError(f"must be a finite number >= 0, got {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _check_consistency(self) -> DetectorParams:
+        if not (0.0 <= self.min_angle_deg <= self.max_angle_deg <= 180.0):
+            raise ValueError(
+                "need 0 <= min_angle_deg <= max_angle_deg <= 180, got "
+                f"{self.min_angle_deg}, {self.max_angle_deg}"
+            )
+        if self.min_consecutive_scales > len(self.scales):
+            raise ValueError(
+                f"min_consecutive_scales ({self.min_consecutive_scales}) exceeds the number "
+                f"of scales ({len(self.scales)})"
+            )
+        return self
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], source: str = "parameters") -> DetectorParams:
+        """Build parameters from a mapping such as a parsed YAML/TOML document.
+
+        A top-level ``detector`` table, if present, is used (so a config file can hold other
+        sections too).
+        """
+        if not isinstance(data, Mapping):
+            raise InvalidParamsError(f"{source}: expected a mapping of parameter names to values")
+        if "detector" in data and isinstance(data["detector"], Mapping):
+            data = data["detector"]
+        try:
+            return cls(**dict(data))
+        except InvalidParamsError as exc:
+            raise InvalidParamsError(f"{source}: {exc}") from None
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> DetectorParams:
+        """Load parameters from a ``.yaml``/``.yml`` or ``.toml`` file."""
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise InvalidParamsError(f"{path}: cannot read parameters ({exc.strerror})") from None
+        try:
+            if path.suffix.lower() == ".toml":
+                data = tomllib.loads(text)
+            else:
+                data = yaml.safe_load(text) or {}
+        except (yaml.YAMLError, tomllib.TOMLDecodeError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise InvalidParamsError(f"{path}: not valid YAML/TOML: {first}") from None
+        return cls.from_mapping(data, source=str(path))
+
+    def with_overrides(self, assignments: Iterable[str] | Mapping[str, Any]) -> DetectorParams:
+        """Return a copy with fields replaced.
+
+        Parameters
+        ----------
+        assignments : iterable of ``"key=value"`` strings, or a mapping
+            Values in strings are parsed as YAML (``scales=[0.1, 0.2, 0.3]``, ``min_points=6``).
+        """
+        updates: dict[str, Any] = {}
+        if isinstance(assignments, Mapping):
+            updates.update(assignments)
+        else:
+            for item in assignments:
+                key, sep, raw = item.partition("=")
+                key = key.strip()
+                if not sep or not key:
+                    raise InvalidParamsError(f"override {item!r} is not of the form key=value")
+                if key not in type(self).model_fields:
+                    known = ", ".join(type(self).model_fields)
+                    raise InvalidParamsError(f"unknown parameter {key!r}; known: {known}")
+                try:
+                    updates[key] = yaml.safe_load(raw)
+                except yaml.YAMLError:
+                    raise InvalidParamsError(f"override {item!r}: value is not valid") from None
+        unknown = set(updates) - set(type(self).model_fields)
+        if unknown:
+            raise InvalidParamsError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+        merged = self.model_dump()
+        merged.update(updates)
+        return type(self)(**merged)
+
+    def to_yaml(self) -> str:
+        """The parameters as a YAML document (the format :meth:`from_file` reads)."""
+        data = self.model_dump()
+        data["scales"] = list(data["scales"])
+        return yaml.safe_dump(data, sort_keys=False)
+
+
+def _one_line(exc: ValidationError) -> str:
+    parts = []
+    for error in exc.errors():
+        where = ".".join(str(p) for p in error.get("loc", ())) or "parameters"
+        message = str(error.get("msg", "invalid")).removeprefix("Value error, ")
+        parts.append(f"{where}: {message}")
+    return "; ".join(parts)
