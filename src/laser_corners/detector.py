@@ -53,12 +53,30 @@ _NM = 8
 
 
 @nb.njit(cache=True)
-def _candidates(
+def _polar_to_xy(
     ranges: NDArray[np.float64],
     cos_a: NDArray[np.float64],
     sin_a: NDArray[np.float64],
     range_min: float,
     range_max: float,
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+) -> None:
+    """Polar -> Cartesian in beam order; gaps (NaN, inf, <= range_min, >= range_max) -> NaN."""
+    for i in range(ranges.shape[0]):
+        r = ranges[i]
+        if math.isfinite(r) and r > range_min and r < range_max:
+            x[i] = r * cos_a[i]
+            y[i] = r * sin_a[i]
+        else:
+            x[i] = math.nan
+            y[i] = math.nan
+
+
+@nb.njit(cache=True)
+def _candidates(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
     scales: NDArray[np.float64],
     min_points: int,
     min_angle_deg: float,
@@ -72,32 +90,26 @@ def _candidates(
 ) -> None:
     """Fill ``cand`` (N, _NC) with each point's candidate keypoint (n_scales 0: none).
 
+    ``x``, ``y`` are the scan points in beam order, NaN for gaps.
+
     When ``table`` has shape (N, K, 3) it also receives, per point and scale, the
     intersection x, y and 1.0/0.0 for pass/fail (NaN where no intersection was computed).
     """
-    n = ranges.shape[0]
+    n = x.shape[0]
     n_scales = scales.shape[0]
     want_table = table.shape[0] == n
-    # --- polar -> Cartesian, validity (gaps: NaN, inf, <= range_min, >= range_max)
+    # gaps are NaN points
     valid = np.empty(n, dtype=np.bool_)
-    x = np.empty(n)
-    y = np.empty(n)
     ox = 0.0
     oy = 0.0
     n_valid = 0
     for i in range(n):
-        r = ranges[i]
-        ok = math.isfinite(r) and r > range_min and r < range_max
+        ok = math.isfinite(x[i]) and math.isfinite(y[i])
         valid[i] = ok
         if ok:
-            x[i] = r * cos_a[i]
-            y[i] = r * sin_a[i]
             ox += x[i]
             oy += y[i]
             n_valid += 1
-        else:
-            x[i] = math.nan
-            y[i] = math.nan
     # work relative to the centroid of the scan: smaller prefix sums, less cancellation
     if n_valid > 0:
         ox /= n_valid
@@ -422,9 +434,12 @@ def _detect_batch(
     n_scans, n = ranges.shape
     no_table = np.empty((0, 0, 3))
     for s in nb.prange(n_scans):
+        x = np.empty(n)
+        y = np.empty(n)
+        _polar_to_xy(ranges[s], cos_a, sin_a, range_min, range_max, x, y)
         cand = np.empty((n, _NC))
         _candidates(
-            ranges[s], cos_a, sin_a, range_min, range_max, scales, min_points,
+            x, y, scales, min_points,
             min_angle_deg, max_angle_deg, max_fit_rmse, max_point_distance,
             max_centroid_distance, min_consecutive, cand, no_table,
         )  # fmt: skip
@@ -452,7 +467,9 @@ def _raw_rows(cand: NDArray[np.float64], out: NDArray[np.float64]) -> int:
     return m
 
 
-def _keypoints_from_rows(rows: NDArray[np.float64], scan: LaserScan) -> Keypoints:
+def _keypoints_from_rows(
+    rows: NDArray[np.float64], stamp: float | None, frame_id: str
+) -> Keypoints:
     return Keypoints(
         xy=rows[:, [_M_X, _M_Y]],
         beam_index=rows[:, _M_BEAM].astype(np.int64),
@@ -461,8 +478,8 @@ def _keypoints_from_rows(rows: NDArray[np.float64], scan: LaserScan) -> Keypoint
         n_scales=rows[:, _M_NSC].astype(np.int64),
         rmse=rows[:, _M_RMSE],
         n_merged=rows[:, _M_NMERGED].astype(np.int64),
-        stamp=scan.stamp,
-        frame_id=scan.frame_id,
+        stamp=stamp,
+        frame_id=frame_id,
     )
 
 
@@ -529,19 +546,43 @@ class CornerDetector:
             self._geometry = geometry
         return self._cos, self._sin
 
+    def _scan_xy(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        if not isinstance(scan, LaserScan):
+            raise InvalidScanError(f"expected a LaserScan, got {type(scan).__name__}")
+        cos_a, sin_a = self._trig(scan)
+        x = np.empty(scan.n_beams)
+        y = np.empty(scan.n_beams)
+        _polar_to_xy(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max, x, y)
+        return x, y
+
     def _run_candidates(
-        self, scan: LaserScan, table: NDArray[np.float64]
+        self, x: NDArray[np.float64], y: NDArray[np.float64], table: NDArray[np.float64]
     ) -> NDArray[np.float64]:
         p = self.params
-        cos_a, sin_a = self._trig(scan)
-        cand = np.empty((scan.n_beams, _NC))
+        cand = np.empty((x.shape[0], _NC))
         _candidates(
-            scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max, self._scales,
-            p.min_points, p.min_angle_deg, p.max_angle_deg, p.max_fit_rmse,
-            p.max_point_distance, p.max_centroid_distance, p.min_consecutive_scales,
-            cand, table,
+            x, y, self._scales, p.min_points, p.min_angle_deg, p.max_angle_deg,
+            p.max_fit_rmse, p.max_point_distance, p.max_centroid_distance,
+            p.min_consecutive_scales, cand, table,
         )  # fmt: skip
         return cand
+
+    def _finish(
+        self, cand: NDArray[np.float64], stamp: float | None, frame_id: str, with_raw: bool
+    ) -> Keypoints | tuple[Keypoints, Keypoints]:
+        n = cand.shape[0]
+        rows = np.empty((n, _NM))
+        n_out = (
+            _merge(cand, self.params.merge_radius, rows)
+            if self.params.merge_radius > 0.0
+            else _raw_rows(cand, rows)
+        )
+        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id)
+        if not with_raw:
+            return keypoints
+        raw = np.empty((n, _NM))
+        n_raw = _raw_rows(cand, raw)
+        return keypoints, _keypoints_from_rows(raw[:n_raw], stamp, frame_id)
 
     # ----------------------------------------------------------------- public API
     @overload
@@ -574,26 +615,39 @@ class CornerDetector:
             Only with ``return_candidates``: every scan point that passed, with its own
             keypoint (``n_merged`` is 1).
         """
-        if not isinstance(scan, LaserScan):
-            raise InvalidScanError(f"detect() expects a LaserScan, got {type(scan).__name__}")
-        cand = self._run_candidates(scan, np.empty((0, 0, 3)))
-        rows = np.empty((scan.n_beams, _NM))
-        n_out = (
-            _merge(cand, self.params.merge_radius, rows)
-            if self.params.merge_radius > 0.0
-            else _raw_rows(cand, rows)
-        )
-        keypoints = _keypoints_from_rows(rows[:n_out], scan)
-        if not return_candidates:
-            return keypoints
-        raw = np.empty((scan.n_beams, _NM))
-        n_raw = _raw_rows(cand, raw)
-        return keypoints, _keypoints_from_rows(raw[:n_raw], scan)
+        x, y = self._scan_xy(scan)
+        cand = self._run_candidates(x, y, np.empty((0, 0, 3)))
+        return self._finish(cand, scan.stamp, scan.frame_id, return_candidates)
+
+    def detect_points(
+        self, xy: NDArray[np.float64], return_candidates: bool = False
+    ) -> Keypoints | tuple[Keypoints, Keypoints]:
+        """Detect keypoints in Cartesian points given in angular (beam) order.
+
+        Parameters
+        ----------
+        xy : ndarray, shape (N, 2)
+            Scan points in beam order; rows with a NaN are gaps.
+        return_candidates : bool
+            As in :meth:`detect`.
+        """
+        pts = np.asarray(xy, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2:
+            raise InvalidScanError(f"points must have shape (N, 2), got {pts.shape}")
+        x = np.ascontiguousarray(pts[:, 0])
+        y = np.ascontiguousarray(pts[:, 1])
+        # a point with a NaN or inf in either coordinate is a gap
+        bad = ~(np.isfinite(x) & np.isfinite(y))
+        x[bad] = np.nan
+        y[bad] = np.nan
+        cand = self._run_candidates(x, y, np.empty((0, 0, 3)))
+        return self._finish(cand, None, "", return_candidates)
 
     def scale_table(self, scan: LaserScan) -> ScaleTable:
         """Per-point, per-scale intersections and pass flags (for analysis and figures)."""
         table = np.empty((scan.n_beams, self._scales.shape[0], 3))
-        self._run_candidates(scan, table)
+        x, y = self._scan_xy(scan)
+        self._run_candidates(x, y, table)
         return ScaleTable(table, self._scales.copy())
 
     def detect_many(self, scans: Sequence[LaserScan] | Iterable[LaserScan]) -> list[Keypoints]:
@@ -603,6 +657,9 @@ class CornerDetector:
         ``range_min`` and ``range_max``; use :meth:`detect` otherwise.
         """
         scans = list(scans)
+        for i, scan in enumerate(scans):
+            if not isinstance(scan, LaserScan):
+                raise InvalidScanError(f"detect_many: item {i} is a {type(scan).__name__}")
         if not scans:
             return []
         first = scans[0]
@@ -627,5 +684,6 @@ class CornerDetector:
             p.merge_radius, merged, counts,
         )  # fmt: skip
         return [
-            _keypoints_from_rows(merged[s, : counts[s]], scan) for s, scan in enumerate(scans)
+            _keypoints_from_rows(merged[s, : counts[s]], scan.stamp, scan.frame_id)
+            for s, scan in enumerate(scans)
         ]

@@ -1,0 +1,99 @@
+"""The numba kernel against the plain-Python reference implementation (same keypoints)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import reference_detector as ref
+
+from laser_corners import CornerDetector, DetectorParams, LaserScan
+from laser_corners.sim import UST_10LX, SensorProfile, World, corner_scan, rectangular_room
+
+TOL = 1e-9
+
+COARSE = SensorProfile("coarse", 180.0, 0.5, 0.05, 30.0, 10.0, 0.01)
+
+
+def random_world(rng: np.random.Generator) -> World:
+    """A room with random size and a few random rectangular/triangular obstacles."""
+    w, d = rng.uniform(3, 9), rng.uniform(3, 9)
+    world = World().add_polygon([[-w / 2, -d / 2], [w / 2, -d / 2], [w / 2, d / 2], [-w / 2, d / 2]])
+    for _ in range(rng.integers(1, 4)):
+        cx, cy = rng.uniform(-w / 3, w / 3), rng.uniform(-d / 3, d / 3)
+        if abs(cx) < 0.5 and abs(cy) < 0.5:
+            continue
+        n = int(rng.integers(3, 6))
+        angles = np.sort(rng.uniform(0, 2 * np.pi, n))
+        radius = rng.uniform(0.2, 0.6)
+        world.add_polygon(np.c_[cx + radius * np.cos(angles), cy + radius * np.sin(angles)])
+    return world
+
+
+def assert_same(scan: LaserScan, params: DetectorParams) -> int:
+    det = CornerDetector(params)
+    keypoints, raw = det.detect(scan, return_candidates=True)
+    expected_raw = ref.candidates(scan, params)
+    assert raw.beam_index.tolist() == sorted(expected_raw)
+    for i, j in enumerate(raw.beam_index):
+        e = expected_raw[int(j)]
+        assert np.allclose(raw.xy[i], e["xy"], atol=TOL, rtol=0)
+        assert raw.n_scales[i] == e["n_scales"]
+        assert raw.rmse[i] == pytest.approx(e["rmse"], abs=1e-9)
+        assert raw.opening_angle_deg[i] == pytest.approx(e["opening"], abs=1e-6)
+        assert math.cos(raw.orientation[i] - e["orientation"]) > 1 - 1e-9
+    expected = ref.merge(expected_raw, params.merge_radius)
+    assert len(keypoints) == len(expected)
+    for i, e in enumerate(expected):
+        assert np.allclose(keypoints.xy[i], e["xy"], atol=TOL, rtol=0)
+        assert keypoints.beam_index[i] == e["beam"]
+        assert keypoints.n_merged[i] == e["n_merged"]
+        assert keypoints.rmse[i] == pytest.approx(e["rmse"], abs=1e-9)
+    return len(raw)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kernel_matches_reference_on_simulated_scans(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    world = random_world(rng)
+    sensor = UST_10LX if seed % 2 == 0 else COARSE
+    pose = (rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4), rng.uniform(-np.pi, np.pi))
+    noise = [0.0, 0.002, 0.005, 0.01, 0.02, 0.03][seed]
+    scan = world.scan(pose, sensor, noise_sigma=noise, rng=rng)
+    params = DetectorParams() if sensor is UST_10LX else DetectorParams(
+        scales=(0.1, 0.15, 0.2, 0.25, 0.3, 0.4), max_point_distance=0.08)  # fmt: skip
+    assert_same(scan, params)
+
+
+def test_kernel_matches_reference_with_many_candidates() -> None:
+    """A scan with several corners, gaps and noise: many candidates are compared."""
+    scan = rectangular_room().scan((0.3, -0.2, 0.1), UST_10LX, 0.003, np.random.default_rng(1))
+    ranges = scan.ranges.copy()
+    ranges[100:104] = np.nan
+    ranges[500] = np.inf
+    ranges[700] = 0.0
+    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                      scan.range_max)  # fmt: skip
+    assert assert_same(gappy, DetectorParams()) >= 5
+
+
+def test_kernel_matches_reference_on_random_ranges() -> None:
+    """Random ranges (a piecewise-smooth random walk with gaps) under loose thresholds."""
+    rng = np.random.default_rng(42)
+    for _ in range(3):
+        ranges = 2.0 + np.cumsum(rng.normal(0, 0.01, 400))
+        ranges[rng.random(400) < 0.02] = np.nan
+        scan = LaserScan(ranges, -1.5, 0.0075, 0.05, 20.0)
+        params = DetectorParams(max_fit_rmse=0.05, min_angle_deg=20, max_angle_deg=160,
+                                max_point_distance=0.1, max_centroid_distance=0.05)  # fmt: skip
+        assert_same(scan, params)
+
+
+def test_kernel_matches_reference_without_merging() -> None:
+    scan = corner_scan(noise_sigma=0.004, rng=np.random.default_rng(3))
+    params = DetectorParams(merge_radius=0.0)
+    kps = CornerDetector(params).detect(scan)
+    expected = ref.candidates(scan, params)
+    assert kps.beam_index.tolist() == sorted(expected)
+    assert (kps.n_merged == 1).all()
