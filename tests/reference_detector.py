@@ -171,8 +171,9 @@ def merge(cands: dict[int, dict], radius: float) -> list[dict]:
     beams = sorted(cands)
     clusters: list[list[int]] = []
     for b in beams:
-        linked = [c for c in clusters
-                  if any(math.dist(cands[b]["xy"], cands[o]["xy"]) <= radius for o in c)]  # fmt: skip
+        linked = [
+            c for c in clusters if any(math.dist(cands[b]["xy"], cands[o]["xy"]) <= radius for o in c)
+        ]
         merged = [b]
         for c in linked:
             merged.extend(c)

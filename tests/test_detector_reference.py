@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-import reference_detector as ref
 
+import reference_detector as ref
 from laser_corners import CornerDetector, DetectorParams, LaserScan
 from laser_corners.sim import UST_10LX, SensorProfile, World, corner_scan, rectangular_room
 
@@ -19,7 +19,8 @@ COARSE = SensorProfile("coarse", 180.0, 0.5, 0.05, 30.0, 10.0, 0.01)
 def random_world(rng: np.random.Generator) -> World:
     """A room with random size and a few random rectangular/triangular obstacles."""
     w, d = rng.uniform(3, 9), rng.uniform(3, 9)
-    world = World().add_polygon([[-w / 2, -d / 2], [w / 2, -d / 2], [w / 2, d / 2], [-w / 2, d / 2]])
+    room = [[-w / 2, -d / 2], [w / 2, -d / 2], [w / 2, d / 2], [-w / 2, d / 2]]
+    world = World().add_polygon(room)
     for _ in range(rng.integers(1, 4)):
         cx, cy = rng.uniform(-w / 3, w / 3), rng.uniform(-d / 3, d / 3)
         if abs(cx) < 0.5 and abs(cy) < 0.5:

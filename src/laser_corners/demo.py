@@ -10,7 +10,6 @@ from numpy.typing import NDArray
 from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.params import DetectorParams
-from laser_corners.scan import LaserScan
 from laser_corners.sim import UST_10LX, World
 
 __all__ = ["demo_world", "run_demo"]
@@ -56,9 +55,9 @@ def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005)
     false = _unmatched(keypoints, truth)
     print(f"\nfound {len(truth) - missed}/{len(truth)} visible corners, {false} false keypoints")
     if output is not None:
-        from laser_corners.viz.plots import plot_scan
-
         import matplotlib
+
+        from laser_corners.viz.plots import plot_scan
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt

@@ -22,8 +22,11 @@ Decisions the paper leaves open (see ``docs/method.md``):
   worse and intersect off the corner, so averaging them would bias the keypoint.
 
 The hot loop is one numba kernel (``cache=True``). The arrival/departure sums of x, y, x², y²
-and xy come from prefix sums, so each fit is O(1) and a scan costs O(N·K) fits; neighbourhood
-bounds are found by walking outwards from p_j once for all scales.
+and xy come from prefix sums, so each fit is O(1) and a scan costs O(N·K) fits. Neighbourhood
+bounds are found by walking outwards from p_j once for all scales; the walk jumps over the
+points that the arc length along the scan (a prefix sum of point spacings, followed with one
+monotone pointer per scale) already places within R_k, so on smooth surfaces it checks O(1)
+points per scale instead of every point of the neighbourhood.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
-from laser_corners.linefit import intersect, line_direction, select_from_sums
+from laser_corners.linefit import Y_ON_X, intersect, line_direction, select_from_sums
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan
 
@@ -114,27 +117,44 @@ def _candidates(
     if n_valid > 0:
         ox /= n_valid
         oy /= n_valid
-    # --- prefix sums of x, y, x², y², xy (gaps contribute nothing)
-    psx = np.zeros(n + 1)
-    psy = np.zeros(n + 1)
-    psxx = np.zeros(n + 1)
-    psyy = np.zeros(n + 1)
-    psxy = np.zeros(n + 1)
+    # --- prefix sums of x, y, x², y², xy (gaps contribute nothing); one row per index keeps
+    # the five sums of a neighbourhood end in one cache line
+    ps = np.zeros((n + 1, 5))
     for i in range(n):
         if valid[i]:
             xi = x[i] - ox
             yi = y[i] - oy
-            psx[i + 1] = psx[i] + xi
-            psy[i + 1] = psy[i] + yi
-            psxx[i + 1] = psxx[i] + xi * xi
-            psyy[i + 1] = psyy[i] + yi * yi
-            psxy[i + 1] = psxy[i] + xi * yi
+            ps[i + 1, 0] = ps[i, 0] + xi
+            ps[i + 1, 1] = ps[i, 1] + yi
+            ps[i + 1, 2] = ps[i, 2] + xi * xi
+            ps[i + 1, 3] = ps[i, 3] + yi * yi
+            ps[i + 1, 4] = ps[i, 4] + xi * yi
         else:
-            psx[i + 1] = psx[i]
-            psy[i + 1] = psy[i]
-            psxx[i + 1] = psxx[i]
-            psyy[i + 1] = psyy[i]
-            psxy[i + 1] = psxy[i]
+            for c in range(5):
+                ps[i + 1, c] = ps[i, c]
+
+    # --- arc length along runs of valid points, and each point's run bounds. The chord from
+    # p_i to p_j never exceeds the arc length between them, so every point whose arc distance
+    # to p_j is at most R_k lies within R_k: the neighbourhood walk can jump over them.
+    arc = np.zeros(n)
+    run_first = np.empty(n, dtype=np.int64)
+    run_last = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        if valid[i] and i > 0 and valid[i - 1]:
+            arc[i] = arc[i - 1] + math.sqrt((x[i] - x[i - 1]) ** 2 + (y[i] - y[i - 1]) ** 2)
+            run_first[i] = run_first[i - 1]
+        else:
+            arc[i] = arc[i - 1] if i > 0 else 0.0
+            run_first[i] = i
+    for i in range(n - 1, -1, -1):
+        if valid[i] and i < n - 1 and valid[i + 1]:
+            run_last[i] = run_last[i + 1]
+        else:
+            run_last[i] = i
+    # shrink the radii a little for the arc test so rounding can never admit a farther point
+    arc_r = scales * (1.0 - 1e-12)
+    arc_lo = np.zeros(n_scales, dtype=np.int64)  # first i with arc[j] - arc[i] <= R_k
+    arc_hi = np.zeros(n_scales, dtype=np.int64)  # last i with arc[i] - arc[j] <= R_k
 
     r2 = scales * scales
     max_mse = max_fit_rmse * max_fit_rmse
@@ -143,6 +163,7 @@ def _candidates(
     max_abs_cos = max(
         abs(math.cos(math.radians(min_angle_deg))), abs(math.cos(math.radians(max_angle_deg)))
     )
+    max_cos2 = max_abs_cos * max_abs_cos * (1.0 + 1e-12)  # margin: never stricter than exact
     max_pd2 = max_point_distance * max_point_distance
     max_cd2 = max_centroid_distance * max_centroid_distance
     start = np.empty(n_scales, dtype=np.int64)  # first index of the arrival neighbourhood
@@ -166,34 +187,32 @@ def _candidates(
             continue
         xj = x[j]
         yj = y[j]
-        # --- arrival bounds for all scales in one walk towards smaller indices
-        k = 0
+        # --- neighbourhood bounds for all scales: one walk outwards per side, jumping over
+        # the points the arc-length bound already places within R_k
+        first = run_first[j]
+        last = run_last[j]
         i = j - 1
-        while k < n_scales:
-            if i < 0 or not valid[i]:
-                while k < n_scales:
-                    start[k] = i + 1
-                    k += 1
-                break
-            d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2
-            while k < n_scales and d2 > r2[k]:
-                start[k] = i + 1
-                k += 1
-            i -= 1
-        # --- departure bounds, towards larger indices
-        k = 0
+        for k in range(n_scales):
+            while arc[j] - arc[arc_lo[k]] > arc_r[k]:
+                arc_lo[k] += 1
+            g = max(arc_lo[k], first)
+            if g - 1 < i:
+                i = g - 1
+            while i >= first and (x[i] - xj) ** 2 + (y[i] - yj) ** 2 <= r2[k]:
+                i -= 1
+            start[k] = i + 1
         i = j + 1
-        while k < n_scales:
-            if i >= n or not valid[i]:
-                while k < n_scales:
-                    stop[k] = i - 1
-                    k += 1
-                break
-            d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2
-            while k < n_scales and d2 > r2[k]:
-                stop[k] = i - 1
-                k += 1
-            i += 1
+        for k in range(n_scales):
+            if arc_hi[k] < j:
+                arc_hi[k] = j
+            while arc_hi[k] + 1 < n and arc[arc_hi[k] + 1] - arc[j] <= arc_r[k]:
+                arc_hi[k] += 1
+            g = min(arc_hi[k], last)
+            if g + 1 > i:
+                i = g + 1
+            while i <= last and (x[i] - xj) ** 2 + (y[i] - yj) ** 2 <= r2[k]:
+                i += 1
+            stop[k] = i - 1
 
         # --- per-scale test
         for k in range(n_scales):
@@ -227,11 +246,11 @@ def _candidates(
             # arrival neighbourhood [s, j], departure [j, e]: sums from prefix sums
             ma, a0, a1, mse_a = select_from_sums(
                 float(na),
-                psx[j + 1] - psx[s],
-                psy[j + 1] - psy[s],
-                psxx[j + 1] - psxx[s],
-                psyy[j + 1] - psyy[s],
-                psxy[j + 1] - psxy[s],
+                ps[j + 1, 0] - ps[s, 0],
+                ps[j + 1, 1] - ps[s, 1],
+                ps[j + 1, 2] - ps[s, 2],
+                ps[j + 1, 3] - ps[s, 3],
+                ps[j + 1, 4] - ps[s, 4],
             )
             if want_table:
                 table[j, k, 0] = math.nan
@@ -241,17 +260,19 @@ def _candidates(
                 continue
             md, d0, d1, mse_d = select_from_sums(
                 float(nd),
-                psx[e + 1] - psx[j],
-                psy[e + 1] - psy[j],
-                psxx[e + 1] - psxx[j],
-                psyy[e + 1] - psyy[j],
-                psxy[e + 1] - psxy[j],
+                ps[e + 1, 0] - ps[j, 0],
+                ps[e + 1, 1] - ps[j, 1],
+                ps[e + 1, 2] - ps[j, 2],
+                ps[e + 1, 3] - ps[j, 3],
+                ps[e + 1, 4] - ps[j, 4],
             )
             if mse_d > max_mse:
                 continue
-            ua_x, ua_y = line_direction(ma, a1)
-            ud_x, ud_y = line_direction(md, d1)
-            if abs(ua_x * ud_x + ua_y * ud_y) > max_abs_cos:
+            # unnormalised directions: (1, slope) for y|x, (slope, 1) for x|y
+            va_x, va_y = (1.0, a1) if ma == Y_ON_X else (a1, 1.0)
+            vd_x, vd_y = (1.0, d1) if md == Y_ON_X else (d1, 1.0)
+            dot = va_x * vd_x + va_y * vd_y
+            if dot * dot > max_cos2 * (va_x * va_x + va_y * va_y) * (vd_x * vd_x + vd_y * vd_y):
                 continue
             ix, iy, ok = intersect(ma, a0, a1, md, d0, d1)  # eqs. 10-13
             if not ok:
@@ -267,6 +288,8 @@ def _candidates(
                 continue
             # opening angle between the lines, each directed from the corner towards the far
             # end of its neighbourhood
+            ua_x, ua_y = line_direction(ma, a1)
+            ud_x, ud_y = line_direction(md, d1)
             if ua_x * (x[s] - ix) + ua_y * (y[s] - iy) < 0.0:
                 ua_x = -ua_x
                 ua_y = -ua_y

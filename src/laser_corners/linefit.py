@@ -31,9 +31,9 @@ __all__ = [
     "fit_line",
     "fit_x_on_y",
     "fit_y_on_x",
-    "select_from_sums",
     "intersect",
     "line_direction",
+    "select_from_sums",
 ]
 
 INVALID = -1

@@ -7,11 +7,12 @@ folder records.
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Iterable, Mapping
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
+import tomllib
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -81,7 +82,7 @@ class DetectorParams(BaseModel):
             raise ValueError("scales must not be empty")
         if any(not (s > 0.0) or s == float("inf") for s in scales):
             raise ValueError(f"scales must be positive and finite, got {list(scales)}")
-        if any(b <= a for a, b in zip(scales, scales[1:], strict=False)):
+        if any(b <= a for a, b in pairwise(scales)):
             raise ValueError(f"scales must be strictly increasing, got {list(scales)}")
         return tuple(float(s) for s in scales)
 

@@ -42,7 +42,7 @@ class SensorProfile:
     @property
     def n_beams(self) -> int:
         """Number of beams (both ends of the field of view included)."""
-        return int(round(self.fov_deg / self.resolution_deg)) + 1
+        return round(self.fov_deg / self.resolution_deg) + 1
 
     @property
     def angle_min(self) -> float:

@@ -125,13 +125,16 @@ def corner_scan(
     noise_sigma: float = 0.0,
     rng: np.random.Generator | None = None,
 ) -> LaserScan:
-    """A scan of one clean right-angle (concave) corner at ``corner`` seen from the origin.
+    """A scan of one clean right-angle concave corner at ``corner`` seen from the origin.
 
-    The two walls run from the corner along -x and -y over 1.5 m each.
+    The two walls run 1.5 m from the corner, parallel to the axes, towards the sensor's side
+    (so the sensor looks into the corner).
     """
     cx, cy = corner
+    sx = -1.0 if cx >= 0 else 1.0
+    sy = -1.0 if cy >= 0 else 1.0
     world = World()
-    world.add_polygon([[cx - 1.5, cy], [cx, cy], [cx, cy - 1.5]])
+    world.add_polygon([[cx + 1.5 * sx, cy], [cx, cy], [cx, cy + 1.5 * sy]])
     # an open polyline: drop the closing segment back to the first vertex
     segments = world.segments[:2]
     ranges = cast_ranges(segments, (0.0, 0.0, 0.0), sensor.angles)
