@@ -171,9 +171,8 @@ def merge(cands: dict[int, dict], radius: float) -> list[dict]:
     beams = sorted(cands)
     clusters: list[list[int]] = []
     for b in beams:
-        linked = [
-            c for c in clusters if any(math.dist(cands[b]["xy"], cands[o]["xy"]) <= radius for o in c)
-        ]
+        here = cands[b]["xy"]
+        linked = [c for c in clusters if any(math.dist(here, cands[o]["xy"]) <= radius for o in c)]
         merged = [b]
         for c in linked:
             merged.extend(c)
