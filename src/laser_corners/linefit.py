@@ -84,7 +84,9 @@ def select_from_sums(
 
     With the centred moments Sxx = Σ(x-x̄)², Syy = Σ(y-ȳ)², Sxy = Σ(x-x̄)(y-ȳ) and
     D = Sxx·Syy - Sxy², the residual sums of eqs. 8-9 are D/Sxx (y|x) and D/Syy (x|y), so
-    the lower-RMSE model is y|x exactly when Sxx >= Syy (ties: y|x, the paper's first model).
+    the lower-RMSE model is y|x exactly when Sxx > Syy, and x|y when Sxx < Syy. When D = 0
+    (collinear points) both RMSEs are zero and the models describe the same line; then, and
+    when Sxx = Syy, the model of the larger-or-equal spread is kept (y|x on equality).
     The detector compares the returned RMSE² with the squared threshold (no square root).
     """
     inv_n = 1.0 / n
@@ -224,9 +226,11 @@ def fit_line(points: ArrayLike) -> LineFit:
 
     Examples
     --------
-    >>> fit = fit_line([[0.0, 1.0], [1.0, 3.0], [2.0, 5.0]])
-    >>> round(fit.slope, 6), round(fit.intercept, 6), fit.model == Y_ON_X
-    (2.0, 1.0, True)
+    >>> fit = fit_line([[0.0, 1.0], [1.0, 1.5], [2.0, 2.0], [3.0, 2.6]])
+    >>> fit.model == Y_ON_X, round(fit.slope, 2), round(fit.intercept, 2)
+    (True, 0.53, 0.98)
+    >>> fit_line([[1.0, 0.0], [1.1, 1.0], [0.9, 2.0]]).model == X_ON_Y
+    True
     """
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:

@@ -1,0 +1,24 @@
+"""The examples in the core's docstrings run and print what they claim."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+
+import pytest
+
+MODULES = [
+    "laser_corners",
+    "laser_corners.scan",
+    "laser_corners.params",
+    "laser_corners.linefit",
+    "laser_corners.detector",
+    "laser_corners.keypoints",
+]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name: str) -> None:
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.failed == 0
