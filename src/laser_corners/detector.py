@@ -23,10 +23,8 @@ Decisions the paper leaves open (see ``docs/method.md``):
 
 The hot loop is one numba kernel (``cache=True``). The arrival/departure sums of x, y, x², y²
 and xy come from prefix sums, so each fit is O(1) and a scan costs O(N·K) fits. Neighbourhood
-bounds are found by walking outwards from p_j once for all scales; the walk jumps over the
-points that the arc length along the scan (a prefix sum of point spacings, followed with one
-monotone pointer per scale) already places within R_k, so on smooth surfaces it checks O(1)
-points per scale instead of every point of the neighbourhood.
+bounds are found by walking outwards from p_j once for all scales (the run for R_k contains
+the run for R_{k-1}).
 """
 
 from __future__ import annotations
@@ -55,7 +53,7 @@ _M_X, _M_Y, _M_BEAM, _M_OPEN, _M_ORIENT, _M_NSC, _M_RMSE, _M_NMERGED = range(8)
 _NM = 8
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _polar_to_xy(
     ranges: NDArray[np.float64],
     cos_a: NDArray[np.float64],
@@ -76,7 +74,7 @@ def _polar_to_xy(
             y[i] = math.nan
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _candidates(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -133,29 +131,6 @@ def _candidates(
             for c in range(5):
                 ps[i + 1, c] = ps[i, c]
 
-    # --- arc length along runs of valid points, and each point's run bounds. The chord from
-    # p_i to p_j never exceeds the arc length between them, so every point whose arc distance
-    # to p_j is at most R_k lies within R_k: the neighbourhood walk can jump over them.
-    arc = np.zeros(n)
-    run_first = np.empty(n, dtype=np.int64)
-    run_last = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        if valid[i] and i > 0 and valid[i - 1]:
-            arc[i] = arc[i - 1] + math.sqrt((x[i] - x[i - 1]) ** 2 + (y[i] - y[i - 1]) ** 2)
-            run_first[i] = run_first[i - 1]
-        else:
-            arc[i] = arc[i - 1] if i > 0 else 0.0
-            run_first[i] = i
-    for i in range(n - 1, -1, -1):
-        if valid[i] and i < n - 1 and valid[i + 1]:
-            run_last[i] = run_last[i + 1]
-        else:
-            run_last[i] = i
-    # shrink the radii a little for the arc test so rounding can never admit a farther point
-    arc_r = scales * (1.0 - 1e-12)
-    arc_lo = np.zeros(n_scales, dtype=np.int64)  # first i with arc[j] - arc[i] <= R_k
-    arc_hi = np.zeros(n_scales, dtype=np.int64)  # last i with arc[i] - arc[j] <= R_k
-
     r2 = scales * scales
     max_mse = max_fit_rmse * max_fit_rmse
     # necessary condition on the undirected lines, checked before intersecting them:
@@ -164,87 +139,59 @@ def _candidates(
         abs(math.cos(math.radians(min_angle_deg))), abs(math.cos(math.radians(max_angle_deg)))
     )
     max_cos2 = max_abs_cos * max_abs_cos * (1.0 + 1e-12)  # margin: never stricter than exact
+    cos_min_angle = math.cos(math.radians(min_angle_deg))
+    cos_max_angle = math.cos(math.radians(max_angle_deg))
     max_pd2 = max_point_distance * max_point_distance
     max_cd2 = max_centroid_distance * max_centroid_distance
-    start = np.empty(n_scales, dtype=np.int64)  # first index of the arrival neighbourhood
-    stop = np.empty(n_scales, dtype=np.int64)  # last index of the departure neighbourhood
-    passed = np.zeros(n_scales, dtype=np.bool_)
-    qx = np.empty(n_scales)
-    qy = np.empty(n_scales)
-    worst = np.empty(n_scales)
-    opening = np.empty(n_scales)
-    bis_x = np.empty(n_scales)
-    bis_y = np.empty(n_scales)
-
+    # --- 1. neighbourhood bounds of every point and scale. One walk outwards per side serves
+    # all scales: it records the running maximum of the squared distance to p_j (a gap counts
+    # as infinitely far) until that exceeds the largest R_k; the run for R_k is then the
+    # number of leading steps whose running maximum is <= R_k², counted without branches.
+    start = np.empty((n_scales, n), dtype=np.int64)  # first index of the arrival neighbourhood
+    stop = np.empty((n_scales, n), dtype=np.int64)  # last index of the departure neighbourhood
+    r2_max = r2[n_scales - 1]
+    running_max = np.empty(n)
     for j in range(n):
-        cand[j, _C_NSC] = 0.0
         if not valid[j]:
-            if want_table:
-                for k in range(n_scales):
-                    table[j, k, 0] = math.nan
-                    table[j, k, 1] = math.nan
-                    table[j, k, 2] = 0.0
+            for k in range(n_scales):
+                start[k, j] = j
+                stop[k, j] = j
             continue
         xj = x[j]
         yj = y[j]
-        # --- neighbourhood bounds for all scales: one walk outwards per side, jumping over
-        # the points the arc-length bound already places within R_k
-        first = run_first[j]
-        last = run_last[j]
-        i = j - 1
-        for k in range(n_scales):
-            while arc[j] - arc[arc_lo[k]] > arc_r[k]:
-                arc_lo[k] += 1
-            g = max(arc_lo[k], first)
-            if g - 1 < i:
-                i = g - 1
-            while i >= first and (x[i] - xj) ** 2 + (y[i] - yj) ** 2 <= r2[k]:
-                i -= 1
-            start[k] = i + 1
-        i = j + 1
-        for k in range(n_scales):
-            if arc_hi[k] < j:
-                arc_hi[k] = j
-            while arc_hi[k] + 1 < n and arc[arc_hi[k] + 1] - arc[j] <= arc_r[k]:
-                arc_hi[k] += 1
-            g = min(arc_hi[k], last)
-            if g + 1 > i:
-                i = g + 1
-            while i <= last and (x[i] - xj) ** 2 + (y[i] - yj) ** 2 <= r2[k]:
-                i += 1
-            stop[k] = i - 1
+        for side in range(2):
+            step = -1 if side == 0 else 1
+            i = j + step
+            m = 0.0
+            steps = 0
+            while 0 <= i < n:
+                d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2 if valid[i] else math.inf
+                m = max(m, d2)
+                if m > r2_max:
+                    break
+                running_max[steps] = m
+                steps += 1
+                i += step
+            for k in range(n_scales):
+                within = 0
+                for q in range(steps):
+                    within += running_max[q] <= r2[k]
+                if side == 0:
+                    start[k, j] = j - within
+                else:
+                    stop[k, j] = j + within
 
-        # --- per-scale test
-        for k in range(n_scales):
-            s = start[k]
-            e = stop[k]
-            if k > 0 and s == start[k - 1] and e == stop[k - 1]:
-                # same neighbourhoods as the previous scale: same fits, same verdict
-                passed[k] = passed[k - 1]
-                qx[k] = qx[k - 1]
-                qy[k] = qy[k - 1]
-                worst[k] = worst[k - 1]
-                opening[k] = opening[k - 1]
-                bis_x[k] = bis_x[k - 1]
-                bis_y[k] = bis_y[k - 1]
-                if want_table:
-                    table[j, k, 0] = table[j, k - 1, 0]
-                    table[j, k, 1] = table[j, k - 1, 1]
-                    table[j, k, 2] = table[j, k - 1, 2]
-                continue
-            passed[k] = False
-            qx[k] = math.nan
-            qy[k] = math.nan
+    # --- 2. branch-free screen of every (scale, point): both fits from prefix sums (O(1)),
+    # the RMSE tests (eqs. 8-9) and a necessary condition on the angle between the undirected
+    # lines. Most points lie on straight walls and stop here.
+    screened = np.empty((n_scales, n), dtype=np.bool_)
+    for k in range(n_scales):
+        for j in range(n):
+            s = start[k, j]
+            e = stop[k, j]
             na = j - s + 1
             nd = e - j + 1
-            if na < min_points or nd < min_points:
-                if want_table:
-                    table[j, k, 0] = math.nan
-                    table[j, k, 1] = math.nan
-                    table[j, k, 2] = 0.0
-                continue
-            # arrival neighbourhood [s, j], departure [j, e]: sums from prefix sums
-            ma, a0, a1, mse_a = select_from_sums(
+            ma, _, a1, mse_a = select_from_sums(
                 float(na),
                 ps[j + 1, 0] - ps[s, 0],
                 ps[j + 1, 1] - ps[s, 1],
@@ -252,13 +199,7 @@ def _candidates(
                 ps[j + 1, 3] - ps[s, 3],
                 ps[j + 1, 4] - ps[s, 4],
             )
-            if want_table:
-                table[j, k, 0] = math.nan
-                table[j, k, 1] = math.nan
-                table[j, k, 2] = 0.0
-            if mse_a > max_mse:  # eqs. 8-9 against the RMSE threshold
-                continue
-            md, d0, d1, mse_d = select_from_sums(
+            md, _, d1, mse_d = select_from_sums(
                 float(nd),
                 ps[e + 1, 0] - ps[j, 0],
                 ps[e + 1, 1] - ps[j, 1],
@@ -266,14 +207,64 @@ def _candidates(
                 ps[e + 1, 3] - ps[j, 3],
                 ps[e + 1, 4] - ps[j, 4],
             )
-            if mse_d > max_mse:
-                continue
             # unnormalised directions: (1, slope) for y|x, (slope, 1) for x|y
-            va_x, va_y = (1.0, a1) if ma == Y_ON_X else (a1, 1.0)
-            vd_x, vd_y = (1.0, d1) if md == Y_ON_X else (d1, 1.0)
+            va_x = 1.0 if ma == Y_ON_X else a1
+            va_y = a1 if ma == Y_ON_X else 1.0
+            vd_x = 1.0 if md == Y_ON_X else d1
+            vd_y = d1 if md == Y_ON_X else 1.0
             dot = va_x * vd_x + va_y * vd_y
-            if dot * dot > max_cos2 * (va_x * va_x + va_y * va_y) * (vd_x * vd_x + vd_y * vd_y):
+            screened[k, j] = (
+                (na >= min_points)
+                & (nd >= min_points)
+                & (mse_a <= max_mse)
+                & (mse_d <= max_mse)
+                & (
+                    dot * dot
+                    <= max_cos2 * (va_x * va_x + va_y * va_y) * (vd_x * vd_x + vd_y * vd_y)
+                )
+            )
+
+    # --- 3. the full test of the screened scales, then the runs of passing scales per point
+    passed = np.zeros(n_scales, dtype=np.bool_)
+    qx = np.empty(n_scales)
+    qy = np.empty(n_scales)
+    worst = np.empty(n_scales)
+    opening = np.empty(n_scales)
+    bis_x = np.empty(n_scales)
+    bis_y = np.empty(n_scales)
+    for j in range(n):
+        cand[j, _C_NSC] = 0.0
+        xj = x[j]
+        yj = y[j]
+        for k in range(n_scales):
+            passed[k] = False
+            qx[k] = math.nan
+            qy[k] = math.nan
+            if want_table:
+                table[j, k, 0] = math.nan
+                table[j, k, 1] = math.nan
+                table[j, k, 2] = 0.0
+            if not screened[k, j]:
                 continue
+            s = start[k, j]
+            e = stop[k, j]
+            # arrival neighbourhood [s, j], departure [j, e]: sums from prefix sums
+            ma, a0, a1, mse_a = select_from_sums(
+                float(j - s + 1),
+                ps[j + 1, 0] - ps[s, 0],
+                ps[j + 1, 1] - ps[s, 1],
+                ps[j + 1, 2] - ps[s, 2],
+                ps[j + 1, 3] - ps[s, 3],
+                ps[j + 1, 4] - ps[s, 4],
+            )
+            md, d0, d1, mse_d = select_from_sums(
+                float(e - j + 1),
+                ps[e + 1, 0] - ps[j, 0],
+                ps[e + 1, 1] - ps[j, 1],
+                ps[e + 1, 2] - ps[j, 2],
+                ps[e + 1, 3] - ps[j, 3],
+                ps[e + 1, 4] - ps[j, 4],
+            )
             ix, iy, ok = intersect(ma, a0, a1, md, d0, d1)  # eqs. 10-13
             if not ok:
                 continue
@@ -298,12 +289,13 @@ def _candidates(
                 ud_y = -ud_y
             cos_open = ua_x * ud_x + ua_y * ud_y
             cos_open = min(1.0, max(-1.0, cos_open))
-            angle = math.degrees(math.acos(cos_open))
-            if angle < min_angle_deg or angle > max_angle_deg:
+            # opening angle in [min, max] <=> cos in [cos max, cos min] (cos decreases on
+            # [0, 180]); the angle itself only for the scales that pass
+            if cos_open > cos_min_angle or cos_open < cos_max_angle:
                 continue
             passed[k] = True
             worst[k] = math.sqrt(max(mse_a, mse_d))
-            opening[k] = angle
+            opening[k] = math.degrees(math.acos(cos_open))
             bx = ua_x + ud_x
             by = ua_y + ud_y
             norm = math.sqrt(bx * bx + by * by)
@@ -365,7 +357,7 @@ def _candidates(
         cand[j, _C_ORIENT] = math.atan2(sby, sbx)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.float64]) -> int:
     """Merge per-point candidates by single linkage within ``merge_radius``.
 
@@ -434,7 +426,7 @@ def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.fl
     return n_out
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, parallel=True, error_model="numpy")
 def _detect_batch(
     ranges: NDArray[np.float64],
     cos_a: NDArray[np.float64],
@@ -472,7 +464,7 @@ def _detect_batch(
             counts[s] = _raw_rows(cand, merged[s])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _raw_rows(cand: NDArray[np.float64], out: NDArray[np.float64]) -> int:
     """Copy every per-point candidate into ``out`` as an unmerged keypoint row."""
     m = 0

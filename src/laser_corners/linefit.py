@@ -44,7 +44,7 @@ X_ON_Y = 1
 """Model code of x = α0 + α1·y (eqs. 5-7)."""
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, error_model="numpy")
 def fit_y_on_x(
     n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
 ) -> tuple[float, float, float]:
@@ -67,7 +67,7 @@ def fit_y_on_x(
     return beta0, beta1, math.sqrt(sse / n)
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, error_model="numpy")
 def fit_x_on_y(
     n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
 ) -> tuple[float, float, float]:
@@ -76,7 +76,7 @@ def fit_x_on_y(
     return alpha0, alpha1, rmse
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, error_model="numpy")
 def select_from_sums(
     n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
 ) -> tuple[int, float, float, float]:
@@ -93,21 +93,24 @@ def select_from_sums(
     dxx = sxx - sx * sx * inv_n
     dyy = syy - sy * sy * inv_n
     dxy = sxy - sx * sy * inv_n
-    det = dxx * dyy - dxy * dxy
-    if det < 0.0:  # rounding on (nearly) collinear points
-        det = 0.0
-    if dxx >= dyy:
-        if not dxx > 0.0:
-            return INVALID, math.nan, math.nan, math.inf  # all points coincide
-        beta1 = dxy / dxx  # eq. 3
-        beta0 = (sy - beta1 * sx) * inv_n  # eq. 4
-        return Y_ON_X, beta0, beta1, det / dxx * inv_n  # eq. 8 squared
-    alpha1 = dxy / dyy  # eq. 6
-    alpha0 = (sx - alpha1 * sy) * inv_n  # eq. 7
-    return X_ON_Y, alpha0, alpha1, det / dyy * inv_n  # eq. 9 squared
+    det = max(dxx * dyy - dxy * dxy, 0.0)  # >= 0; rounding on collinear points
+    # written with selects, not branches, so the detector's loop over points stays branch-free
+    y_on_x = dxx >= dyy
+    spread = dxx if y_on_x else dyy
+    slope = dxy / spread  # eq. 3 (y|x) or eq. 6 (x|y)
+    intercept = ((sy - slope * sx) if y_on_x else (sx - slope * sy)) * inv_n  # eq. 4 / eq. 7
+    mse = det / spread * inv_n  # eq. 8 / eq. 9, squared
+    model = Y_ON_X if y_on_x else X_ON_Y
+    degenerate = not spread > 0.0  # all points coincide (or fewer than two)
+    return (
+        INVALID if degenerate else model,
+        math.nan if degenerate else intercept,
+        math.nan if degenerate else slope,
+        math.inf if degenerate else mse,
+    )
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, error_model="numpy")
 def fit_from_sums(
     n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
 ) -> tuple[int, float, float, float]:
@@ -126,7 +129,7 @@ def fit_from_sums(
     return model, c0, c1, math.sqrt(mse)
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, error_model="numpy")
 def intersect(
     model_a: int, a0: float, a1: float, model_b: int, b0: float, b1: float
 ) -> tuple[float, float, bool]:
@@ -165,7 +168,7 @@ def intersect(
     return a0 + a1 * y, y, True
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, error_model="numpy")
 def line_direction(model: int, c1: float) -> tuple[float, float]:
     """Unit direction vector of a fitted line (sign arbitrary)."""
     if model == Y_ON_X:
