@@ -5,11 +5,11 @@ Usage::
     .venv/bin/python benchmarks/bench_detector.py [--repeats 5] [--sim-scans 400]
 
 Simulated scans: Hokuyo UST-10LX (1081 beams, 270 deg, 0.25 deg) from random poses in the demo
-world (an L-shaped room with a pillar), range noise sigma 0.01 m. Real scans: the first scans of
-the 180/360/768-beam bags in ../shared/data/real (read once, not timed). Timings use the paper
-preset, one scan per ``detect`` call pinned to one core; ``detect_many`` runs the whole set as
-one batch (numba threads over scans). JIT start-up (compile, or load from numba's cache) is
-measured on the first call and reported separately.
+world (an L-shaped room with a pillar), range noise sigma 0, 0.01 and 0.03 m. Real scans: the
+first scans of the 180/360/768-beam bags in ../shared/data/real (read once, not timed).
+Timings use the paper preset, one scan per ``detect`` call pinned to one core; ``detect_many``
+runs the whole set as one batch (numba threads over scans). JIT start-up (compile, or load
+from numba's cache) is measured on the first call and reported separately.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 REAL_SETS = [("fr079.bag", "/scan"), ("intel.bag", "/scan"), ("hokuyo270_rooms.bag", "/left_scan")]
 
 
-def simulated_scans(n: int, seed: int = 0) -> list[LaserScan]:
+def simulated_scans(n: int, seed: int = 0, noise_sigma: float = 0.01) -> list[LaserScan]:
     rng = np.random.default_rng(seed)
     world = demo_world()
     scans = []
@@ -40,7 +40,8 @@ def simulated_scans(n: int, seed: int = 0) -> list[LaserScan]:
         pose = (rng.uniform(-2.5, 3.5), rng.uniform(-2.0, 2.5), rng.uniform(-np.pi, np.pi))
         if 1.0 < pose[0] < 4.0 and 1.0 < pose[1] < 3.0:  # outside the L
             continue
-        scans.append(world.scan(pose, UST_10LX, noise_sigma=0.01, rng=rng, stamp=len(scans)))
+        scan = world.scan(pose, UST_10LX, noise_sigma=noise_sigma, rng=rng, stamp=len(scans))
+        scans.append(scan)
     return scans
 
 
@@ -88,7 +89,8 @@ def main() -> int:
 
     detector = CornerDetector(DetectorParams())
     sets: list[tuple[str, list[LaserScan] | str]] = [
-        ("simulated UST-10LX", simulated_scans(args.sim_scans))
+        (f"simulated UST-10LX, noise {sigma} m", simulated_scans(args.sim_scans, noise_sigma=sigma))
+        for sigma in (0.0, 0.01, 0.03)
     ]
     for name, topic in REAL_SETS:
         sets.append((f"{name} {topic}", real_scans(name, topic, args.real_scans)))
