@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
-from laser_corners.linefit import Y_ON_X, intersect, line_direction, select_from_sums
+from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan
 
@@ -138,7 +138,7 @@ def _candidates(
     max_abs_cos = max(
         abs(math.cos(math.radians(min_angle_deg))), abs(math.cos(math.radians(max_angle_deg)))
     )
-    max_cos2 = max_abs_cos * max_abs_cos * (1.0 + 1e-12)  # margin: never stricter than exact
+    max_cos2 = max_abs_cos * max_abs_cos * (1.0 + 1e-9)  # margin: never stricter than exact
     cos_min_angle = math.cos(math.radians(min_angle_deg))
     cos_max_angle = math.cos(math.radians(max_angle_deg))
     max_pd2 = max_point_distance * max_point_distance
@@ -181,9 +181,17 @@ def _candidates(
                 else:
                     stop[k, j] = j + within
 
-    # --- 2. branch-free screen of every (scale, point): both fits from prefix sums (O(1)),
-    # the RMSE tests (eqs. 8-9) and a necessary condition on the angle between the undirected
-    # lines. Most points lie on straight walls and stop here.
+    # --- 2. branch-free screen of every (scale, point), without divisions: the centred
+    # moments of both neighbourhoods from the prefix sums (O(1)), the RMSE tests of eqs. 8-9
+    # as D <= max_rmse² · n · spread (D = Sxx·Syy - Sxy², spread = the kept model's Sxx or
+    # Syy), and a necessary condition on the angle between the undirected lines, whose
+    # directions are (Sxx, Sxy) for y|x and (Sxy, Syy) for x|y. Most points lie on straight
+    # walls and stop here. The screen is a little permissive; phase 3 applies the exact tests.
+    inv_count = np.empty(n + 1)
+    inv_count[0] = 0.0
+    for c in range(1, n + 1):
+        inv_count[c] = 1.0 / c
+    loose_mse = max_mse * (1.0 + 1e-9)
     screened = np.empty((n_scales, n), dtype=np.bool_)
     for k in range(n_scales):
         for j in range(n):
@@ -191,33 +199,36 @@ def _candidates(
             e = stop[k, j]
             na = j - s + 1
             nd = e - j + 1
-            ma, _, a1, mse_a = select_from_sums(
-                float(na),
+            axx, ayy, axy = centred_moments(
+                inv_count[na],
                 ps[j + 1, 0] - ps[s, 0],
                 ps[j + 1, 1] - ps[s, 1],
                 ps[j + 1, 2] - ps[s, 2],
                 ps[j + 1, 3] - ps[s, 3],
                 ps[j + 1, 4] - ps[s, 4],
             )
-            md, _, d1, mse_d = select_from_sums(
-                float(nd),
+            dxx, dyy, dxy = centred_moments(
+                inv_count[nd],
                 ps[e + 1, 0] - ps[j, 0],
                 ps[e + 1, 1] - ps[j, 1],
                 ps[e + 1, 2] - ps[j, 2],
                 ps[e + 1, 3] - ps[j, 3],
                 ps[e + 1, 4] - ps[j, 4],
             )
-            # unnormalised directions: (1, slope) for y|x, (slope, 1) for x|y
-            va_x = 1.0 if ma == Y_ON_X else a1
-            va_y = a1 if ma == Y_ON_X else 1.0
-            vd_x = 1.0 if md == Y_ON_X else d1
-            vd_y = d1 if md == Y_ON_X else 1.0
+            a_yx = axx >= ayy
+            d_yx = dxx >= dyy
+            a_spread = axx if a_yx else ayy
+            d_spread = dxx if d_yx else dyy
+            va_x = axx if a_yx else axy
+            va_y = axy if a_yx else ayy
+            vd_x = dxx if d_yx else dxy
+            vd_y = dxy if d_yx else dyy
             dot = va_x * vd_x + va_y * vd_y
             screened[k, j] = (
                 (na >= min_points)
                 & (nd >= min_points)
-                & (mse_a <= max_mse)
-                & (mse_d <= max_mse)
+                & (axx * ayy - axy * axy <= loose_mse * na * a_spread)
+                & (dxx * dyy - dxy * dxy <= loose_mse * nd * d_spread)
                 & (
                     dot * dot
                     <= max_cos2 * (va_x * va_x + va_y * va_y) * (vd_x * vd_x + vd_y * vd_y)
@@ -265,6 +276,8 @@ def _candidates(
                 ps[e + 1, 3] - ps[j, 3],
                 ps[e + 1, 4] - ps[j, 4],
             )
+            if mse_a > max_mse or mse_d > max_mse:  # eqs. 8-9, exact
+                continue
             ix, iy, ok = intersect(ma, a0, a1, md, d0, d1)  # eqs. 10-13
             if not ok:
                 continue

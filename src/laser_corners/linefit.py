@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike
 __all__ = [
     "INVALID",
     "X_ON_Y",
+    "centred_moments",
     "Y_ON_X",
     "LineFit",
     "fit_from_sums",
@@ -77,6 +78,17 @@ def fit_x_on_y(
 
 
 @nb.njit(cache=True, error_model="numpy")
+def centred_moments(
+    inv_n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
+) -> tuple[float, float, float]:
+    """Centred second moments Σ(x-x̄)², Σ(y-ȳ)², Σ(x-x̄)(y-ȳ) from raw sums (``inv_n`` = 1/n).
+
+    They are n times the denominators and numerators of eqs. 3 and 6.
+    """
+    return sxx - sx * sx * inv_n, syy - sy * sy * inv_n, sxy - sx * sy * inv_n
+
+
+@nb.njit(cache=True, error_model="numpy")
 def select_from_sums(
     n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
 ) -> tuple[int, float, float, float]:
@@ -90,9 +102,7 @@ def select_from_sums(
     The detector compares the returned RMSE² with the squared threshold (no square root).
     """
     inv_n = 1.0 / n
-    dxx = sxx - sx * sx * inv_n
-    dyy = syy - sy * sy * inv_n
-    dxy = sxy - sx * sy * inv_n
+    dxx, dyy, dxy = centred_moments(inv_n, sx, sy, sxx, syy, sxy)
     det = max(dxx * dyy - dxy * dxy, 0.0)  # >= 0; rounding on collinear points
     # written with selects, not branches, so the detector's loop over points stays branch-free
     y_on_x = dxx >= dyy
