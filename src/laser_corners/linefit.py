@@ -25,9 +25,9 @@ from numpy.typing import ArrayLike
 __all__ = [
     "INVALID",
     "X_ON_Y",
-    "centred_moments",
     "Y_ON_X",
     "LineFit",
+    "centred_moments",
     "fit_from_sums",
     "fit_line",
     "fit_x_on_y",
