@@ -4,7 +4,13 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint bench clean ros1-deps
+
+# Debian's ROS 1 (bookworm: ros-core 1.16, rospy 1.15) for tests/test_ros1_node.py. Installed
+# with apt-get only when something is missing, as root (or passwordless sudo); without apt-get
+# or root the ROS 1 tests skip and say why. See docs/ros.md.
+ROS1_DEBS := ros-core python3-rospy python3-rosbag python3-sensor-msgs python3-geometry-msgs \
+	python3-visualization-msgs
 
 $(VENV)/.base: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,7 +24,21 @@ $(VENV)/.test: $(VENV)/.base
 demo: $(VENV)/.base
 	$(VENV)/bin/laser-corners demo --output demo.png
 
-test: $(VENV)/.test
+ros1-deps:
+	@missing=""; for deb in $(ROS1_DEBS); do \
+	  dpkg-query -W -f='$${Status}' $$deb 2>/dev/null | grep -q 'ok installed' || missing="$$missing $$deb"; \
+	done; \
+	if [ -z "$$missing" ]; then exit 0; fi; \
+	if ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "ros1-deps: no apt-get here; ROS 1 tests will skip (missing:$$missing)"; exit 0; fi; \
+	if [ "$$(id -u)" = 0 ]; then sudo=""; \
+	elif sudo -n true 2>/dev/null; then sudo="sudo -n"; \
+	else echo "ros1-deps: not root; ROS 1 tests will skip (missing:$$missing)"; exit 0; fi; \
+	echo "ros1-deps: apt-get install$$missing"; \
+	$$sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
+	$$sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing
+
+test: $(VENV)/.test ros1-deps
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m pytest -rs
 

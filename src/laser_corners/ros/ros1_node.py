@@ -1,0 +1,196 @@
+"""ROS 1 node (rospy): ``scan`` (sensor_msgs/LaserScan) -> ``corners`` and ``corner_markers``.
+
+Topics
+------
+``scan`` (subscribed, ``sensor_msgs/LaserScan``)
+    The laser scans.
+``corners`` (published, ``geometry_msgs/PoseArray``)
+    One message per scan, with the scan's header; one pose per keypoint, its orientation
+    the keypoint's bisector direction.
+``corner_markers`` (published, ``visualization_msgs/MarkerArray``)
+    Keypoints and bisector arrows for rviz; built only while someone subscribes.
+
+Parameters (private, ``~name``)
+-------------------------------
+``preset`` and every :class:`~laser_corners.DetectorParams` field, plus the node options of
+:data:`~laser_corners.ros.node_core.NODE_OPTIONS`. They are validated at start; an invalid
+value stops the node with a one-line error.
+
+Run it with ``laser-corners ros1`` (remappings and ``_param:=value`` arguments are passed to
+rospy) or with the launch file ``laser_corners/ros/launch/laser_corners.launch``.
+
+rospy is not on PyPI. When it is not importable, :func:`import_rospy` adds Debian's
+``/usr/lib/python3/dist-packages`` (where ``apt-get install python3-rospy`` puts it) at the end
+of ``sys.path``, so a virtualenv's own packages (numpy, numba) keep precedence.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from laser_corners.errors import InvalidParamsError, LaserCornersError
+from laser_corners.io.messages import keypoints_to_marker_fields
+from laser_corners.ros.convert import fill_marker_array, fill_pose_array
+from laser_corners.ros.node_core import CornerNodeCore, NodeConfig
+
+__all__ = ["DEBIAN_DIST_PACKAGES", "CornerNode", "import_rospy", "main"]
+
+DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
+"""Where Debian's ``python3-rospy`` and the message packages install."""
+
+ROS1_INSTALL_HINT = (
+    "ROS 1 (rospy) is not importable: on Debian/Ubuntu run `sudo apt-get install ros-core "
+    "python3-rospy python3-sensor-msgs python3-geometry-msgs python3-visualization-msgs`, "
+    "or `source /opt/ros/noetic/setup.bash` for a ROS distribution install"
+)
+
+
+def import_rospy() -> ModuleType:
+    """Import rospy, falling back to Debian's dist-packages appended to ``sys.path``.
+
+    Raises
+    ------
+    LaserCornersError
+        With the install hint, when rospy or the message packages are not found.
+    """
+    try:
+        import rospy  # type: ignore[import-not-found]
+    except ImportError:
+        dist = str(DEBIAN_DIST_PACKAGES)
+        if not (DEBIAN_DIST_PACKAGES / "rospy").is_dir():
+            raise LaserCornersError(ROS1_INSTALL_HINT) from None
+        if dist not in sys.path:
+            sys.path.append(dist)  # appended: the environment's own packages win
+        try:
+            import rospy  # type: ignore[import-not-found]
+        except ImportError as exc:
+            raise LaserCornersError(f"{ROS1_INSTALL_HINT} ({exc})") from None
+    try:
+        import geometry_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+        import sensor_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+        import visualization_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+    except ImportError as exc:
+        raise LaserCornersError(f"{ROS1_INSTALL_HINT} ({exc})") from None
+    return rospy
+
+
+class CornerNode:
+    """The ROS 1 adapter: subscriptions, publications and logging around :class:`CornerNodeCore`.
+
+    Parameters
+    ----------
+    config : NodeConfig
+        Validated parameters.
+    rospy : module
+        The imported rospy (``rospy.init_node`` already called).
+    """
+
+    def __init__(self, config: NodeConfig, rospy: ModuleType) -> None:
+        from geometry_msgs.msg import Point, Pose, PoseArray
+        from sensor_msgs.msg import LaserScan as LaserScanMsg
+        from visualization_msgs.msg import Marker, MarkerArray
+
+        self._rospy = rospy
+        self._msg = {"Point": Point, "Pose": Pose, "PoseArray": PoseArray, "Marker": Marker,
+                     "MarkerArray": MarkerArray}  # fmt: skip
+        self.core = CornerNodeCore(config)
+        self.n_scans = 0
+        self.n_skipped = 0
+        queue_size = int(config.options["queue_size"])
+        self.corners_pub = rospy.Publisher("corners", PoseArray, queue_size=queue_size)
+        self.markers_pub = rospy.Publisher("corner_markers", MarkerArray, queue_size=queue_size)
+        self.scan_sub = rospy.Subscriber(
+            "scan", LaserScanMsg, self.on_scan, queue_size=queue_size, buff_size=2**20
+        )
+        rospy.loginfo(
+            "laser_corners: %s -> %s, %s (preset %s, overrides %s)",
+            self.scan_sub.resolved_name, self.corners_pub.resolved_name,
+            self.markers_pub.resolved_name, config.preset, config.overrides or "none",
+        )  # fmt: skip
+
+    def on_scan(self, msg: Any) -> None:
+        """Detect and publish; a malformed message is logged and skipped."""
+        rospy = self._rospy
+        try:
+            keypoints, seconds = self.core.process(msg)
+        except InvalidParamsError as exc:
+            self.n_skipped += 1
+            rospy.logerr_throttle(5.0, "laser_corners: parameters invalid for this scan: %s", exc)
+            return
+        except LaserCornersError as exc:
+            self.n_skipped += 1
+            rospy.logwarn_throttle(5.0, "laser_corners: skipped a malformed scan: %s", exc)
+            return
+        except Exception:  # a bug: keep the node alive, show the traceback
+            self.n_skipped += 1
+            rospy.logerr("laser_corners: scan processing failed", exc_info=True)
+            return
+        self.n_scans += 1
+        out = fill_pose_array(self._msg["PoseArray"](), self._msg["Pose"], keypoints)
+        out.header = msg.header
+        self.corners_pub.publish(out)
+        if self.markers_pub.get_num_connections() > 0:
+            options = self.core.config.options
+            markers = keypoints_to_marker_fields(
+                keypoints, ns=options["marker_ns"], lifetime=options["marker_lifetime"]
+            )
+            self.markers_pub.publish(
+                fill_marker_array(
+                    self._msg["MarkerArray"](), self._msg["Marker"], self._msg["Point"],
+                    rospy.Duration.from_sec, msg.header, markers,
+                )
+            )  # fmt: skip
+        rospy.logdebug(
+            "laser_corners: scan %.6f: %d keypoints, %.3f ms",
+            keypoints.stamp, len(keypoints), seconds * 1e3,
+        )  # fmt: skip
+
+
+def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
+         debug: bool = False) -> None:  # fmt: skip
+    """Run the ROS 1 node until shutdown.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        ROS arguments (remappings ``scan:=/base_scan``, private parameters
+        ``_min_points:=6``, ``__name:=...``); ``sys.argv`` when omitted.
+    node_name : str
+        Node name (overridden by ``__name:=``).
+    debug : bool
+        Log at debug level (per-scan latency).
+
+    Raises
+    ------
+    InvalidParamsError
+        When a parameter is invalid (logged as fatal too).
+    LaserCornersError
+        When rospy is not installed.
+    """
+    rospy = import_rospy()
+    args = list(sys.argv if argv is None else ["laser_corners_node", *argv])
+    rospy.init_node(
+        node_name, argv=args, log_level=rospy.DEBUG if debug else rospy.INFO,
+        disable_signals=False,
+    )  # fmt: skip
+    try:
+        config = NodeConfig.from_mapping(rospy.get_param("~", {}))
+    except InvalidParamsError as exc:
+        rospy.logfatal("laser_corners: %s", exc)
+        rospy.signal_shutdown("invalid parameters")
+        raise
+    node = CornerNode(config, rospy)
+    rospy.spin()
+    rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
+
+
+if __name__ == "__main__":  # pragma: no cover - `python -m laser_corners.ros.ros1_node`
+    try:
+        main()
+    except LaserCornersError as exc:
+        print(f"laser-corners: error: {exc}", file=sys.stderr)
+        sys.exit(2)

@@ -1,0 +1,396 @@
+"""ROS-free parts of the ROS nodes: message conversions, node parameters, per-scan core.
+
+Messages are plain ``SimpleNamespace`` objects with the ROS fields (ROS 1 ``secs/nsecs`` and
+ROS 2 ``sec/nanosec`` stamps); where Debian's ROS 1 message classes are importable, the filled
+messages are also serialized and read back with genpy to check the field types.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import math
+import os
+import stat
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from laser_corners import CornerDetector, DetectorParams, LaserScan
+from laser_corners.cli import app
+from laser_corners.errors import InvalidParamsError, InvalidScanError, LaserCornersError
+from laser_corners.io.messages import keypoints_to_marker_fields
+from laser_corners.keypoints import Keypoints
+from laser_corners.presets import PRESETS
+from laser_corners.ros.convert import (
+    fill_marker_array,
+    fill_pose_array,
+    scan_from_msg,
+    seconds_to_sec_nanosec,
+    stamp_to_sec,
+)
+from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
+from laser_corners.sim import corner_scan
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+ROS_DIR = REPO_ROOT / "src" / "laser_corners" / "ros"
+
+
+# ------------------------------------------------------------------ fake ROS messages
+def _vec(*names: str) -> SimpleNamespace:
+    return SimpleNamespace(**dict.fromkeys(names, 0.0))
+
+
+def _pose() -> SimpleNamespace:
+    return SimpleNamespace(position=_vec("x", "y", "z"), orientation=_vec("x", "y", "z", "w"))
+
+
+def _marker() -> SimpleNamespace:
+    return SimpleNamespace(
+        header=None,
+        ns="",
+        id=0,
+        type=0,
+        action=0,
+        pose=_pose(),
+        scale=_vec("x", "y", "z"),
+        color=_vec("r", "g", "b", "a"),
+        points=[],
+        lifetime=None,
+    )
+
+
+def scan_msg(scan: LaserScan, ros2: bool = False, angle_max: float | None = None) -> Any:
+    """A sensor_msgs/LaserScan-like object with the fields of ``scan``."""
+    stamp = scan.stamp or 0.0
+    sec, nsec = int(stamp), round((stamp - int(stamp)) * 1e9)
+    header_stamp = (
+        SimpleNamespace(sec=sec, nanosec=nsec) if ros2 else SimpleNamespace(secs=sec, nsecs=nsec)
+    )
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=header_stamp, frame_id=scan.frame_id),
+        angle_min=scan.angle_min,
+        angle_max=angle_max if angle_max is not None else float(scan.angles[-1]),
+        angle_increment=scan.angle_increment,
+        time_increment=0.0,
+        scan_time=0.0,
+        range_min=scan.range_min,
+        range_max=scan.range_max,
+        ranges=[float(r) for r in scan.ranges],
+        intensities=[],
+    )
+
+
+@pytest.fixture(scope="module")
+def sim_scan() -> LaserScan:
+    base = corner_scan()
+    return LaserScan(
+        base.ranges,
+        base.angle_min,
+        base.angle_increment,
+        base.range_min,
+        base.range_max,
+        stamp=1234.5,
+        frame_id="laser",
+    )
+
+
+# ------------------------------------------------------------------ message -> scan
+@pytest.mark.parametrize("ros2", [False, True])
+def test_scan_from_msg_copies_fields_and_ignores_angle_max(sim_scan: LaserScan, ros2: bool) -> None:
+    msg = scan_msg(sim_scan, ros2=ros2, angle_max=99.0)  # a wrong angle_max must not matter
+    scan = scan_from_msg(msg)
+    assert scan.n_beams == sim_scan.n_beams
+    np.testing.assert_array_equal(scan.ranges, sim_scan.ranges)
+    np.testing.assert_allclose(scan.angles, sim_scan.angles, rtol=0, atol=1e-12)
+    assert scan.stamp == pytest.approx(1234.5, abs=1e-9)
+    assert scan.frame_id == "laser"
+
+
+def test_scan_from_msg_rejects_malformed_messages(sim_scan: LaserScan) -> None:
+    bad_increment = scan_msg(sim_scan)
+    bad_increment.angle_increment = 0.0
+    with pytest.raises(InvalidScanError, match="angle_increment"):
+        scan_from_msg(bad_increment)
+    no_ranges = scan_msg(sim_scan)
+    del no_ranges.ranges
+    with pytest.raises(InvalidScanError, match="ranges"):
+        scan_from_msg(no_ranges)
+    text_ranges = scan_msg(sim_scan)
+    text_ranges.ranges = ["a", "b"]
+    with pytest.raises(InvalidScanError, match="ranges"):
+        scan_from_msg(text_ranges)
+    with pytest.raises(InvalidScanError, match="stamp"):
+        stamp_to_sec(object())
+
+
+def test_stamp_to_sec_variants() -> None:
+    assert stamp_to_sec(SimpleNamespace(secs=3, nsecs=500_000_000)) == pytest.approx(3.5)
+    assert stamp_to_sec(SimpleNamespace(sec=3, nanosec=250_000_000)) == pytest.approx(3.25)
+    assert stamp_to_sec(SimpleNamespace(to_sec=lambda: 7.0)) == 7.0
+    assert stamp_to_sec(2) == 2.0
+
+
+@given(st.floats(min_value=0.0, max_value=1e6, allow_nan=False))
+def test_seconds_to_sec_nanosec_splits_exactly(seconds: float) -> None:
+    sec, nanosec = seconds_to_sec_nanosec(seconds)
+    assert 0 <= nanosec < 1_000_000_000
+    assert abs(sec + nanosec * 1e-9 - seconds) <= 1e-9 * max(1.0, seconds)
+
+
+# ------------------------------------------------------------------ keypoints -> messages
+def _keypoints() -> Keypoints:
+    xy = np.array([[1.0, 2.0], [-0.5, 3.25], [4.0, -1.0]])
+    orientation = np.array([0.3, -2.5, math.pi])
+    m = len(xy)
+    return Keypoints(
+        xy,
+        np.arange(m),
+        np.full(m, 90.0),
+        orientation,
+        np.full(m, 3),
+        np.full(m, 0.001),
+        np.ones(m, dtype=np.int64),
+        stamp=5.0,
+        frame_id="laser",
+    )
+
+
+def test_fill_pose_array_positions_and_yaw() -> None:
+    kps = _keypoints()
+    msg = fill_pose_array(SimpleNamespace(header=None, poses=None), _pose, kps)
+    assert len(msg.poses) == len(kps)
+    for pose, (x, y), theta in zip(msg.poses, kps.xy, kps.orientation, strict=True):
+        assert (pose.position.x, pose.position.y, pose.position.z) == (x, y, 0.0)
+        q = pose.orientation
+        assert q.x == 0.0 and q.y == 0.0
+        assert q.z**2 + q.w**2 == pytest.approx(1.0)
+        yaw = 2.0 * math.atan2(q.z, q.w)
+        assert math.cos(yaw - theta) == pytest.approx(1.0)
+    empty = fill_pose_array(SimpleNamespace(poses=None), _pose, Keypoints.empty())
+    assert empty.poses == []
+
+
+def test_fill_marker_array_copies_header_and_fields() -> None:
+    kps = _keypoints()
+    header = SimpleNamespace(stamp=SimpleNamespace(secs=5, nsecs=0), frame_id="laser")
+    fields = keypoints_to_marker_fields(kps, ns="test_ns", lifetime=0.5)
+    fields[-1]["points"] = [(1.0, 2.0, 0.0)]
+    out = fill_marker_array(
+        SimpleNamespace(markers=None),
+        _marker,
+        lambda: _vec("x", "y", "z"),
+        lambda s: ("duration", s),
+        header,
+        fields,
+    )
+    assert len(out.markers) == len(fields)
+    for marker, f in zip(out.markers, fields, strict=True):
+        assert marker.header is header
+        assert (marker.ns, marker.id, marker.type, marker.action) == (
+            f["ns"],
+            f["id"],
+            f["type"],
+            f["action"],
+        )
+        assert (marker.pose.position.x, marker.pose.position.y) == f["position"][:2]
+        assert (marker.color.r, marker.color.a) == (f["color"][0], f["color"][3])
+        assert marker.lifetime == ("duration", f["lifetime"])
+    assert [(p.x, p.y) for p in out.markers[-1].points] == [(1.0, 2.0)]
+    assert out.markers[0].points == []
+
+
+def test_filled_messages_serialize_with_ros1_classes() -> None:
+    """genpy type-checks every field when serializing: floats, ints, strings, durations."""
+    from laser_corners.ros.ros1_node import import_rospy
+
+    try:
+        rospy = import_rospy()
+    except LaserCornersError as exc:
+        pytest.skip(str(exc))
+    from geometry_msgs.msg import Point, Pose, PoseArray
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    kps = _keypoints()
+    poses = fill_pose_array(PoseArray(), Pose, kps)
+    poses.header.stamp = rospy.Time(5, 7)
+    poses.header.frame_id = "laser"
+    buf = io.BytesIO()
+    poses.serialize(buf)
+    back = PoseArray().deserialize(buf.getvalue())
+    got = np.array([[p.position.x, p.position.y] for p in back.poses])
+    np.testing.assert_array_equal(got, kps.xy)
+    assert back.header.frame_id == "laser" and back.header.stamp == rospy.Time(5, 7)
+
+    markers = fill_marker_array(
+        MarkerArray(),
+        Marker,
+        Point,
+        rospy.Duration.from_sec,
+        poses.header,
+        keypoints_to_marker_fields(kps, "c", 0.25),
+    )
+    buf = io.BytesIO()
+    markers.serialize(buf)
+    back_markers = MarkerArray().deserialize(buf.getvalue())
+    assert len(back_markers.markers) == len(markers.markers)
+    assert back_markers.markers[1].lifetime.to_sec() == pytest.approx(0.25)
+    assert all(m.header.frame_id == "laser" for m in back_markers.markers)
+
+
+# ------------------------------------------------------------------ node parameters
+def test_parameter_names_are_the_detector_vocabulary() -> None:
+    names = parameter_names()
+    assert names[0] == "preset"
+    assert set(DetectorParams.model_fields) <= set(names)
+    assert set(NODE_OPTIONS) <= set(names)
+
+
+def test_node_config_defaults_and_overrides() -> None:
+    assert NodeConfig.from_mapping({}).start_params() == DetectorParams()
+    config = NodeConfig.from_mapping(
+        {"preset": "paper", "min_points": 6, "scales": [0.1, 0.2, 0.3], "marker_lifetime": 1}
+    )
+    params = config.start_params()
+    assert params.min_points == 6 and params.scales == (0.1, 0.2, 0.3)
+    assert config.options["marker_lifetime"] == 1.0
+    assert config.options["queue_size"] == NODE_OPTIONS["queue_size"]
+
+
+@pytest.mark.parametrize(
+    ("values", "match"),
+    [
+        ({"min_pionts": 6}, "~min_pionts"),
+        ({"preset": "nope"}, "unknown preset 'nope'"),
+        ({"min_points": 1}, "min_points"),
+        ({"scales": [0.2, 0.1]}, "scales"),
+        ({"queue_size": 0}, "queue_size"),
+        ({"marker_lifetime": -1.0}, "marker_lifetime"),
+        ({"marker_ns": 3}, "marker_ns"),
+    ],
+)
+def test_node_config_rejects_invalid_values_in_one_line(values: dict[str, Any], match: str) -> None:
+    with pytest.raises(InvalidParamsError, match=match) as info:
+        NodeConfig.from_mapping(values)
+    assert "\n" not in str(info.value)
+
+
+def test_node_config_update_keeps_old_values_on_error() -> None:
+    config = NodeConfig.from_mapping({"min_points": 6, "marker_ns": "x"})
+    updated = config.updated({"max_fit_rmse": 0.01})
+    assert updated.start_params().min_points == 6
+    assert updated.start_params().max_fit_rmse == 0.01
+    assert updated.options["marker_ns"] == "x"
+    with pytest.raises(InvalidParamsError, match="min_points"):
+        config.updated({"min_points": 0})
+    assert config.start_params().min_points == 6
+
+
+# ------------------------------------------------------------------ per-scan core
+@pytest.mark.parametrize("ros2", [False, True])
+def test_core_matches_the_library(sim_scan: LaserScan, ros2: bool) -> None:
+    core = CornerNodeCore(NodeConfig.from_mapping({"min_points": 4}))
+    keypoints, seconds = core.process(scan_msg(sim_scan, ros2=ros2))
+    expected = CornerDetector(DetectorParams(min_points=4)).detect(sim_scan)
+    assert len(keypoints) == len(expected) >= 1
+    np.testing.assert_array_equal(keypoints.xy, expected.xy)
+    np.testing.assert_array_equal(keypoints.orientation, expected.orientation)
+    assert keypoints.stamp == pytest.approx(sim_scan.stamp) and keypoints.frame_id == "laser"
+    assert seconds > 0.0
+
+
+def test_core_resolves_scan_dependent_presets_per_geometry(
+    sim_scan: LaserScan, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def by_beams(scan: LaserScan | None) -> DetectorParams:
+        if scan is None:
+            raise InvalidParamsError("preset 'by_beams' needs a scan")
+        return DetectorParams(min_points=3 if scan.n_beams < 500 else 7)
+
+    monkeypatch.setitem(PRESETS, "by_beams", by_beams)
+    config = NodeConfig.from_mapping({"preset": "by_beams", "max_fit_rmse": 0.02})
+    assert config.needs_scan
+    core = CornerNodeCore(config)
+    assert sim_scan.n_beams >= 500
+    core.process(scan_msg(sim_scan))
+    assert core.detector.params.min_points == 7 and core.detector.params.max_fit_rmse == 0.02
+    coarse = LaserScan(
+        sim_scan.ranges[::4],
+        sim_scan.angle_min,
+        4 * sim_scan.angle_increment,
+        sim_scan.range_min,
+        sim_scan.range_max,
+        stamp=1.0,
+        frame_id="laser",
+    )
+    core.process(scan_msg(coarse))
+    assert core.detector.params.min_points == 3
+    # overrides of a scan-dependent preset are still checked at start
+    with pytest.raises(InvalidParamsError, match="max_fit_rmse"):
+        NodeConfig.from_mapping({"preset": "by_beams", "max_fit_rmse": -1.0})
+
+
+def test_core_raises_on_malformed_message(sim_scan: LaserScan) -> None:
+    core = CornerNodeCore(NodeConfig())
+    msg = scan_msg(sim_scan)
+    msg.angle_min = float("nan")
+    with pytest.raises(InvalidScanError):
+        core.process(msg)
+    keypoints, _ = core.process(scan_msg(sim_scan))  # still works afterwards
+    assert len(keypoints) >= 1
+
+
+# ------------------------------------------------------------------ ROS 2 adapter, packaging
+def test_ros2_parameter_values_skip_unset() -> None:
+    from laser_corners.ros.ros2_node import parameter_values
+
+    not_set = object()
+    params = [
+        SimpleNamespace(name="preset", type_="str", value="paper"),
+        SimpleNamespace(name="min_points", type_=not_set, value=None),
+        SimpleNamespace(name="scales", type_="arr", value=(0.1, 0.2, 0.3)),
+    ]
+    values = parameter_values(params, not_set)
+    assert values == {"preset": "paper", "scales": [0.1, 0.2, 0.3]}
+    assert NodeConfig.from_mapping(values).start_params().scales == (0.1, 0.2, 0.3)
+
+
+def test_ros2_main_without_rclpy_exits_with_hint(capsys: pytest.CaptureFixture[str]) -> None:
+    if importlib.util.find_spec("rclpy") is not None:
+        pytest.skip("rclpy is installed here; this checks the hint shown without it")
+    from laser_corners.ros.ros2_node import main
+
+    with pytest.raises(SystemExit) as info:
+        main([])
+    assert info.value.code == 2
+    assert "rclpy" in capsys.readouterr().err
+
+
+def test_ros2_package_points_at_the_node() -> None:
+    tree = ET.parse(REPO_ROOT / "ros2" / "package.xml")
+    assert tree.findtext("name") == "laser_corners_ros"
+    assert tree.findtext("export/build_type") == "ament_python"
+    setup = (REPO_ROOT / "ros2" / "setup.py").read_text()
+    assert "laser_corners_node = laser_corners.ros.ros2_node:main" in setup
+    assert (REPO_ROOT / "ros2" / "resource" / "laser_corners_ros").is_file()
+
+
+def test_ros1_launch_file_and_package_folder() -> None:
+    result = CliRunner().invoke(app, ["ros1", "--package-path"])
+    assert result.exit_code == 0, result.output
+    folder = Path(result.output.strip())
+    assert folder.resolve() == ROS_DIR.resolve()
+    assert ET.parse(folder / "package.xml").findtext("name") == "laser_corners"
+    launch = ET.parse(folder / "launch" / "laser_corners.launch").getroot()
+    (node,) = launch.iter("node")
+    assert node.get("pkg") == "laser_corners"
+    script = folder / "nodes" / node.get("type", "")
+    assert script.is_file()
+    assert os.stat(script).st_mode & stat.S_IXUSR, "roslaunch runs only executable nodes"
