@@ -48,6 +48,7 @@ lint: $(VENV)/.test
 
 bench: $(VENV)/.base
 	$(PY) benchmarks/bench_detector.py
+	$(PY) benchmarks/bench_batch.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache build *.egg-info src/*.egg-info

@@ -1,0 +1,146 @@
+"""Throughput of ``laser-corners batch`` over ../shared/data/real, and where the time goes.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_batch.py [--repeats 2] [--dask]
+
+Runs :func:`laser_corners.batch.run_batch` over every recording of the real-data folder (the
+ROS 1 bags, each LaserScan topic of the three-topic bag as its own job, and the CARMEN logs)
+into a fresh temporary folder, end to end: reading, detection (paper preset) and writing one
+Parquet file per job. Configurations:
+
+* 1 worker, 1 numba thread (jobs run in this process, scans one by one through ``detect``);
+* 1 worker, 2 numba threads (chunks of scans through the parallel ``detect_many``);
+* 2 workers (spawned process pool), 1 thread each;
+* with ``--dask``: a Dask LocalCluster of 2 worker processes (start-up included).
+
+Reported per configuration (best wall time of ``--repeats``): scans/s for the whole set and
+per worker; and per job the split of its time into read (reader: decompression, message
+decoding, poses, LaserScan construction), detect (numba kernel) and write (Parquet); the
+one-off loading of numba's cached kernels in each worker process is counted apart. The
+360-beam recordings (fr079.bag, fr079-corrected.clf.gz) are summarised separately, against
+the issue's target of 10,000 scans/s per worker. A warm-up job first loads numba's cache.
+The machine is shared: the load average is printed with the numbers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+from laser_corners.batch import BatchJob, BatchReport, JobResult, run_batch, run_job
+
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
+BEAMS_360 = ("fr079.bag", "fr079-corrected.clf.gz")
+TARGET_PER_WORKER = 10_000
+
+
+def recordings() -> list[Path]:
+    return sorted(p for p in REAL.iterdir() if p.suffix == ".bag" or p.name.endswith(".clf.gz"))
+
+
+def run(
+    inputs: list[Path], workers: int, threads: int, scheduler: str | None, repeats: int
+) -> BatchReport:
+    best: BatchReport | None = None
+    for _ in range(repeats):
+        with tempfile.TemporaryDirectory(prefix="bench-batch-") as outdir:
+            report = run_batch(
+                inputs, outdir, workers=workers, threads=threads, scheduler=scheduler
+            )
+        failed = report.failed
+        if failed:
+            raise SystemExit(f"jobs failed: {[(r.input, r.error) for r in failed]}")
+        if best is None or report.seconds < best.seconds:
+            best = report
+    assert best is not None
+    return best
+
+
+def split(results: list[JobResult]) -> tuple[int, float, float, float, float, float]:
+    scans = sum(r.scans for r in results)
+    return (
+        scans,
+        sum(r.seconds for r in results),
+        sum(r.read_seconds for r in results),
+        sum(r.detect_seconds for r in results),
+        sum(r.write_seconds for r in results),
+        sum(r.startup_seconds for r in results),
+    )
+
+
+def rate(scans: int, seconds: float) -> str:
+    return f"{scans / seconds:,.0f}" if seconds > 0 else "-"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--dask", action="store_true", help="Also time a Dask LocalCluster.")
+    args = parser.parse_args()
+    if not REAL.is_dir():
+        print(f"skipped: real data folder not found: {REAL.resolve()}")
+        return
+    inputs = recordings()
+    print(f"# batch throughput over {REAL.resolve()}\n")
+    machine = platform.processor() or platform.machine()
+    load = os.getloadavg()[0]
+    print(f"{machine}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+          f"load average before: {load:.2f}\n")  # fmt: skip
+    with tempfile.TemporaryDirectory() as warm:  # numba cache load / compile, not timed
+        run_job(BatchJob(str(REAL / "fr079-corrected.clf.gz"), None, "w.parquet"), warm)
+
+    configs: list[tuple[str, int, int, str | None]] = [
+        ("1 worker x 1 thread (in process)", 1, 1, None),
+        ("1 worker x 2 threads (in process, detect_many)", 1, 2, None),
+        ("2 workers x 1 thread (process pool)", 2, 1, None),
+    ]
+    if args.dask:
+        configs.append(("2 workers x 1 thread (Dask LocalCluster)", 2, 1, "local"))
+    reports = []
+    print("| configuration | jobs | scans | wall [s] | scans/s | scans/s per worker |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for label, workers, threads, scheduler in configs:
+        report = run(inputs, workers, threads, scheduler, args.repeats)
+        reports.append((label, report))
+        print(f"| {label} | {len(report.results)} | {report.n_scans} | {report.seconds:.2f} | "
+              f"{report.scans_per_second:,.0f} | "
+              f"{report.scans_per_second / report.workers:,.0f} |")  # fmt: skip
+
+    print("\n## where the time goes (sum over jobs, seconds inside the workers)\n")
+    print("| configuration | recordings | scans | job s | read s | detect s | write s | "
+          "kernel load s | end-to-end scans/s | read scans/s | detect scans/s | "
+          "write scans/s |")  # fmt: skip
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for label, report in reports:
+        groups = {
+            "all": report.results,
+            "360-beam": [r for r in report.results if Path(r.input).name in BEAMS_360],
+        }
+        for group, results in groups.items():
+            scans, total, read, detect, write, startup = split(results)
+            print(f"| {label} | {group} | {scans} | {total:.2f} | {read:.2f} | {detect:.2f} | "
+                  f"{write:.2f} | {startup:.2f} | {rate(scans, total)} | {rate(scans, read)} | "
+                  f"{rate(scans, detect)} | {rate(scans, write)} |")  # fmt: skip
+
+    print("\n## per job (first configuration)\n")
+    print("| job | scans | beams | s | read s | detect s | write s | scans/s |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    from laser_corners.io import open_scans
+
+    for r in sorted(reports[0][1].results, key=lambda r: r.key):
+        first = open_scans(r.input, r.topic).first_scan()
+        beams = first.n_beams if first is not None else 0
+        print(f"| {Path(r.input).name}{' ' + r.topic if r.topic else ''} | {r.scans} | {beams} | "
+              f"{r.seconds:.2f} | {r.read_seconds:.2f} | {r.detect_seconds:.2f} | "
+              f"{r.write_seconds:.2f} | {r.scans_per_second:,.0f} |")  # fmt: skip
+    print(f"\ntarget: >= {TARGET_PER_WORKER:,} scans/s per worker for 360-beam scans, end to end")
+    print(f"load average after: {os.getloadavg()[0]:.2f}; started {time.strftime('%H:%M:%S')}")
+
+
+if __name__ == "__main__":
+    main()

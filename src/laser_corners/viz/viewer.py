@@ -1,0 +1,215 @@
+"""Live viewer: stream scans and keypoints of a recording to rerun (``laser-corners view``).
+
+Entities (2D, metres), on the timelines ``scan`` (scan index) and ``stamp`` (the scan stamp,
+when the recording has one):
+
+* ``sensor/scan``: the valid scan points in the sensor frame (grey);
+* ``sensor/keypoints``: the keypoints (red), with their opening angle as label, and
+  ``sensor/keypoints/orientation``: arrows along each keypoint's bisector;
+* when the scan has a pose: ``map/scan``, ``map/keypoints`` (the same in the frame of the
+  poses) and ``map/sensor`` (the sensor position and heading);
+* ``stats/keypoints``: keypoints per scan.
+
+Nothing is logged for a part that is empty (no pose, no keypoints): each scan's entities are
+cleared first, so the viewer never shows a stale keypoint.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.detector import CornerDetector
+from laser_corners.errors import InputError
+from laser_corners.keypoints import Keypoints
+from laser_corners.scan import LaserScan, Pose2D
+
+__all__ = ["APPLICATION_ID", "ViewSummary", "open_recording_stream", "stream_scans"]
+
+APPLICATION_ID = "laser-corners"
+"""rerun application id of every recording the viewer makes."""
+ARROW_LENGTH = 0.3
+"""Length (m) of the orientation arrows."""
+_SCAN_COLOR = (150, 150, 150)
+_KEYPOINT_COLOR = (230, 30, 30)
+_SENSOR_COLOR = (40, 110, 230)
+
+
+@dataclass
+class ViewSummary:
+    """What :func:`stream_scans` sent.
+
+    Attributes
+    ----------
+    n_scans, n_keypoints, n_with_pose : int
+        Scans logged, keypoints logged (sensor frame), scans that had a pose.
+    """
+
+    n_scans: int = 0
+    n_keypoints: int = 0
+    n_with_pose: int = 0
+
+
+def open_recording_stream(
+    name: str, save: str | Path | None = None, connect: str | None = None, spawn: bool = False
+) -> Any:
+    """A rerun ``RecordingStream`` that saves to ``save``, sends to ``connect`` or a new viewer.
+
+    Parameters
+    ----------
+    name : str
+        Recording name shown in the viewer (the input file name).
+    save : str or Path, optional
+        Write an ``.rrd`` file (works without a display).
+    connect : str, optional
+        gRPC address of a running viewer (``rerun+http://127.0.0.1:9876/proxy``).
+    spawn : bool
+        Start a viewer process and stream to it (the default when neither ``save`` nor
+        ``connect`` is given).
+
+    Raises
+    ------
+    InputError
+        rerun-sdk is not installed, or the ``.rrd`` cannot be written.
+    """
+    try:
+        import rerun as rr
+    except ImportError:
+        raise InputError("view needs rerun-sdk: pip install 'laser-corners[viewer]'") from None
+    recording = rr.RecordingStream(APPLICATION_ID)
+    recording.send_recording_name(name)
+    if save is not None:
+        path = Path(save)
+        if not path.parent.is_dir():
+            raise InputError(f"{path}: cannot write the recording, no folder {path.parent}")
+        recording.save(str(path))
+    elif connect is not None:
+        recording.connect_grpc(connect)
+    if spawn or (save is None and connect is None):
+        if sys.platform.startswith("linux") and not (
+            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+        ):
+            raise InputError(
+                "no display to open the rerun viewer on (DISPLAY and WAYLAND_DISPLAY are unset);"
+                " use --save FILE.rrd and open it elsewhere, or --connect ADDRESS"
+            )
+        # the viewer ships with rerun-sdk next to this Python, which may not be on PATH
+        beside = Path(sys.executable).parent / "rerun"
+        executable = shutil.which("rerun") or (str(beside) if beside.exists() else None)
+        try:
+            rr.spawn(executable_path=executable, recording=recording)
+        except RuntimeError as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise InputError(
+                f"cannot start the rerun viewer ({first}); use --save FILE.rrd (no display "
+                "needed) or --connect ADDRESS"
+            ) from None
+    return recording
+
+
+def _rotate(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float64]:
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return xy @ np.array([[c, s], [-s, c]]) + np.array([pose[0], pose[1]])
+
+
+def _log_keypoints(rr: Any, recording: Any, path: str, keypoints: Keypoints) -> None:
+    if not len(keypoints):
+        return
+    recording.log(
+        path,
+        rr.Points2D(
+            keypoints.xy, colors=_KEYPOINT_COLOR, radii=rr.Radius.ui_points(6.0),
+            labels=[f"{a:.0f}°" for a in keypoints.opening_angle_deg],
+        ),
+    )  # fmt: skip
+    vectors = ARROW_LENGTH * np.column_stack(
+        (np.cos(keypoints.orientation), np.sin(keypoints.orientation))
+    )
+    recording.log(
+        f"{path}/orientation",
+        rr.Arrows2D(origins=keypoints.xy, vectors=vectors, colors=_KEYPOINT_COLOR),
+    )
+
+
+def stream_scans(
+    scans: Iterable[LaserScan],
+    detector: CornerDetector,
+    recording: Any,
+    *,
+    every: int = 1,
+    max_scans: int | None = None,
+) -> ViewSummary:
+    """Detect keypoints in each scan and log scan, keypoints (and map frame) to ``recording``.
+
+    Parameters
+    ----------
+    scans : iterable of LaserScan
+        The scans (for instance a :func:`laser_corners.io.open_scans` source).
+    detector : CornerDetector
+        The detector.
+    recording : rerun.RecordingStream
+        Where to log (see :func:`open_recording_stream`).
+    every : int
+        Log every ``every``-th scan (the ``scan`` timeline keeps the scan index).
+    max_scans : int, optional
+        Stop after logging this many scans.
+
+    Returns
+    -------
+    ViewSummary
+    """
+    import rerun as rr
+
+    summary = ViewSummary()
+    step = max(1, int(every))
+    for index, scan in enumerate(scans):
+        if max_scans is not None and summary.n_scans >= max_scans:
+            break
+        if index % step:
+            continue
+        keypoints = detector.detect(scan)
+        recording.set_time("scan", sequence=index)
+        if scan.stamp is not None:
+            recording.set_time("stamp", timestamp=scan.stamp)
+        for root in ("sensor", "map"):
+            recording.log(root, rr.Clear(recursive=True))
+        xy, valid = scan.to_cartesian()
+        points = xy[valid]
+        recording.log(
+            "sensor/scan",
+            rr.Points2D(points, colors=_SCAN_COLOR, radii=rr.Radius.ui_points(2.0)),
+        )
+        _log_keypoints(rr, recording, "sensor/keypoints", keypoints)
+        if scan.pose is not None:
+            summary.n_with_pose += 1
+            recording.log(
+                "map/scan",
+                rr.Points2D(
+                    _rotate(points, scan.pose), colors=_SCAN_COLOR,
+                    radii=rr.Radius.ui_points(2.0),
+                ),
+            )  # fmt: skip
+            _log_keypoints(rr, recording, "map/keypoints", keypoints.transformed(scan.pose))
+            heading = (ARROW_LENGTH * math.cos(scan.pose[2]), ARROW_LENGTH * math.sin(scan.pose[2]))
+            recording.log(
+                "map/sensor",
+                rr.Arrows2D(origins=[scan.pose[:2]], vectors=[heading], colors=_SENSOR_COLOR),
+            )
+        recording.log("stats/keypoints", rr.Scalars(len(keypoints)))
+        summary.n_scans += 1
+        summary.n_keypoints += len(keypoints)
+    try:
+        recording.flush()
+    except RuntimeError as exc:  # the viewer went away or never answered
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"could not send the recording to the rerun viewer ({first})") from None
+    return summary

@@ -1,0 +1,344 @@
+"""Batch detection: planning, one job against the detector, a real Dask LocalCluster (2 workers)
+with damaged inputs and a resumed run, a killed run that resumes, and the CLI (process pool)."""
+
+from __future__ import annotations
+
+import doctest
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from conftest import real_file
+from laser_corners import CornerDetector
+from laser_corners.batch import (
+    MANIFEST_NAME,
+    BatchJob,
+    BatchReport,
+    JobResult,
+    Manifest,
+    ParamsChoice,
+    plan_jobs,
+    run_batch,
+    run_job,
+)
+from laser_corners.cli import app
+from laser_corners.errors import InputError
+from laser_corners.io import open_scans
+
+CLUSTER_TIMEOUT_S = 120  # a batch on the cluster that takes longer fails the test, not hangs
+
+
+def _on_cluster(*args: Any, **kwargs: Any) -> BatchReport:
+    """run_batch, bounded: the test fails after CLUSTER_TIMEOUT_S instead of waiting forever."""
+    runner = ThreadPoolExecutor(1)
+    try:
+        return runner.submit(run_batch, *args, **kwargs).result(timeout=CLUSTER_TIMEOUT_S)
+    finally:
+        runner.shutdown(wait=False)  # on a timeout, do not wait for the stuck run
+
+
+def _truncated_copy(source: Path, target: Path, keep: int) -> Path:
+    target.write_bytes(source.read_bytes()[:keep])
+    return target
+
+
+def _byte_flipped_copy(source: Path, target: Path, start: int, length: int) -> Path:
+    data = bytearray(source.read_bytes())
+    for i in range(start, start + length):
+        data[i] ^= 0xFF
+    target.write_bytes(bytes(data))
+    return target
+
+
+def _latest(outdir: Path) -> dict[str, JobResult]:
+    return Manifest(outdir).load()
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A real dask.distributed LocalCluster of 2 worker processes, closed at teardown."""
+    distributed = pytest.importorskip("dask.distributed")
+    local = distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        memory_limit="1GiB",
+        dashboard_address=None,
+    )
+    try:
+        yield local
+    finally:
+        local.close(timeout=30)
+
+
+# ------------------------------------------------------------------ planning
+def test_plan_expands_topics_and_keeps_names_unique(tmp_path: Path) -> None:
+    rooms = real_file("hokuyo270_rooms.bag")
+    log = real_file("fr079-corrected.clf.gz")
+    other = tmp_path / "robot2"
+    other.mkdir()
+    twin = other / log.name
+    twin.write_bytes(log.read_bytes())
+
+    jobs = plan_jobs([rooms, log, twin])
+    topics = sorted(j.topic for j in jobs if j.input == str(rooms.resolve()))
+    assert topics == ["/left_scan", "/rear_scan", "/right_scan"]
+    names = [j.output for j in jobs]
+    assert len(set(names)) == len(names) == 5
+    assert "hokuyo270_rooms.left_scan.parquet" in names
+    # the two logs of the same name get distinct names derived from their paths
+    twins = [j.output for j in jobs if j.output.startswith("fr079-corrected")]
+    assert len(twins) == 2 and "fr079-corrected.parquet" not in twins
+
+    # a name used in the folder before stays with its job; another job never takes it
+    reserved = {str(twin.resolve()): "fr079-corrected.parquet"}
+    again = {j.key: j.output for j in plan_jobs([log, twin], reserved=reserved)}
+    assert again[str(twin.resolve())] == "fr079-corrected.parquet"
+    assert again[str(log.resolve())] != "fr079-corrected.parquet"
+
+    only_left = plan_jobs([rooms], topic="/left_scan")
+    assert [(j.topic, j.output) for j in only_left] == [
+        ("/left_scan", "hokuyo270_rooms.left_scan.parquet")
+    ]
+
+
+def test_manifest_survives_a_torn_line(tmp_path: Path) -> None:
+    manifest = Manifest(tmp_path)
+    done = JobResult("/a.bag", None, "a.parquet", "done", scans=3, keypoints=4)
+    manifest.append(done)
+    with manifest.path.open("a", encoding="utf-8") as handle:
+        handle.write('{"input": "/b.bag", "topic": nu')  # killed while writing
+    later = JobResult("/c.bag", None, "c.parquet", "failed", error="boom")
+    manifest.append(later)
+    records = manifest.load()
+    assert set(records) == {"/a.bag", "/c.bag"}
+    assert records["/a.bag"].keypoints == 4 and records["/c.bag"].error == "boom"
+
+
+def test_docstring_examples() -> None:
+    import laser_corners.batch
+
+    result = doctest.testmod(laser_corners.batch, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0
+
+
+# ------------------------------------------------------------------ one job
+def test_run_job_writes_what_the_detector_finds(tmp_path: Path) -> None:
+    log = real_file("fr079-corrected.clf.gz")
+    job = BatchJob(str(log), None, "fr079.parquet")
+    result = run_job(job, tmp_path, ParamsChoice(), threads=2)
+    assert result.status == "done", result.error
+    assert not (tmp_path / "fr079.parquet.partial").exists()
+
+    scans = list(open_scans(log))
+    expected = CornerDetector().detect_many(scans)
+    table = pq.read_table(tmp_path / "fr079.parquet")
+    assert result.scans == len(scans)
+    assert result.keypoints == table.num_rows == sum(len(k) for k in expected)
+    assert 0.0 < result.read_seconds + result.detect_seconds + result.write_seconds
+    assert result.read_seconds + result.detect_seconds + result.write_seconds <= result.seconds
+    counts = np.bincount(table.column("scan_index").to_numpy(), minlength=len(scans))
+    assert counts.tolist() == [len(k) for k in expected]
+    xy = np.column_stack([table.column("x").to_numpy(), table.column("y").to_numpy()])
+    np.testing.assert_allclose(xy, np.concatenate([k.xy for k in expected]))
+    # the CARMEN log has map-frame laser poses, so the map columns are filled
+    assert np.isfinite(table.column("map_x").to_numpy()).all()
+    metadata = table.schema.metadata
+    assert b"min_points" in metadata[b"laser_corners.params"]
+    assert metadata[b"laser_corners.input"].decode() == str(log)
+
+
+def test_run_job_with_auto_preset_and_overrides_records_them(tmp_path: Path) -> None:
+    log = real_file("intel-corrected.clf.gz")
+    choice = ParamsChoice(preset="auto", overrides=("min_points=6",))
+    result = run_job(BatchJob(str(log), None, "intel.parquet"), tmp_path, choice, threads=1)
+    assert result.status == "done", result.error
+    params = pq.read_schema(tmp_path / "intel.parquet").metadata[b"laser_corners.params"]
+    assert b"min_points: 6" in params
+    assert b"scales:\n- 0.05\n" in params  # the auto preset's scales, not the paper's 5
+    assert params.count(b"\n- ") > 5
+
+
+def test_unexpected_error_is_recorded_with_its_traceback(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    log = real_file("fr079-corrected.clf.gz")
+
+    def broken(self: CornerDetector, scan: object) -> None:
+        raise RuntimeError("kernel exploded")
+
+    monkeypatch.setattr(CornerDetector, "detect", broken)
+    result = run_job(BatchJob(str(log), None, "fr079.parquet"), tmp_path, threads=1)
+    assert result.status == "failed"
+    assert result.error.startswith("RuntimeError: kernel exploded")
+    assert "\n" not in result.error
+    traceback_text = (tmp_path / "errors" / "fr079.parquet.txt").read_text(encoding="utf-8")
+    assert "Traceback" in traceback_text and "kernel exploded" in traceback_text
+    assert not (tmp_path / "fr079.parquet").exists()
+    assert not (tmp_path / "fr079.parquet.partial").exists()
+
+
+# ------------------------------------------------------------------ Dask LocalCluster
+def test_dask_cluster_batch_with_damaged_inputs_resumes(tmp_path: Path, cluster) -> None:
+    fr079_log = real_file("fr079-corrected.clf.gz")
+    intel_log = real_file("intel-corrected.clf.gz")
+    aces = real_file("aces.bag")
+    truncated = _truncated_copy(aces, tmp_path / "truncated.bag", keep=700_000)
+    flipped = _byte_flipped_copy(intel_log, tmp_path / "flipped.clf.gz", 200_000, 400)
+    outdir = tmp_path / "out"
+    outdir.mkdir()
+    inputs = [fr079_log, intel_log, aces, truncated, flipped]
+
+    # the state a killed run leaves: one job done and in the manifest, one partial output
+    first = run_batch([fr079_log], outdir, workers=1)
+    assert [r.status for r in first.results] == ["done"]
+    done_mtime = (outdir / "fr079-corrected.parquet").stat().st_mtime_ns
+    leftover = outdir / "intel-corrected.parquet.partial"
+    leftover.write_bytes(b"PAR1 half a file")
+
+    report = _on_cluster(inputs, outdir, scheduler=cluster.scheduler_address, workers=2, timeout=30)
+    assert [r.output for r in report.already_done] == ["fr079-corrected.parquet"]
+    assert (outdir / "fr079-corrected.parquet").stat().st_mtime_ns == done_mtime
+    by_input = {Path(r.input).name: r for r in report.results}
+    assert set(by_input) == {"intel-corrected.clf.gz", "aces.bag", "truncated.bag",
+                             "flipped.clf.gz"}  # fmt: skip
+    assert report.workers == 2
+    assert len({r.worker for r in report.results}) == 2  # both worker processes got jobs
+
+    for name in ("intel-corrected.clf.gz", "aces.bag"):
+        result = by_input[name]
+        assert result.status == "done", result.error
+        table = pq.read_table(outdir / result.output)
+        assert table.num_rows == result.keypoints > 0
+        assert result.scans == sum(1 for _ in open_scans(result.input))
+    assert not leftover.exists()
+
+    truncated_result = by_input["truncated.bag"]
+    assert truncated_result.status == "failed"
+    assert "truncated.bag" in truncated_result.error and "\n" not in truncated_result.error
+    flipped_result = by_input["flipped.clf.gz"]
+    assert flipped_result.status == "failed"
+    assert "gzip" in flipped_result.error and "\n" not in flipped_result.error
+    # the damaged log failed in the middle: its partial output is gone, no result file
+    assert not (outdir / flipped_result.output).exists()
+    assert sorted(p.name for p in outdir.glob("*.partial")) == []
+
+    latest = _latest(outdir)
+    assert {Path(k).name: r.status for k, r in latest.items()} == {
+        "fr079-corrected.clf.gz": "done", "intel-corrected.clf.gz": "done",
+        "aces.bag": "done", "truncated.bag": "failed", "flipped.clf.gz": "failed",
+    }  # fmt: skip
+
+    # running again retries only the failed jobs
+    again = _on_cluster(inputs, outdir, scheduler=cluster.scheduler_address, timeout=30)
+    assert sorted(Path(r.input).name for r in again.results) == ["flipped.clf.gz",
+                                                                 "truncated.bag"]  # fmt: skip
+    assert len(again.already_done) == 3
+
+
+def test_unreachable_scheduler_is_a_known_error(tmp_path: Path) -> None:
+    log = real_file("fr079-corrected.clf.gz")
+    with pytest.raises(
+        InputError, match=r"cannot reach the Dask scheduler at tcp://127\.0\.0\.1:9"
+    ):
+        run_batch([log], tmp_path / "out", scheduler="tcp://127.0.0.1:9", timeout=2)
+    # nothing ran, nothing was recorded as done
+    assert Manifest(tmp_path / "out").load() == {}
+
+
+# ------------------------------------------------------------------ a run killed for real
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background parent may have ignored it
+
+
+@pytest.mark.parametrize(
+    ("stop", "workers", "exit_code"),
+    [(signal.SIGKILL, "1", -signal.SIGKILL), (signal.SIGINT, "2", 130)],
+    ids=["kill-9-in-process", "ctrl-c-process-pool"],
+)
+def test_stopped_run_resumes_without_redoing_or_trusting_partials(
+    tmp_path: Path, stop: signal.Signals, workers: str, exit_code: int
+) -> None:
+    aces = real_file("aces.bag")  # the largest input: the first job
+    intel = real_file("intel-corrected.clf.gz")
+    log = real_file("fr079-corrected.clf.gz")
+    outdir = tmp_path / "out"
+    command = [str(Path(sys.executable).parent / "laser-corners"), "batch", str(intel), str(aces),
+               str(log), "-o", str(outdir), "-w", workers]  # fmt: skip
+    process = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        preexec_fn=_default_sigint,
+    )  # fmt: skip
+    manifest = outdir / MANIFEST_NAME
+    deadline = time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline and process.poll() is None:
+            if manifest.exists() and manifest.read_text(encoding="utf-8").count("\n") >= 1:
+                break
+            time.sleep(0.02)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, stop)
+        process.wait(timeout=60)
+    assert process.returncode == exit_code  # stopped, not finished
+    if stop == signal.SIGINT:  # Ctrl-C: the jobs in progress removed their partial outputs
+        assert list(outdir.glob("*.partial")) == []
+    records = [json.loads(line) for line in manifest.read_text(encoding="utf-8").splitlines()]
+    assert records and records[0]["status"] == "done"
+    assert len(records) < 3
+    finished_first = {r["output"] for r in records}
+    first_mtimes = {name: (outdir / name).stat().st_mtime_ns for name in finished_first}
+
+    report = run_batch([aces, intel, log], outdir, workers=1)
+    assert {r.output for r in report.already_done} == finished_first
+    assert all(r.status == "done" for r in report.results)
+    assert {r.output for r in report.results}.isdisjoint(finished_first)
+    for name, mtime in first_mtimes.items():
+        assert (outdir / name).stat().st_mtime_ns == mtime
+    assert list(outdir.glob("*.partial")) == []
+    latest = _latest(outdir)
+    assert len(latest) == 3 and all(r.status == "done" for r in latest.values())
+    for record in latest.values():
+        assert pq.read_metadata(outdir / record.output).num_rows == record.keypoints
+
+
+# ------------------------------------------------------------------ CLI, process pool
+def test_cli_batch_process_pool_and_parameter_guard(tmp_path: Path) -> None:
+    fr079_log = real_file("fr079-corrected.clf.gz")
+    intel_log = real_file("intel-corrected.clf.gz")
+    missing = tmp_path / "missing.bag"
+    outdir = tmp_path / "out"
+    runner = CliRunner()
+    result = runner.invoke(
+        app, ["batch", str(fr079_log), str(intel_log), str(missing), "-o", str(outdir), "-w", "2"]
+    )
+    assert result.exit_code == 1, result.output  # one input failed, the others are done
+    assert "3 job(s) run (1 failed)" in result.output
+    latest = _latest(outdir)
+    assert latest[str(missing)].status == "failed"
+    assert "no such file" in latest[str(missing)].error
+    assert {Path(r.input).name for r in latest.values() if r.status == "done"} == {
+        fr079_log.name,
+        intel_log.name,
+    }
+    assert "preset: paper" in (outdir / "batch-params.yaml").read_text(encoding="utf-8")
+
+    other = runner.invoke(
+        app, ["batch", str(fr079_log), "-o", str(outdir), "--set", "min_points=6"]
+    )
+    assert other.exit_code == 2
+    assert "other parameters" in other.output and len(other.output.strip().splitlines()) == 1
+
+    bad = runner.invoke(app, ["batch", str(fr079_log), "-o", str(outdir), "--set", "nope=1"])
+    assert bad.exit_code == 2 and "unknown parameter 'nope'" in bad.output
