@@ -199,6 +199,11 @@ def _candidates(
             e = stop[k, j]
             na = j - s + 1
             nd = e - j + 1
+            if na < min_points or nd < min_points:
+                # too few points (near the sensor's reach, at small scales): consecutive
+                # points at one scale mostly agree, so this branch predicts well
+                screened[k, j] = False
+                continue
             axx, ayy, axy = centred_moments(
                 inv_count[na],
                 ps[j + 1, 0] - ps[s, 0],
@@ -225,9 +230,7 @@ def _candidates(
             vd_y = dxy if d_yx else dyy
             dot = va_x * vd_x + va_y * vd_y
             screened[k, j] = (
-                (na >= min_points)
-                & (nd >= min_points)
-                & (axx * ayy - axy * axy <= loose_mse * na * a_spread)
+                (axx * ayy - axy * axy <= loose_mse * na * a_spread)
                 & (dxx * dyy - dxy * dxy <= loose_mse * nd * d_spread)
                 & (
                     dot * dot
