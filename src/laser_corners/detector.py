@@ -501,16 +501,17 @@ def _raw_rows(cand: NDArray[np.float64], out: NDArray[np.float64]) -> int:
 def _keypoints_from_rows(
     rows: NDArray[np.float64], stamp: float | None, frame_id: str
 ) -> Keypoints:
-    return Keypoints(
-        xy=rows[:, [_M_X, _M_Y]],
-        beam_index=rows[:, _M_BEAM].astype(np.int64),
-        opening_angle_deg=rows[:, _M_OPEN],
-        orientation=rows[:, _M_ORIENT],
-        n_scales=rows[:, _M_NSC].astype(np.int64),
-        rmse=rows[:, _M_RMSE],
-        n_merged=rows[:, _M_NMERGED].astype(np.int64),
-        stamp=stamp,
-        frame_id=frame_id,
+    columns = rows.T  # one row per field: contiguous copies below
+    return Keypoints._from_valid_arrays(
+        stamp,
+        frame_id,
+        xy=rows[:, _M_X : _M_Y + 1].copy(),
+        beam_index=columns[_M_BEAM].astype(np.int64),
+        opening_angle_deg=columns[_M_OPEN].copy(),
+        orientation=columns[_M_ORIENT].copy(),
+        n_scales=columns[_M_NSC].astype(np.int64),
+        rmse=columns[_M_RMSE].copy(),
+        n_merged=columns[_M_NMERGED].astype(np.int64),
     )
 
 

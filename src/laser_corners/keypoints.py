@@ -84,6 +84,19 @@ class Keypoints:
             object.__setattr__(self, name, arr)
 
     @classmethod
+    def _from_valid_arrays(
+        cls, stamp: float | None, frame_id: str, **arrays: NDArray[np.generic]
+    ) -> Keypoints:
+        """Wrap arrays that already have the right dtypes and lengths, skipping the checks
+        (the detector's per-scan fast path, where the checks cost more than the wrapping)."""
+        keypoints = object.__new__(cls)
+        for name, value in arrays.items():
+            object.__setattr__(keypoints, name, value)
+        object.__setattr__(keypoints, "stamp", stamp)
+        object.__setattr__(keypoints, "frame_id", frame_id)
+        return keypoints
+
+    @classmethod
     def empty(cls, stamp: float | None = None, frame_id: str = "") -> Keypoints:
         """No keypoints."""
         z = np.zeros(0)
