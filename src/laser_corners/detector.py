@@ -21,6 +21,11 @@ Decisions the paper leaves open (see ``docs/method.md``):
   passing scales). Points beside the apex have a neighbourhood that straddles the corner, fit
   worse and intersect off the corner, so averaging them would bias the keypoint.
 
+Options beyond the paper, off by default (the ``robust`` preset turns them on; see
+``docs/simulation-and-accuracy.md``): ``min_extent_ratio`` (a scale passes only if both
+neighbourhoods reach at least that fraction of R_k from p_j) and ``refine_radius`` (each
+keypoint re-estimated from lines fitted to longer runs of each wall, ``_refine``).
+
 The hot loop is one numba kernel (``cache=True``). The arrival/departure sums of x, y, x², y²
 and xy come from prefix sums, so each fit is O(1) and a scan costs O(N·K) fits. Neighbourhood
 bounds are found by walking outwards from p_j once for all scales (the run for R_k contains
@@ -51,6 +56,8 @@ _NC = 7
 # indices into the merged keypoint table (float64, shape (N, _NM))
 _M_X, _M_Y, _M_BEAM, _M_OPEN, _M_ORIENT, _M_NSC, _M_RMSE, _M_NMERGED = range(8)
 _NM = 8
+# largest move of a keypoint by the refinement when merging is off (merge_radius = 0), metres
+_REFINE_MAX_SHIFT = 0.05
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -86,6 +93,7 @@ def _candidates(
     max_point_distance: float,
     max_centroid_distance: float,
     min_consecutive: int,
+    min_extent: float,
     cand: NDArray[np.float64],
     table: NDArray[np.float64],
 ) -> None:
@@ -262,6 +270,12 @@ def _candidates(
                 continue
             s = start[k, j]
             e = stop[k, j]
+            if min_extent > 0.0:  # option, not in the paper: both runs must reach out
+                reach2 = (min_extent * scales[k]) ** 2
+                far_a = (x[s] - xj) ** 2 + (y[s] - yj) ** 2
+                far_d = (x[e] - xj) ** 2 + (y[e] - yj) ** 2
+                if far_a < reach2 or far_d < reach2:
+                    continue
             # arrival neighbourhood [s, j], departure [j, e]: sums from prefix sums
             ma, a0, a1, mse_a = select_from_sums(
                 float(j - s + 1),
@@ -442,6 +456,92 @@ def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.fl
     return n_out
 
 
+@nb.njit(cache=True, error_model="numpy")
+def _refine(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    rows: NDArray[np.float64],
+    n_rows: int,
+    radius: float,
+    exclude: float,
+    min_points: int,
+    max_rmse: float,
+    max_shift: float,
+) -> None:
+    """Re-estimate keypoints from longer wall fits (option ``refine_radius``, not in the paper).
+
+    For each keypoint row: the scan point nearest to it (searched outwards from its beam),
+    then on each side of that point the run of consecutive valid points within ``radius`` of
+    the keypoint, leaving out those closer than ``exclude``; both runs are fitted (eqs. 2-9,
+    sums relative to the keypoint) and intersected (eqs. 10-13). While a fit's RMSE exceeds
+    ``max_rmse`` (the run reaches past the next corner) the radius is halved, down to
+    ``4 * exclude``. The intersection replaces the keypoint when both runs have
+    ``min_points`` points and it moved at most ``max_shift``. O(points within ``radius``) per
+    keypoint and halving.
+    """
+    n = x.shape[0]
+    e2 = exclude * exclude
+    s2 = max_shift * max_shift
+    max_mse = max_rmse * max_rmse
+    sums = np.zeros((2, 6))
+    for m in range(n_rows):
+        cx = rows[m, _M_X]
+        cy = rows[m, _M_Y]
+        b = int(rows[m, _M_BEAM])
+        r2 = radius * radius
+        apex = b
+        best = (x[b] - cx) ** 2 + (y[b] - cy) ** 2
+        for side in range(2):
+            step = -1 if side == 0 else 1
+            i = b + step
+            while 0 <= i < n and math.isfinite(x[i]):
+                d2 = (x[i] - cx) ** 2 + (y[i] - cy) ** 2
+                if d2 > r2:
+                    break
+                if d2 < best:
+                    best = d2
+                    apex = i
+                i += step
+        rad = radius
+        while rad >= 4.0 * exclude:
+            r2 = rad * rad
+            for side in range(2):
+                step = -1 if side == 0 else 1
+                for c in range(6):
+                    sums[side, c] = 0.0
+                i = apex + step
+                while 0 <= i < n and math.isfinite(x[i]):
+                    dx = x[i] - cx
+                    dy = y[i] - cy
+                    d2 = dx * dx + dy * dy
+                    if d2 > r2:
+                        break
+                    if d2 >= e2:
+                        sums[side, 0] += 1.0
+                        sums[side, 1] += dx
+                        sums[side, 2] += dy
+                        sums[side, 3] += dx * dx
+                        sums[side, 4] += dy * dy
+                        sums[side, 5] += dx * dy
+                    i += step
+            if sums[0, 0] < min_points or sums[1, 0] < min_points:
+                break
+            ma, a0, a1, mse_a = select_from_sums(
+                sums[0, 0], sums[0, 1], sums[0, 2], sums[0, 3], sums[0, 4], sums[0, 5]
+            )
+            md, d0, d1, mse_d = select_from_sums(
+                sums[1, 0], sums[1, 1], sums[1, 2], sums[1, 3], sums[1, 4], sums[1, 5]
+            )
+            if mse_a > max_mse or mse_d > max_mse:
+                rad *= 0.5
+                continue
+            qx, qy, ok = intersect(ma, a0, a1, md, d0, d1)
+            if ok and qx * qx + qy * qy <= s2:
+                rows[m, _M_X] = cx + qx
+                rows[m, _M_Y] = cy + qy
+            break
+
+
 @nb.njit(cache=True, parallel=True, error_model="numpy")
 def _detect_batch(
     ranges: NDArray[np.float64],
@@ -458,6 +558,9 @@ def _detect_batch(
     max_centroid_distance: float,
     min_consecutive: int,
     merge_radius: float,
+    min_extent: float,
+    refine_radius: float,
+    refine_exclude: float,
     merged: NDArray[np.float64],
     counts: NDArray[np.int64],
 ) -> None:
@@ -472,12 +575,17 @@ def _detect_batch(
         _candidates(
             x, y, scales, min_points,
             min_angle_deg, max_angle_deg, max_fit_rmse, max_point_distance,
-            max_centroid_distance, min_consecutive, cand, no_table,
+            max_centroid_distance, min_consecutive, min_extent, cand, no_table,
         )  # fmt: skip
         if merge_radius > 0.0:
             counts[s] = _merge(cand, merge_radius, merged[s])
         else:
             counts[s] = _raw_rows(cand, merged[s])
+        if refine_radius > 0.0:
+            _refine(
+                x, y, merged[s], counts[s], refine_radius, refine_exclude, min_points,
+                max_fit_rmse, merge_radius if merge_radius > 0.0 else _REFINE_MAX_SHIFT,
+            )  # fmt: skip
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -595,20 +703,31 @@ class CornerDetector:
         _candidates(
             x, y, self._scales, p.min_points, p.min_angle_deg, p.max_angle_deg,
             p.max_fit_rmse, p.max_point_distance, p.max_centroid_distance,
-            p.min_consecutive_scales, cand, table,
+            p.min_consecutive_scales, p.min_extent_ratio, cand, table,
         )  # fmt: skip
         return cand
 
     def _finish(
-        self, cand: NDArray[np.float64], stamp: float | None, frame_id: str, with_raw: bool
+        self,
+        cand: NDArray[np.float64],
+        x: NDArray[np.float64],
+        y: NDArray[np.float64],
+        stamp: float | None,
+        frame_id: str,
+        with_raw: bool,
     ) -> Keypoints | tuple[Keypoints, Keypoints]:
         n = cand.shape[0]
         rows = np.empty((n, _NM))
-        n_out = (
-            _merge(cand, self.params.merge_radius, rows)
-            if self.params.merge_radius > 0.0
-            else _raw_rows(cand, rows)
-        )
+        p = self.params
+        if p.merge_radius > 0.0:
+            n_out = _merge(cand, p.merge_radius, rows)
+        else:
+            n_out = _raw_rows(cand, rows)
+        if p.refine_radius > 0.0:
+            _refine(
+                x, y, rows, n_out, p.refine_radius, p.refine_exclude, p.min_points,
+                p.max_fit_rmse, p.merge_radius if p.merge_radius > 0.0 else _REFINE_MAX_SHIFT,
+            )  # fmt: skip
         keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id)
         if not with_raw:
             return keypoints
@@ -649,7 +768,7 @@ class CornerDetector:
         """
         x, y = self._scan_xy(scan)
         cand = self._run_candidates(x, y, np.empty((0, 0, 3)))
-        return self._finish(cand, scan.stamp, scan.frame_id, return_candidates)
+        return self._finish(cand, x, y, scan.stamp, scan.frame_id, return_candidates)
 
     def detect_points(
         self, xy: NDArray[np.float64], return_candidates: bool = False
@@ -673,7 +792,7 @@ class CornerDetector:
         x[bad] = np.nan
         y[bad] = np.nan
         cand = self._run_candidates(x, y, np.empty((0, 0, 3)))
-        return self._finish(cand, None, "", return_candidates)
+        return self._finish(cand, x, y, None, "", return_candidates)
 
     def scale_table(self, scan: LaserScan) -> ScaleTable:
         """Per-point, per-scale intersections and pass flags (for analysis and figures)."""
@@ -713,7 +832,8 @@ class CornerDetector:
             ranges, cos_a, sin_a, first.range_min, first.range_max, self._scales,
             p.min_points, p.min_angle_deg, p.max_angle_deg, p.max_fit_rmse,
             p.max_point_distance, p.max_centroid_distance, p.min_consecutive_scales,
-            p.merge_radius, merged, counts,
+            p.merge_radius, p.min_extent_ratio, p.refine_radius, p.refine_exclude,
+            merged, counts,
         )  # fmt: skip
         return [
             _keypoints_from_rows(merged[s, : counts[s]], scan.stamp, scan.frame_id)

@@ -48,6 +48,20 @@ class DetectorParams(BaseModel):
         Per-point candidates whose keypoints lie within this distance of each other (single
         linkage) are merged into one keypoint per physical corner; 0 disables merging.
         Not in the paper: see ``docs/method.md``.
+    min_extent_ratio : float
+        A scale R_k passes only if the far end of each neighbourhood (its first arrival and
+        last departure point) lies at least ``min_extent_ratio * R_k`` from p_j, so a run of
+        points cut short by a gap, a range jump or the end of the scan does not pass again at
+        every larger scale with the same few points. 0 (default, the paper) disables it.
+        Not in the paper: see ``docs/simulation-and-accuracy.md``.
+    refine_radius : float
+        When > 0, each keypoint is re-estimated as the intersection of two lines fitted
+        (eqs. 2-9) to the points of each wall within ``refine_radius`` of it, walking out from
+        the scan point nearest to it, leaving out the points closer than ``refine_exclude``;
+        the new position is kept if it lies within ``merge_radius`` (0.05 m when merging is
+        off) of the old one. 0 (default, the paper) disables it.
+    refine_exclude : float
+        Radius around the keypoint whose points the refinement leaves out, metres.
 
     Examples
     --------
@@ -68,6 +82,9 @@ class DetectorParams(BaseModel):
     max_centroid_distance: float = 0.025
     min_consecutive_scales: int = 3
     merge_radius: float = 0.05
+    min_extent_ratio: float = 0.0
+    refine_radius: float = 0.0
+    refine_exclude: float = 0.03
 
     def __init__(self, **data: Any) -> None:
         try:
@@ -101,12 +118,24 @@ class DetectorParams(BaseModel):
         return value
 
     @field_validator(
-        "max_fit_rmse", "max_point_distance", "max_centroid_distance", "merge_radius"
+        "max_fit_rmse",
+        "max_point_distance",
+        "max_centroid_distance",
+        "merge_radius",
+        "refine_radius",
+        "refine_exclude",
     )
     @classmethod
     def _check_non_negative(cls, value: float) -> float:
         if not (value >= 0.0) or value == float("inf"):
             raise ValueError(f"must be a finite number >= 0, got {value}")
+        return value
+
+    @field_validator("min_extent_ratio")
+    @classmethod
+    def _check_extent(cls, value: float) -> float:
+        if not (0.0 <= value <= 1.0):
+            raise ValueError(f"must be in [0, 1], got {value}")
         return value
 
     @model_validator(mode="after")

@@ -1,5 +1,8 @@
 """Named parameter presets: ``paper`` (the published defaults) and sensor-adapted ones.
 
+``robust`` adapts to the range noise it estimates from the scan and turns on the detector's
+options beyond the paper (see ``docs/simulation-and-accuracy.md``).
+
 ``get_preset(name, scan)`` returns :class:`~laser_corners.DetectorParams`; presets that adapt
 to the sensor take the scan's geometry from ``scan`` (any :class:`~laser_corners.LaserScan`
 of the recording).
@@ -16,7 +19,15 @@ from laser_corners.errors import InvalidParamsError
 from laser_corners.params import PAPER_SCALES, DetectorParams
 from laser_corners.scan import LaserScan
 
-__all__ = ["AUTO_N_SCALES", "AUTO_TARGET_RANGE", "PRESETS", "auto_params", "get_preset"]
+__all__ = [
+    "AUTO_N_SCALES",
+    "AUTO_TARGET_RANGE",
+    "PRESETS",
+    "ROBUST_NOISE_FLOOR",
+    "auto_params",
+    "get_preset",
+    "robust_params",
+]
 
 AUTO_TARGET_RANGE = 3.0
 """Range (m) at which the ``auto`` preset's smallest adapted scale holds ``min_points`` points."""
@@ -95,9 +106,72 @@ def auto(scan: LaserScan | None = None) -> DetectorParams:
     return auto_params(scan.angle_increment)
 
 
+ROBUST_NOISE_FLOOR = 0.01
+"""Noise sigma (m) up to which the ``robust`` preset keeps its base scales 0.1-0.25 m."""
+
+
+def robust_params(noise_sigma: float) -> DetectorParams:
+    """Parameters for a range noise of ``noise_sigma`` metres (the ``robust`` preset).
+
+    Changes to the paper's values (see ``docs/simulation-and-accuracy.md``):
+
+    * ``min_extent_ratio = 0.6``: a neighbourhood counts at scale R_k only if its far end
+      lies at least 0.6·R_k from p_j. A run cut short by a gap, a jump or the end of the scan
+      (legs, object edges, the field of view's ends) no longer passes at every larger scale
+      with the same, few, points;
+    * scales: 9 radii from 0.1 m to ``0.25 * max(1, sigma / 0.01)`` m: the line angle from n
+      noisy points over a length L errs by about ``sigma * sqrt(12 / n) / L``, so the
+      neighbourhoods grow with the noise;
+    * ``max_fit_rmse = max(0.025, 1.75 sigma)``, ``max_point_distance = 0.05 + 2 sigma``,
+      ``max_centroid_distance = 0.025 + 2 sigma``: tolerances that follow the noise;
+    * ``refine_radius = 0.5``, ``refine_exclude = 0.03``: each merged keypoint is re-estimated
+      from lines fitted to each wall's points within 0.5 m of it (those within 3 cm left out).
+
+    Parameters
+    ----------
+    noise_sigma : float
+        Range noise standard deviation, metres (e.g. from
+        :func:`~laser_corners.eval.noise.estimate_range_noise`).
+
+    Examples
+    --------
+    >>> p = robust_params(0.03)
+    >>> p.scales[0], p.scales[-1], round(p.max_fit_rmse, 4)
+    (0.1, 0.75, 0.0525)
+    """
+    sigma = float(noise_sigma)
+    if not (math.isfinite(sigma) and sigma >= 0.0):
+        raise InvalidParamsError(f"robust preset: noise sigma must be >= 0, got {noise_sigma}")
+    top = PAPER_SCALES[-1] * max(1.0, sigma / ROBUST_NOISE_FLOOR)
+    scales = tuple(round(float(v), 6) for v in np.linspace(0.1, top, 9))
+    return DetectorParams(
+        scales=scales,
+        max_fit_rmse=max(0.025, 1.75 * sigma),
+        max_point_distance=0.05 + 2.0 * sigma,
+        max_centroid_distance=0.025 + 2.0 * sigma,
+        min_extent_ratio=0.6,
+        refine_radius=0.5,
+        refine_exclude=0.03,
+    )
+
+
+def robust(scan: LaserScan | None = None) -> DetectorParams:
+    """Noise-adapted thresholds, neighbourhood extent test and keypoint refinement.
+
+    The range noise is estimated from ``scan`` itself
+    (:func:`~laser_corners.eval.noise.estimate_range_noise`); see :func:`robust_params`.
+    """
+    from laser_corners.eval.noise import estimate_range_noise
+
+    if scan is None:
+        raise InvalidParamsError("preset 'robust' needs a scan of the recording (its noise)")
+    return robust_params(estimate_range_noise(scan))
+
+
 PRESETS: dict[str, Callable[[LaserScan | None], DetectorParams]] = {
     "paper": paper,
     "auto": auto,
+    "robust": robust,
 }
 """Preset name -> function of an optional scan giving the parameters."""
 

@@ -1,14 +1,33 @@
 """Laser simulator: polygon worlds, sensor profiles and exact, vectorised ray casting."""
 
-from laser_corners.sim.raycast import cast_ranges
-from laser_corners.sim.sensors import UST_10LX, SensorProfile
+from laser_corners.sim.generate import WORLD_KINDS, random_poses, random_world, trajectory
+from laser_corners.sim.raycast import cast_circles, cast_ranges
+from laser_corners.sim.sensors import (
+    HOKUYO_270_0352,
+    SENSORS,
+    SICK_LMS_05DEG,
+    SICK_LMS_1DEG,
+    UST_10LX,
+    SensorProfile,
+    get_sensor,
+)
 from laser_corners.sim.worlds import World, corner_scan, rectangular_room
 
 __all__ = [
+    "HOKUYO_270_0352",
+    "SENSORS",
+    "SICK_LMS_05DEG",
+    "SICK_LMS_1DEG",
     "UST_10LX",
+    "WORLD_KINDS",
     "SensorProfile",
     "World",
+    "cast_circles",
     "cast_ranges",
     "corner_scan",
+    "get_sensor",
+    "random_poses",
+    "random_world",
     "rectangular_room",
+    "trajectory",
 ]
