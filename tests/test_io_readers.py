@@ -7,6 +7,7 @@ Real files come from ``../shared/data/real`` (skipped when absent); damaged copi
 from __future__ import annotations
 
 import gzip
+import itertools
 import math
 import re
 from pathlib import Path
@@ -20,7 +21,14 @@ from laser_corners import InputError, LaserScan
 from laser_corners.io import detect_kind, open_scans
 from laser_corners.io.arrays import write_scans_csv, write_scans_npz
 from laser_corners.io.carmen import parse_carmen_line
-from laser_corners.io.rosbag import yaw_from_quaternion
+from laser_corners.io.rosbag import (
+    _PoseTrack,
+    _StreamingTrack,
+    decode_ros1_laserscan,
+    decode_ros1_odometry,
+    decode_ros1_tf,
+    yaw_from_quaternion,
+)
 
 pytestmark = pytest.mark.real
 
@@ -344,3 +352,141 @@ def test_npz_without_ranges_or_corrupt_is_an_error(tmp_path: Path) -> None:
     _damaged_copy(tmp_path / "ok.npz", tmp_path / "cut.npz", keep=200)
     with pytest.raises(InputError, match=r"cut\.npz: not a readable \.npz"):
         open_scans(tmp_path / "cut.npz")
+
+
+# ----------------------------------------------------------------------------- fast ROS 1 path
+def _first_messages(bag: Path, topic: str, count: int) -> list[tuple[bytes, object]]:
+    """Raw bytes and rosbags' deserialized message of the first ``count`` of ``topic``."""
+    with AnyReader([bag]) as reader:
+        connections = [c for c in reader.connections if c.topic == topic]
+        found = []
+        for c, _, raw in reader.messages(connections=connections):
+            found.append((bytes(raw), reader.deserialize(raw, c.msgtype)))
+            if len(found) == count:
+                break
+    return found
+
+
+@pytest.mark.parametrize("name", ["fr079.bag", "intel.bag"])
+def test_fast_ros1_decoders_equal_rosbags_deserialize(name: str) -> None:
+    bag = real_file(name)
+    scans = _first_messages(bag, "/scan", 300)
+    assert len(scans) == 300
+    for raw, msg in scans:
+        stamp_ns, frame_id, angle_min, angle_increment, range_min, range_max, ranges = (
+            decode_ros1_laserscan(raw)  # type: ignore[misc]
+        )
+        assert stamp_ns == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+        assert frame_id == msg.header.frame_id
+        assert (angle_min, angle_increment, range_min, range_max) == (
+            msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
+        )  # fmt: skip
+        assert ranges.dtype == np.float32
+        np.testing.assert_array_equal(ranges, msg.ranges)
+    odometry = _first_messages(bag, "/odom", 300)
+    assert len(odometry) == 300
+    for raw, msg in odometry:
+        q = msg.pose.pose.orientation
+        expected = (
+            msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec,
+            msg.pose.pose.position.x,
+            msg.pose.pose.position.y,
+            yaw_from_quaternion(q.x, q.y, q.z, q.w),
+        )
+        assert decode_ros1_odometry(raw) == (msg.header.frame_id, msg.child_frame_id, expected)
+    transforms = _first_messages(bag, "/tf", 300)
+    assert transforms
+    for raw, msg in transforms:
+        expected = [
+            (
+                t.header.frame_id,
+                t.child_frame_id,
+                (
+                    t.transform.translation.x,
+                    t.transform.translation.y,
+                    yaw_from_quaternion(
+                        t.transform.rotation.x,
+                        t.transform.rotation.y,
+                        t.transform.rotation.z,
+                        t.transform.rotation.w,
+                    ),
+                ),
+            )
+            for t in msg.transforms
+        ]
+        assert decode_ros1_tf(raw) == expected
+
+
+def test_fast_ros1_decoders_refuse_bytes_that_do_not_add_up() -> None:
+    ((raw, _),) = _first_messages(real_file("fr079.bag"), "/scan", 1)
+    ((odom, _),) = _first_messages(real_file("fr079.bag"), "/odom", 1)
+    ((tf, _),) = _first_messages(real_file("fr079.bag"), "/tf", 1)
+    assert decode_ros1_laserscan(raw) is not None
+    for bad in (raw[:-1], raw + b"\0", raw[:20], b""):
+        assert decode_ros1_laserscan(bad) is None
+    for bad in (odom[:-1], odom + b"\0", b"\0\0"):
+        assert decode_ros1_odometry(bad) is None
+    for bad in (tf[:-1], tf + b"\0", b"\x05\0\0\0"):
+        assert decode_ros1_tf(bad) is None
+    frame_length = int(np.frombuffer(raw, "<u4", 1, 12)[0])
+    not_utf8 = bytearray(raw)
+    not_utf8[16 : 16 + frame_length] = b"\xff" * frame_length
+    assert frame_length > 0 and decode_ros1_laserscan(bytes(not_utf8)) is None
+
+
+@pytest.mark.parametrize("name", ["fr079.bag", "intel.bag"])
+def test_one_pass_poses_equal_the_two_pass_track(name: str) -> None:
+    """The first 500 scans: same poses as a pose track built from a full pass over /odom+tf."""
+    source = open_scans(real_file(name))
+    scans = list(itertools.islice(iter(source), 500))
+    with source.reader() as reader:  # type: ignore[attr-defined]
+        track = source.pose_track(reader)  # type: ignore[attr-defined]
+    assert track is not None and len(scans) == 500
+    for scan in scans:
+        assert scan.pose is not None
+        assert scan.pose == track.pose(scan.stamp, scan.frame_id)  # exactly
+
+
+def test_streaming_track_unwraps_yaw_exactly_as_np_unwrap() -> None:
+    rng = np.random.default_rng(3)
+    yaw = np.angle(np.exp(1j * np.cumsum(rng.uniform(-1.5, 1.5, 400))))  # many wraps
+    samples = [(0.1 * i, float(np.cos(i)), float(np.sin(i)), float(y)) for i, y in enumerate(yaw)]
+    late = samples.pop(200)  # one sample arrives out of order
+    track = _StreamingTrack()
+    for sample in samples[:300]:
+        track.add_odometry("odom", "base", sample)
+    track.add_odometry("odom", "base", late)
+    for sample in samples[300:]:
+        track.add_odometry("odom", "base", sample)
+    track.add_transforms([("base", "laser", (0.1, 0.0, 0.5))], is_static=True)
+    ordered = np.array(sorted([*samples, late]))
+    reference = _PoseTrack(
+        "odom", "base", ordered[:, 0], ordered[:, 1], ordered[:, 2], np.unwrap(ordered[:, 3]),
+        {"laser": ("base", (0.1, 0.0, 0.5))},
+    )  # fmt: skip
+    for stamp in np.linspace(-0.2, 40.3, 97):
+        expected = reference.pose(float(stamp), "laser")
+        got = track.pose(float(stamp), "laser")
+        assert got == pytest.approx(expected, abs=1e-12) if expected else got is None
+    in_order = _StreamingTrack()
+    for sample in sorted([*samples, late]):
+        in_order.add_odometry("odom", "base", sample)
+    in_order.pose(0.0, "base")
+    np.testing.assert_array_equal(in_order._current().yaw, np.unwrap(ordered[:, 3]))  # type: ignore[union-attr]
+
+
+def test_bag_read_through_the_rosbags_fallback_gives_the_same_scans(monkeypatch) -> None:
+    """Messages the fast decoders refuse go through rosbags' deserializer, same result."""
+    bag = real_file("fr079.bag")
+    fast = list(itertools.islice(iter(open_scans(bag)), 300))
+    import laser_corners.io.rosbag as rosbag_module
+
+    for name in ("decode_ros1_laserscan", "decode_ros1_odometry", "decode_ros1_tf"):
+        monkeypatch.setattr(rosbag_module, name, lambda raw: None)
+    fallback = list(itertools.islice(iter(open_scans(bag)), 300))
+    assert len(fast) == len(fallback) == 300
+    for a, b in zip(fast, fallback, strict=True):
+        np.testing.assert_array_equal(a.ranges, b.ranges)
+        assert (a.stamp, a.frame_id, a.pose, a.angle_min, a.angle_increment) == (
+            b.stamp, b.frame_id, b.pose, b.angle_min, b.angle_increment,
+        )  # fmt: skip

@@ -279,3 +279,24 @@ def test_ros2_sqlite_bag_is_read(tmp_path: Path) -> None:
     back = list(source)
     assert [round(s.stamp, 6) for s in back] == [round(s.stamp, 6) for s in scans]
     np.testing.assert_allclose(back[3].ranges, scans[3].ranges.astype(np.float32))
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_write_many_writes_what_write_writes(tmp_path: Path, suffix: str) -> None:
+    items = _scans_with_keypoints(7)
+    one_by_one, chunked = tmp_path / f"a{suffix}", tmp_path / f"b{suffix}"
+    with open_keypoint_writer(one_by_one, None, with_map=True, flush_every=2) as writer:  # type: ignore[arg-type]
+        for i, (scan, kps) in enumerate(items):
+            writer.write(i, scan, kps)
+    with open_keypoint_writer(chunked, None, with_map=True, flush_every=2) as chunk_writer:  # type: ignore[arg-type]
+        for start, stop in ((0, 3), (3, 4), (4, 7)):
+            part = items[start:stop]
+            chunk_writer.write_many(start, [s for s, _ in part], [k for _, k in part])
+    assert (chunk_writer.n_scans, chunk_writer.n_keypoints) == (writer.n_scans, writer.n_keypoints)
+    assert writer.n_keypoints > 0
+    if suffix == ".csv":
+        assert chunked.read_text() == one_by_one.read_text()
+    else:
+        assert pq.read_table(chunked).equals(pq.read_table(one_by_one))
+    with pytest.raises(ValueError, match="2 scans but 1 keypoint sets"):
+        chunk_writer.write_many(0, [items[0][0], items[1][0]], [items[0][1]])

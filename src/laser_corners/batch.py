@@ -66,7 +66,8 @@ PARAMS_NAME = "batch-params.yaml"
 PARTIAL_SUFFIX = ".partial"
 """Suffix of an output being written (renamed away on success)."""
 CHUNK_SCANS = 256
-"""Scans handed to :meth:`~laser_corners.CornerDetector.detect_many` at a time."""
+"""Scans read, detected (:meth:`~laser_corners.CornerDetector.detect_many` with threads) and
+written at a time."""
 _BAG_KINDS = ("ros1", "ros2", "mcap")
 _KERNELS_READY: set[int] = set()  # numba thread counts whose kernels this process has loaded
 # numba's fallback threading layer (workqueue) must not be entered by two threads at once;
@@ -455,10 +456,11 @@ def run_job(
     params : ParamsChoice or DetectorParams, optional
         Parameters (default: the paper's).
     threads : int, optional
-        numba threads for this worker process. With 1, scans go one by one through
-        :meth:`~laser_corners.CornerDetector.detect`; with more, chunks of
-        :data:`CHUNK_SCANS` scans go through the parallel
-        :meth:`~laser_corners.CornerDetector.detect_many`. None: leave numba's setting.
+        numba threads for this worker process. Scans are read, detected and written in
+        chunks of up to :data:`CHUNK_SCANS` scans of one geometry; with 1 thread each scan of a
+        chunk goes through :meth:`~laser_corners.CornerDetector.detect`, with more the chunk
+        goes through the parallel :meth:`~laser_corners.CornerDetector.detect_many`. None:
+        leave numba's setting.
 
     Returns
     -------
@@ -508,23 +510,21 @@ def run_job(
         )  # fmt: skip
         index = 0
         chunk: list[LaserScan] = [first]
-        chunk_size = CHUNK_SCANS if n_threads > 1 else 1
         while chunk:
             t0 = time.perf_counter()
             scan = next(scans, None)
-            while scan is not None and len(chunk) < chunk_size and _same_geometry(scan, chunk[0]):
+            while scan is not None and len(chunk) < CHUNK_SCANS and _same_geometry(scan, chunk[0]):
                 chunk.append(scan)
                 scan = next(scans, None)
             t1 = time.perf_counter()
-            if len(chunk) == 1:
-                found = [detector.detect(chunk[0])]
+            if n_threads == 1 or len(chunk) == 1:
+                found = [detector.detect(one_scan) for one_scan in chunk]
             else:
                 with _PARALLEL_KERNEL_LOCK:
                     found = detector.detect_many(chunk)
             t2 = time.perf_counter()
-            for one_scan, keypoints in zip(chunk, found, strict=True):
-                writer.write(index, one_scan, keypoints)
-                index += 1
+            writer.write_many(index, chunk, found)
+            index += len(chunk)
             t3 = time.perf_counter()
             result.read_seconds += t1 - t0
             result.detect_seconds += t2 - t1

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -65,6 +66,16 @@ class KeypointWriter:
         """Record the keypoints of the scan of index ``scan_index``."""
         self.n_scans += 1
         self.n_keypoints += len(keypoints)
+
+    def write_many(
+        self, first_index: int, scans: Sequence[LaserScan], keypoints: Sequence[Keypoints]
+    ) -> None:
+        """Record consecutive scans at once: scan ``first_index + i`` found ``keypoints[i]``.
+
+        Same result as calling :meth:`write` for each; table writers do it in one block.
+        """
+        for offset, (scan, found) in enumerate(zip(scans, keypoints, strict=True)):
+            self.write(first_index + offset, scan, found)
 
     def close(self) -> None:
         """Flush and close the output (idempotent)."""
@@ -119,6 +130,48 @@ class _TableWriter(KeypointWriter):
                     block["map_x"], block["map_y"] = mapped.xy[:, 0], mapped.xy[:, 1]
                 else:
                     block["map_x"] = block["map_y"] = np.full(m, math.nan)
+            self._buffer.append(block)
+        if self._pending_scans >= self.flush_every:
+            self.flush()
+
+    def write_many(
+        self, first_index: int, scans: Sequence[LaserScan], keypoints: Sequence[Keypoints]
+    ) -> None:
+        """Buffer the rows of consecutive scans as one block (as :meth:`write` for each)."""
+        if len(scans) != len(keypoints):
+            raise ValueError(f"{len(scans)} scans but {len(keypoints)} keypoint sets")
+        counts = np.fromiter((len(k) for k in keypoints), dtype=np.int64, count=len(keypoints))
+        self.n_scans += len(scans)
+        self.n_keypoints += int(counts.sum())
+        self._pending_scans += len(scans)
+        with_rows = [i for i, m in enumerate(counts) if m]
+        if with_rows:
+            found = [keypoints[i] for i in with_rows]
+            stamps = np.array(
+                [math.nan if scans[i].stamp is None else scans[i].stamp for i in with_rows],
+                dtype=np.float64,
+            )
+            indices = np.array(with_rows, dtype=np.int64) + first_index
+            repeats = counts[with_rows]
+            xy = np.concatenate([k.xy for k in found])
+            block = {
+                "stamp": np.repeat(stamps, repeats),
+                "scan_index": np.repeat(indices, repeats),
+                "beam_index": np.concatenate([k.beam_index for k in found]),
+                "x": xy[:, 0],
+                "y": xy[:, 1],
+            }
+            for name in ("opening_angle_deg", "orientation", "n_scales", "rmse", "n_merged"):
+                block[name] = np.concatenate([getattr(k, name) for k in found])
+            if self.with_map:
+                mapped = [
+                    k.transformed(pose).xy
+                    if (pose := scans[i].pose) is not None
+                    else np.full((len(k), 2), math.nan)
+                    for i, k in zip(with_rows, found, strict=True)
+                ]
+                map_xy = np.concatenate(mapped)
+                block["map_x"], block["map_y"] = map_xy[:, 0], map_xy[:, 1]
             self._buffer.append(block)
         if self._pending_scans >= self.flush_every:
             self.flush()
