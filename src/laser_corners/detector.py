@@ -60,7 +60,7 @@ _NM = 8
 _REFINE_MAX_SHIFT = 0.05
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _polar_to_xy(
     ranges: NDArray[np.float64],
     cos_a: NDArray[np.float64],
@@ -81,7 +81,7 @@ def _polar_to_xy(
             y[i] = math.nan
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _candidates(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -387,7 +387,7 @@ def _candidates(
         cand[j, _C_ORIENT] = math.atan2(sby, sbx)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.float64]) -> int:
     """Merge per-point candidates by single linkage within ``merge_radius``.
 
@@ -456,7 +456,7 @@ def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.fl
     return n_out
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _refine(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -588,7 +588,7 @@ def _detect_batch(
             )  # fmt: skip
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _raw_rows(cand: NDArray[np.float64], out: NDArray[np.float64]) -> int:
     """Copy every per-point candidate into ``out`` as an unmerged keypoint row."""
     m = 0
