@@ -324,7 +324,8 @@ class BagSource(ScanSource):
             for connection, log_time, raw in self._messages(reader, topics):  # type: ignore[arg-type]
                 if connection.topic != self.topic:
                     assert track is not None
-                    self.position = odometry_position
+                    if index == 0:  # later, the last scan message read says where we are
+                        self.position = odometry_position
                     is_odometry = connection.msgtype == ODOMETRY
                     decoded = (
                         (decode_ros1_odometry(raw) if is_odometry else decode_ros1_tf(raw))
