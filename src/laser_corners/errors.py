@@ -1,8 +1,22 @@
-"""Exceptions raised by laser-corners.
+"""Exceptions raised by laser-corners, one class per area.
 
-Known, expected problems (bad input files, invalid parameters) raise a subclass of
-:class:`LaserCornersError`; the CLI prints them as one line and exits with code 2.
-Anything else is a bug and keeps its traceback.
+Known, expected problems raise a subclass of :class:`LaserCornersError`; the CLI prints them as
+one line and exits with code 2. Anything else is a bug and keeps its traceback. Messages name
+the file, message or field at fault and never a command-line flag (the library does not know
+how it was called).
+
+=====================  ==========================================================
+class                  area
+=====================  ==========================================================
+InvalidScanError       a ``LaserScan`` field (or scan geometry) is invalid
+InvalidParamsError     a ``DetectorParams`` field, preset or option is invalid
+InputError             an input file is missing, empty, truncated, corrupt or of
+                       the wrong kind
+OutputError            an output path cannot be written (missing folder, an
+                       existing file in the way, no permission)
+MissingDependencyError an optional package (an extra) is needed and not installed
+ClusterError           a Dask scheduler or worker cannot be reached or failed
+=====================  ==========================================================
 """
 
 from __future__ import annotations
@@ -17,8 +31,26 @@ class InvalidScanError(LaserCornersError, ValueError):
 
 
 class InvalidParamsError(LaserCornersError, ValueError):
-    """A :class:`~laser_corners.DetectorParams` field has an invalid value."""
+    """A :class:`~laser_corners.DetectorParams` field, a preset or an option is invalid."""
 
 
 class InputError(LaserCornersError):
     """An input file is missing, empty, truncated, corrupt or of the wrong kind."""
+
+
+class OutputError(LaserCornersError):
+    """An output path cannot be written: missing folder, a file in the way, no permission."""
+
+
+class MissingDependencyError(LaserCornersError, ImportError):
+    """An optional package is needed and not installed; the message names the extra."""
+
+
+class ClusterError(LaserCornersError):
+    """A Dask scheduler or worker cannot be reached, or the cluster failed."""
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its class name when the message is empty)."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
