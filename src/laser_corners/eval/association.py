@@ -20,6 +20,7 @@ __all__ = [
     "associate",
     "association_stats",
     "observation_table",
+    "order_by_first_seen",
     "pair_distance_std",
 ]
 
@@ -175,3 +176,16 @@ def association_stats(
         share_std_within=float(np.mean(values <= threshold)) if values.size else float("nan"),
         threshold=float(threshold),
     )
+
+
+def order_by_first_seen(observations: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Feature order by the mean index of the scans that observed each (never seen: last).
+
+    Features seen together get neighbouring numbers, so the pair matrix of
+    :func:`pair_distance_std` shows blocks along its diagonal.
+    """
+    seen = np.all(np.isfinite(observations), axis=2)
+    scan_index = np.arange(observations.shape[0], dtype=np.float64)[:, None]
+    with np.errstate(invalid="ignore"):
+        when = (seen * scan_index).sum(axis=0) / seen.sum(axis=0)
+    return np.argsort(np.nan_to_num(when, nan=np.inf), kind="stable")
