@@ -136,8 +136,9 @@ def test_thin_evidence_is_said_plainly_never_nan(tmp_path: Path) -> None:
 
 def test_cli_on_the_log(log: Path, tmp_path: Path) -> None:
     out = tmp_path / "cli"
-    result = CliRunner().invoke(app, ["evaluate", "real", str(log), "-o", str(out),
-                                      "--min-views", "5", "--methods", "paper,falko-like"])  # fmt: skip
+    args = ["evaluate", "real", str(log), "-o", str(out), "--min-views", "5",
+            "--methods", "paper,falko-like"]  # fmt: skip
+    result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     info = json.loads((out / "summary.json").read_text())
     assert info["no_return_range"] == pytest.approx(NO_RETURN, abs=0.002)

@@ -17,8 +17,8 @@ from laser_corners.eval.association import (
 from laser_corners.eval.falko_like import FalkoLikeDetector, FalkoLikeParams
 from laser_corners.eval.grid import Grid
 from laser_corners.eval.observability import ObservabilityMap, observability_map
+from laser_corners.eval.pairs import pairs_from_poses, pairs_from_relations
 from laser_corners.eval.persistent import persistent_features
-from laser_corners.eval.visibility import points_in_view
 from laser_corners.eval.poses import (
     Trajectory,
     compose,
@@ -28,8 +28,8 @@ from laser_corners.eval.poses import (
     read_tum,
     relative_pose,
 )
-from laser_corners.eval.pairs import pairs_from_poses, pairs_from_relations
 from laser_corners.eval.repeatability import pair_repeatability, repeatability
+from laser_corners.eval.visibility import points_in_view
 from laser_corners.scan import LaserScan
 from laser_corners.sim import corner_scan
 

@@ -13,9 +13,9 @@ from typer.testing import CliRunner
 from conftest import real_file
 from laser_corners.cli import app
 from laser_corners.eval.real import RealEvalConfig, RealEvaluation, evaluate_real
-from laser_corners.viz.report import write_real_report
 from laser_corners.scan import LaserScan
 from laser_corners.sim import UST_10LX, rectangular_room
+from laser_corners.viz.report import write_real_report
 
 runner = CliRunner()
 
@@ -70,7 +70,8 @@ def test_report_files(room_result, tmp_path: Path) -> None:
     for name in ("observability.png", "observability_n8.png", "observability.npz",
                  "observability_counts.npz", "association_matrix.png",
                  "association_histogram.png", "association.npz", "repeatability.csv",
-                 "persistent_features.csv", "report.md", "summary.json", "params.yaml"):  # fmt: skip
+                 "persistent_features.csv", "report.md", "summary.json",
+                 "params.yaml"):  # fmt: skip
         assert (tmp_path / name).is_file(), name
         assert name in paths
     ratio = np.load(tmp_path / "observability.npz")["ratio_n8"]
