@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import linear_sum_assignment
 
 from laser_corners.eval.methods import MethodFactory, method_factories
 from laser_corners.sim.generate import random_poses, random_world
@@ -80,8 +81,6 @@ def match_scan(
     match_radius : float
         Match distance, metres.
     """
-    from scipy.optimize import linear_sum_assignment
-
     kp = np.asarray(keypoints, dtype=np.float64).reshape(-1, 2)
     vis = np.asarray(visible, dtype=np.float64).reshape(-1, 2)
     allc = np.asarray(all_corners, dtype=np.float64).reshape(-1, 2)

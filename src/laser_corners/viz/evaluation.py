@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import matplotlib as mpl
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -91,8 +92,6 @@ def plot_pair_std_matrix(ax: Any, pair_std: ArrayLike, title: str = "") -> Any:
     matplotlib.image.AxesImage
         The matrix image, in millimetres (for a colour bar).
     """
-    import matplotlib as mpl
-
     std_mm = np.asarray(pair_std, dtype=float) * 1000.0
     cmap = mpl.colormaps["viridis"].with_extremes(bad="0.9")
     finite = std_mm[np.isfinite(std_mm)]
