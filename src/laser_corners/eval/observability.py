@@ -34,6 +34,92 @@ _BLOCK = 16
 
 
 @nb.njit(cache=True)
+def _block_may_be_seen(
+    px: float,
+    py: float,
+    half_diag: float,
+    reach: float,
+    ranges: NDArray[np.float64],
+    angle_min: float,
+    angle_increment: float,
+    tolerance: float,
+    occlusion: bool,
+) -> bool:
+    """Whether a block of cells centred at ``(px, py)`` (sensor frame) may hold a visible cell.
+
+    False when the block is wholly beyond ``reach``, outside the field of view, or (with
+    occlusion) behind the measured ranges of every beam that could reach it.
+    """
+    dc = math.sqrt(px * px + py * py)
+    if dc - half_diag > reach:
+        return False
+    if dc <= half_diag:  # the sensor is inside the block
+        return True
+    n = ranges.shape[0]
+    turns = 2.0 * math.pi / abs(angle_increment)
+    w = math.asin(half_diag / dc)
+    b = math.atan2(py, px)
+    fa = (b - w - angle_min) / angle_increment
+    fb = (b + w - angle_min) / angle_increment
+    f_lo = min(fa, fb)
+    f_hi = max(fa, fb)
+    overlaps = False
+    farthest = -1.0
+    for shift in (0.0, turns, -turns):
+        lo = f_lo + shift
+        hi = f_hi + shift
+        if hi < -0.5 or lo > n - 0.5:
+            continue
+        overlaps = True
+        for i in range(max(0, math.floor(lo)), min(n - 1, math.floor(hi) + 1) + 1):
+            r = ranges[i]
+            if math.isfinite(r) and r > farthest:
+                farthest = r
+    if not overlaps:
+        return False
+    return not (occlusion and (farthest < 0.0 or dc - half_diag > farthest + tolerance))
+
+
+@nb.njit(cache=True)
+def _count_hits(
+    scan_id: int,
+    keypoint_cells: NDArray[np.int64],
+    in_view: NDArray[np.int32],
+    in_view_n8: NDArray[np.int32],
+    hits: NDArray[np.int32],
+    hits_n8: NDArray[np.int32],
+    mark_view: NDArray[np.int32],
+    mark_view_n8: NDArray[np.int32],
+    mark_hit: NDArray[np.int32],
+    mark_hit_n8: NDArray[np.int32],
+) -> None:
+    """Count one scan's keypoint cells (and, for N8, their neighbours) once each.
+
+    A cell with a keypoint was in view by definition: it counts as a view too.
+    """
+    rows, cols = in_view.shape
+    for k in range(keypoint_cells.shape[0]):
+        row = keypoint_cells[k, 0]
+        col = keypoint_cells[k, 1]
+        if row < 0 or row >= rows or col < 0 or col >= cols:
+            continue
+        if mark_hit[row, col] != scan_id:
+            mark_hit[row, col] = scan_id
+            hits[row, col] += 1
+            if mark_view[row, col] != scan_id:
+                mark_view[row, col] = scan_id
+                in_view[row, col] += 1
+        for nr in range(max(0, row - 1), min(rows, row + 2)):
+            for nc in range(max(0, col - 1), min(cols, col + 2)):
+                if mark_hit_n8[nr, nc] != scan_id:
+                    mark_hit_n8[nr, nc] = scan_id
+                    hits_n8[nr, nc] += 1
+                    if mark_view_n8[nr, nc] != scan_id:
+                        mark_view_n8[nr, nc] = scan_id
+                        in_view_n8[nr, nc] += 1
+
+
+@nb.njit(cache=True)
 def _accumulate_scan(
     scan_id: int,
     x0: float,
@@ -73,8 +159,6 @@ def _accumulate_scan(
     r1 = min(rows - 1, math.floor((pose_y + reach - y0) / res))
     c = math.cos(pose_theta)
     s = math.sin(pose_theta)
-    n = ranges.shape[0]
-    turns = 2.0 * math.pi / abs(angle_increment)
     half_diag = 0.5 * math.sqrt(2.0) * _BLOCK * res
     # blocks of _BLOCK x _BLOCK cells: skip those wholly out of the FOV, range or behind the
     # measured ranges of every beam that could reach them; test the others cell by cell
@@ -84,32 +168,11 @@ def _accumulate_scan(
             dy = y0 + (br + 0.5 * _BLOCK) * res - pose_y
             px = c * dx + s * dy
             py = -s * dx + c * dy
-            dc = math.sqrt(px * px + py * py)
-            if dc - half_diag > reach:
+            if not _block_may_be_seen(
+                px, py, half_diag, reach, ranges, angle_min, angle_increment, tolerance,
+                occlusion,
+            ):  # fmt: skip
                 continue
-            if dc > half_diag:
-                w = math.asin(half_diag / dc)
-                b = math.atan2(py, px)
-                fa = (b - w - angle_min) / angle_increment
-                fb = (b + w - angle_min) / angle_increment
-                f_lo = min(fa, fb)
-                f_hi = max(fa, fb)
-                overlaps = False
-                farthest = -1.0
-                for shift in (0.0, turns, -turns):
-                    lo = f_lo + shift
-                    hi = f_hi + shift
-                    if hi < -0.5 or lo > n - 0.5:
-                        continue
-                    overlaps = True
-                    for i in range(max(0, math.floor(lo)), min(n - 1, math.floor(hi) + 1) + 1):
-                        r = ranges[i]
-                        if math.isfinite(r) and r > farthest:
-                            farthest = r
-                if not overlaps:
-                    continue
-                if occlusion and (farthest < 0.0 or dc - half_diag > farthest + tolerance):
-                    continue
             for row in range(br, min(br + _BLOCK, r1 + 1)):
                 dy = y0 + (row + 0.5) * res - pose_y
                 for col in range(bc, min(bc + _BLOCK, c1 + 1)):
@@ -125,26 +188,8 @@ def _accumulate_scan(
                         mark_view[row, col] = scan_id
                         in_view_n8[row, col] += 1
                         mark_view_n8[row, col] = scan_id
-    # keypoint hits; a cell with a keypoint was in view by definition
-    for k in range(keypoint_cells.shape[0]):
-        row = keypoint_cells[k, 0]
-        col = keypoint_cells[k, 1]
-        if row < 0 or row >= rows or col < 0 or col >= cols:
-            continue
-        if mark_hit[row, col] != scan_id:
-            mark_hit[row, col] = scan_id
-            hits[row, col] += 1
-            if mark_view[row, col] != scan_id:
-                mark_view[row, col] = scan_id
-                in_view[row, col] += 1
-        for nr in range(max(0, row - 1), min(rows, row + 2)):
-            for nc in range(max(0, col - 1), min(cols, col + 2)):
-                if mark_hit_n8[nr, nc] != scan_id:
-                    mark_hit_n8[nr, nc] = scan_id
-                    hits_n8[nr, nc] += 1
-                    if mark_view_n8[nr, nc] != scan_id:
-                        mark_view_n8[nr, nc] = scan_id
-                        in_view_n8[nr, nc] += 1
+    _count_hits(scan_id, keypoint_cells, in_view, in_view_n8, hits, hits_n8, mark_view,
+                mark_view_n8, mark_hit, mark_hit_n8)  # fmt: skip
 
 
 @dataclass(frozen=True)
