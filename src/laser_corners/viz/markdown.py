@@ -25,27 +25,42 @@ def real_markdown(result: RealEvaluation, info: dict[str, Any]) -> str:
     """``report.md``: the numbers of ``info`` (:func:`~laser_corners.eval.real_summary.summary`)
     with links to the figures and files :func:`~laser_corners.viz.report.write_real_report` writes.
     """
-    pf = info["persistent_features"]
-    asc = info["association"]
-    rep = info["repeatability"]
-    radii = rep["radii"]
-    lines = [
+    lines = _head(result, info)
+    if info["warnings"]:  # first, so nobody reads a thin number without the warning
+        lines += ["## Warnings", ""] + [f"- **{w}**" for w in info["warnings"]] + [""]
+    lines += _maps(info) + _association(info) + _repeatability(info)
+    if info["notes"]:
+        lines += ["", "## Notes", ""] + [f"- {note}" for note in info["notes"]]
+    seconds = ", ".join(f"{k} {v:.1f} s" for k, v in info["seconds"].items())
+    lines += ["", f"Run time: {seconds}.", "", f"Method: {CITATION}", ""]
+    return "\n".join(lines)
+
+
+def _head(result: RealEvaluation, info: dict[str, Any]) -> list[str]:
+    grid = info["grid"]
+    visibility = (
+        "ray-cast against each scan (occlusion on)"
+        if info["occlusion"]
+        else "field of view and range only"
+    )
+    if info["max_range"]:
+        visibility += f", max range {info['max_range']:g} m"
+    return [
         f"# Real-data evaluation: {result.source}",
         "",
         f"- scans: {info['scans']} ({info['scans_with_pose']} with a pose from "
         f"{info['pose_source']})",
-        f"- detector for the maps: `{info['maps_detector']}`"
-        + f" ({info['keypoints_per_scan']} keypoints per scan; parameters in "
-        "[params.yaml](params.yaml))",
-        f"- grid: {info['grid']['cols']} x {info['grid']['rows']} cells of "
-        f"{info['grid']['resolution']:g} m; visibility "
-        + (
-            "ray-cast against each scan (occlusion on)"
-            if info["occlusion"]
-            else "field of view and range only"
-        )
-        + (f", max range {info['max_range']:g} m" if info["max_range"] else ""),
+        f"- detector for the maps: `{info['maps_detector']}` ({info['keypoints_per_scan']} "
+        "keypoints per scan; parameters in [params.yaml](params.yaml))",
+        f"- grid: {grid['cols']} x {grid['rows']} cells of {grid['resolution']:.3g} m; "
+        f"visibility {visibility}",
         "",
+    ]
+
+
+def _maps(info: dict[str, Any]) -> list[str]:
+    pf = info["persistent_features"]
+    lines = [
         "## Observability map",
         "",
         "Ratio of the scans with a keypoint in the cell to the scans that had the cell in view.",
@@ -66,9 +81,13 @@ def real_markdown(result: RealEvaluation, info: dict[str, Any]) -> str:
         "| N8 observability | features |",
         "|---|---|",
     ]
-    lines += [f"| >= {100 * level:g} % | {pf[f'n8_at_least_{level:g}']} |"
-              for level in PERSISTENCE_LEVELS]  # fmt: skip
-    lines += [
+    return lines + [f"| >= {100 * level:g} % | {pf[f'n8_at_least_{level:g}']} |"
+                    for level in PERSISTENCE_LEVELS]  # fmt: skip
+
+
+def _association(info: dict[str, Any]) -> list[str]:
+    asc = info["association"]
+    return [
         "",
         "## Association distance",
         "",
@@ -86,6 +105,13 @@ def real_markdown(result: RealEvaluation, info: dict[str, Any]) -> str:
         "|---|---|",
         "| ![association matrix](association_matrix.png) | "
         "![association histogram](association_histogram.png) |",
+    ]
+
+
+def _repeatability(info: dict[str, Any]) -> list[str]:
+    rep = info["repeatability"]
+    radii = rep["radii"]
+    lines = [
         "",
         "## Repeatability",
         "",
@@ -104,14 +130,7 @@ def real_markdown(result: RealEvaluation, info: dict[str, Any]) -> str:
         per_scan_text = "-" if per_scan is None else f"{per_scan:.2f}"
         lines.append(f"| {row['method']}{flag} | {per_scan_text} | {row['visible']} | "
                      + " | ".join(values) + " |")  # fmt: skip
-    lines += ["", "Table: [repeatability.csv](repeatability.csv)."]
-    if info["warnings"]:
-        lines += ["", "## Warnings", ""] + [f"- **{w}**" for w in info["warnings"]]
-    if info["notes"]:
-        lines += ["", "## Notes", ""] + [f"- {note}" for note in info["notes"]]
-    seconds = ", ".join(f"{k} {v:.1f} s" for k, v in info["seconds"].items())
-    lines += ["", f"Run time: {seconds}.", "", f"Method: {CITATION}", ""]
-    return "\n".join(lines)
+    return [*lines, "", "Table: [repeatability.csv](repeatability.csv)."]
 
 
 def _mm(value: float | None) -> str:
