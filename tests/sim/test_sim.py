@@ -214,3 +214,12 @@ def test_cli_simulate_rejects_nonsense_in_one_line(tmp_path, option: str, value:
     assert result.exit_code == 2, result.output
     assert result.output.count("\n") == 1 and "must be a finite number" in result.output
     assert not out.exists()
+
+
+def test_checks_docstring_examples() -> None:
+    import doctest
+
+    import laser_corners.sim.checks
+
+    result = doctest.testmod(laser_corners.sim.checks, optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0 and result.failed == 0
