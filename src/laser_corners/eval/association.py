@@ -109,8 +109,10 @@ def pair_distance_std(
     together = np.zeros((n_feat, n_feat), dtype=np.int64)
     seen = np.all(np.isfinite(obs), axis=2)  # (S, F)
     for f in range(n_feat):
-        dist = np.linalg.norm(obs[:, f : f + 1, :] - obs, axis=2)  # (S, F), NaN if unseen
-        both = seen[:, f : f + 1] & seen
+        rows = np.flatnonzero(seen[:, f])  # only the scans that saw f (cost ~ observations)
+        sub = obs[rows]
+        dist = np.linalg.norm(sub[:, f : f + 1, :] - sub, axis=2)  # (S_f, F), NaN if unseen
+        both = seen[rows]
         count = both.sum(axis=0)
         together[f] = count
         ok = count >= 2
