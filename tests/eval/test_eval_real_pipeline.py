@@ -81,6 +81,7 @@ def test_report_files(room_result, tmp_path: Path) -> None:
     np.testing.assert_allclose(std, result.pair_std, rtol=1e-6)
     info = json.loads((tmp_path / "summary.json").read_text())
     assert info["persistent_features"]["count"] == len(result.features)
+    assert "M. F. Silva" in info["method_reference"] and "Petry" not in info["method_reference"]
     assert info["association"]["pairs_never_together"] == result.association.n_pairs_never_together
     report = (tmp_path / "report.md").read_text()
     for link in ("observability.png", "association_matrix.png", "association_histogram.png"):

@@ -5,16 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from laser_corners.eval.real import PERSISTENCE_LEVELS, RealEvaluation
+from laser_corners.eval.real_summary import CITATION
 
-__all__ = ["CITATION", "real_markdown"]
-
-CITATION = (
-    'R. B. Sousa, H. M. Sobreira, M. F. Silva, A. P. Moreira, "Line Fitting-Based Corner-Like '
-    'Detector for 2D Laser Scanners Data", 2024 10th International Conference on Automation, '
-    "Robotics and Applications (ICARA), Athens, Greece, pp. 210-216, "
-    "doi:10.1109/ICARA60736.2024.10553006"
-)
-"""The paper whose section IV this evaluation follows (written into every report)."""
+__all__ = ["real_markdown"]
 
 
 def _percent(value: float | None) -> str:

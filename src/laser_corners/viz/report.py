@@ -121,7 +121,8 @@ def _features_and_association(result: RealEvaluation, out: _Folder) -> None:
     fig = Figure(figsize=(7, 6))
     ax = fig.subplots()
     image = plot_pair_std_matrix(ax, result.pair_std)
-    fig.colorbar(image, ax=ax, label="std [mm]")
+    if image is not None:
+        fig.colorbar(image, ax=ax, label="std [mm]")
     out.figure(fig, "association_matrix.png")
     fig = Figure(figsize=(7, 4))
     ax = fig.subplots()
