@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 from conftest import real_file
 from laser_corners.cli import app
+from laser_corners.eval.methods import detect_all
 from laser_corners.eval.real import RealEvalConfig, RealEvaluation, evaluate_real
 from laser_corners.scan import LaserScan
 from laser_corners.sim import UST_10LX, rectangular_room
@@ -200,3 +201,21 @@ def test_real_bag_uses_its_relations(tmp_path: Path) -> None:
     assert info["repeatability"]["pairs_source"].startswith("ground-truth relations")
     assert info["repeatability"]["pairs"] > 0
     assert info["repeatability"]["rows"][0]["repeatability_r0.1"] > 0.5
+
+
+def test_a_shared_detect_loop_plugs_in() -> None:
+    """evaluate_real runs every detector through the loop it is given (the pipeline's, later)."""
+    scans, _ = room_scans(n=10)
+    calls: list[tuple[str, int]] = []
+
+    def loop(detector, batch, step):  # type: ignore[no-untyped-def]
+        calls.append((type(detector).__name__, len(batch)))
+        return detect_all(detector, batch, step)
+
+    cfg = RealEvalConfig(min_views=3, pair_min_motion=0.3, methods=("paper", "falko-like"))
+    plain = evaluate_real(scans, cfg)
+    looped = evaluate_real(scans, cfg, detect_loop=loop)
+    assert calls[0] == ("CornerDetector", 10)  # the maps' detector on every scan
+    assert [name for name, _ in calls[1:]] == ["FalkoLikeDetector"]  # paper already ran
+    for name in plain.repeatability:
+        assert plain.repeatability[name] == looped.repeatability[name]

@@ -37,6 +37,7 @@ from laser_corners.scan import LaserScan
 
 __all__ = [
     "ALIASES",
+    "DetectLoop",
     "Detects",
     "MethodFactory",
     "canonical_name",
@@ -56,6 +57,11 @@ class Detects(Protocol):
 
 MethodFactory = Callable[[LaserScan], Detects]
 """Builds a detector for a batch of scans from one sample scan of the batch."""
+
+DetectLoop = Callable[
+    [Detects, Sequence[LaserScan], Callable[[int, int], None] | None], list[Keypoints]
+]
+"""Runs a detector over scans with a ``(done, total)`` progress callback (:func:`detect_all`)."""
 
 _OTHERS: dict[str, MethodFactory] = {
     "split-and-merge": lambda scan: SplitAndMergeDetector(),

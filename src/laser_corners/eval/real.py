@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from laser_corners.detector import CornerDetector
 from laser_corners.errors import InputError
 from laser_corners.eval.association import AssociationStats
+from laser_corners.eval.methods import DetectLoop, detect_all
 from laser_corners.eval.observability import ObservabilityMap
 from laser_corners.eval.pairs import default_relations, pairs_from_poses, pairs_from_relations
 from laser_corners.eval.persistent import PersistentFeatures
@@ -155,6 +156,7 @@ def evaluate_real(
     pose_source: str = "",
     progress: Callable[[str], None] | None = None,
     step: Callable[[str, int, int], None] | None = None,
+    detect_loop: DetectLoop = detect_all,
 ) -> RealEvaluation:
     """Run the whole section-IV evaluation on scans that carry map-frame sensor poses.
 
@@ -178,6 +180,10 @@ def evaluate_real(
     step : callable, optional
         Called as ``step(phase, done, total)`` during long phases (detection, observability,
         repeatability), e.g. to drive a progress bar.
+    detect_loop : callable, optional
+        How a method's detector runs over scans, ``detect_loop(detector, scans, step)``:
+        :func:`~laser_corners.eval.methods.detect_all` by default; the place for a shared
+        detect loop (threads, chunks) to plug in.
 
     Returns
     -------
@@ -189,7 +195,7 @@ def evaluate_real(
         No scan has a pose.
     """
     cfg = config if config is not None else RealEvalConfig()
-    phases = Phases(progress, step)
+    phases = Phases(progress, step, detect=detect_loop)
     scans, no_return, notes = clean_scans(list(scans))
     if not any(s.pose is not None for s in scans):
         raise InputError(f"{source or 'recording'}: no scan has a sensor pose")

@@ -23,7 +23,7 @@ from laser_corners.eval.association import (
     pair_distance_std,
 )
 from laser_corners.eval.grid import bounded_grid
-from laser_corners.eval.methods import detect_all, method_factories
+from laser_corners.eval.methods import DetectLoop, detect_all, method_factories
 from laser_corners.eval.no_return import no_return_range, without_no_returns
 from laser_corners.eval.observability import ObservabilityMap, observability_map
 from laser_corners.eval.pairs import choose_pairs
@@ -52,7 +52,7 @@ __all__ = [
 
 
 class Phases:
-    """Timings and progress of the phases.
+    """Timings, progress and the detect loop of the phases.
 
     ``step(phase, done, total)`` goes to ``step`` when given; otherwise, with ``say``, a
     ``phase: done / total`` message at most every ``every`` seconds.
@@ -63,7 +63,9 @@ class Phases:
         say: Callable[[str], None] | None,
         step: Callable[[str, int, int], None] | None,
         every: float = 5.0,
+        detect: DetectLoop = detect_all,
     ) -> None:
+        self.detect = detect
         self.say = say if say is not None else (lambda message: None)
         self._step = step
         self._every = every
@@ -125,7 +127,7 @@ def maps_phase(
 ) -> MapsPhase:
     """Detect on every scan, build the bounded observability map, pick persistent features."""
     t0 = time.perf_counter()
-    keypoints = detect_all(detector, scans, phases.stepper("detection"))
+    keypoints = phases.detect(detector, scans, phases.stepper("detection"))
     phases.timed("detection", t0)
     posed = [i for i, s in enumerate(scans) if s.pose is not None]
     phases.say(f"{len(scans)} scans ({len(posed)} with a pose), "
@@ -205,7 +207,7 @@ def repeatability_phase(
     for name, factory in method_factories(cfg.methods).items():
         if name not in runs and sub_scans:
             detector = factory(sub_scans[0])
-            runs[name] = lambda d=detector, n=name: detect_all(d, sub_scans, phases.stepper(n))
+            runs[name] = lambda d=detector, n=name: phases.detect(d, sub_scans, phases.stepper(n))
     for name, run in runs.items():
         table[name] = repeatability(
             [k.xy for k in run()], sub_scans, sub_pairs, cfg.radii, cfg.view_tolerance,
