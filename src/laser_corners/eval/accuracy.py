@@ -15,18 +15,19 @@ sweep of range-noise levels; each method's keypoints are matched to the true cor
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.optimize import linear_sum_assignment
 
-from laser_corners.keypoints import Keypoints
-from laser_corners.scan import LaserScan
+from laser_corners.eval.methods import MethodFactory, method_factories
 from laser_corners.sim.generate import random_poses, random_world
 from laser_corners.sim.sensors import UST_10LX, SensorProfile
 from laser_corners.sim.worlds import World
@@ -42,20 +43,11 @@ __all__ = [
     "match_scan",
     "run_sweep",
     "write_report",
+    "write_tables",
 ]
 
 DEFAULT_SIGMAS: tuple[float, ...] = (0.0, 0.005, 0.01, 0.02, 0.03)
 """Range-noise levels of the default sweep, metres."""
-
-
-class Detects(Protocol):
-    """Anything with ``detect_many(scans) -> list[Keypoints]``."""
-
-    def detect_many(self, scans: list[LaserScan]) -> list[Keypoints]: ...
-
-
-MethodFactory = Callable[[LaserScan], Detects]
-"""Builds a detector for a batch of scans from one sample scan of the batch."""
 
 
 @dataclass(frozen=True)
@@ -89,8 +81,6 @@ def match_scan(
     match_radius : float
         Match distance, metres.
     """
-    from scipy.optimize import linear_sum_assignment
-
     kp = np.asarray(keypoints, dtype=np.float64).reshape(-1, 2)
     vis = np.asarray(visible, dtype=np.float64).reshape(-1, 2)
     allc = np.asarray(all_corners, dtype=np.float64).reshape(-1, 2)
@@ -227,28 +217,17 @@ def make_cases(
     return cases
 
 
-def default_methods(names: Sequence[str] = ("paper", "robust", "baseline")) -> dict[str, Any]:
-    """Method factories by name: detector presets (``paper``, ``robust``...) and ``baseline``.
+def default_methods(
+    names: Sequence[str] = ("paper", "robust", "split-and-merge"),
+) -> dict[str, Any]:
+    """Method factories by name, from the registry :mod:`laser_corners.eval.methods`.
 
-    Each factory gets one sample scan of the batch (presets that adapt to the sensor or its
-    noise read it) and returns an object with ``detect_many``.
+    Raises
+    ------
+    InvalidParamsError
+        An unknown name (the message lists the known ones).
     """
-    from laser_corners.detector import CornerDetector
-    from laser_corners.errors import InvalidParamsError
-    from laser_corners.eval.baselines import SplitAndMergeDetector
-    from laser_corners.presets import PRESETS, get_preset
-
-    methods: dict[str, MethodFactory] = {}
-    for name in names:
-        if name == "baseline":
-            methods[name] = lambda scan: SplitAndMergeDetector()
-        elif name in PRESETS:
-            methods[name] = lambda scan, preset=name: CornerDetector(get_preset(preset, scan))
-        else:
-            raise InvalidParamsError(
-                f"unknown method {name!r}; choose from: {', '.join([*PRESETS, 'baseline'])}"
-            )
-    return methods
+    return method_factories(names)
 
 
 def run_sweep(
@@ -297,40 +276,31 @@ def run_sweep(
     return stats, used
 
 
-def write_report(stats: Sequence[AccuracyStats], output: Path) -> dict[str, Path]:
-    """Write ``accuracy.csv``, ``accuracy.md`` and ``accuracy.png`` into ``output``."""
-    import csv
+def write_tables(stats: Sequence[AccuracyStats], output: Path) -> dict[str, Path]:
+    """Write ``accuracy.csv`` and ``accuracy.md`` into ``output``.
 
+    The figure is drawn by :func:`laser_corners.viz.report.write_accuracy_report`.
+    """
     output.mkdir(parents=True, exist_ok=True)
     rows = [s.row() for s in stats]
-    paths = {
-        "csv": output / "accuracy.csv",
-        "markdown": output / "accuracy.md",
-        "plot": output / "accuracy.png",
-    }
+    paths = {"csv": output / "accuracy.csv", "markdown": output / "accuracy.md"}
     with paths["csv"].open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
     paths["markdown"].write_text(markdown_table(stats))
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from laser_corners.viz.accuracy import plot_accuracy_metric
-
-    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5))
-    for ax, metric in zip(
-        axes.ravel(),
-        ("recall", "false_rate", "median_error_mm", "keypoints_per_corner"),
-        strict=True,
-    ):
-        plot_accuracy_metric(ax, rows, metric)
-    fig.tight_layout()
-    fig.savefig(paths["plot"], dpi=110)
-    plt.close(fig)
     return paths
+
+
+def write_report(stats: Sequence[AccuracyStats], output: Path) -> dict[str, Path]:
+    """Deprecated: use :func:`laser_corners.viz.report.write_accuracy_report`.
+
+    Kept only until ``cli.py`` imports the writer from :mod:`laser_corners.viz.report`
+    (an upward import, made at call time); remove it then.
+    """
+    from laser_corners.viz.report import write_accuracy_report
+
+    return write_accuracy_report(stats, output)
 
 
 def markdown_table(stats: Sequence[AccuracyStats]) -> str:

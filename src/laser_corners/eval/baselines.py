@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass
 from itertools import pairwise
 
+import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
@@ -72,22 +73,50 @@ class SplitAndMergeParams:
             raise InvalidParamsError("need 0 <= min_angle_deg <= max_angle_deg <= 180")
 
 
+@nb.njit(cache=True)
+def _line_fit(points: NDArray[np.float64]) -> tuple[float, float, float, float, float, float]:
+    """Total-least-squares line of ``points`` (M, 2), closed form of the 2x2 eigenproblem.
+
+    Returns the centroid ``(cx, cy)``, the unit direction ``(dx, dy)`` (major axis of the
+    scatter), the RMS and the largest orthogonal residual.
+    """
+    m = points.shape[0]
+    cx = 0.0
+    cy = 0.0
+    for i in range(m):
+        cx += points[i, 0]
+        cy += points[i, 1]
+    cx /= m
+    cy /= m
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    for i in range(m):
+        qx = points[i, 0] - cx
+        qy = points[i, 1] - cy
+        sxx += qx * qx
+        syy += qy * qy
+        sxy += qx * qy
+    angle = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # major axis of the scatter matrix
+    dx = math.cos(angle)
+    dy = math.sin(angle)
+    total = 0.0
+    worst = 0.0
+    for i in range(m):
+        r = abs(-(points[i, 0] - cx) * dy + (points[i, 1] - cy) * dx)
+        total += r * r
+        worst = max(worst, r)
+    return cx, cy, dx, dy, math.sqrt(total / m), worst
+
+
 def _tls(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Total-least-squares line: centroid, unit direction, RMS orthogonal residual."""
-    c = points.mean(axis=0)
-    q = points - c
-    cov = q.T @ q
-    _, vecs = np.linalg.eigh(cov)
-    direction = vecs[:, 1]
-    normal = vecs[:, 0]
-    rms = float(np.sqrt(np.mean((q @ normal) ** 2)))
-    return c, direction, rms
+    cx, cy, dx, dy, rms, _ = _line_fit(np.ascontiguousarray(points, dtype=np.float64))
+    return np.array([cx, cy]), np.array([dx, dy]), rms
 
 
 def _max_line_distance(points: NDArray[np.float64]) -> float:
-    c, _, _ = _tls(points)
-    _, vecs = np.linalg.eigh((points - c).T @ (points - c))
-    return float(np.max(np.abs((points - c) @ vecs[:, 0])))
+    return _line_fit(np.ascontiguousarray(points, dtype=np.float64))[5]
 
 
 class SplitAndMergeDetector:
@@ -143,19 +172,14 @@ class SplitAndMergeDetector:
         joined = np.zeros(len(r), dtype=bool)  # joined[i]: point i continues the cluster of i-1
         with np.errstate(invalid="ignore"):
             joined[1:] = valid[1:] & valid[:-1] & (step <= limit)
-        clusters = []
-        i = 0
-        n = len(r)
-        while i < n:
-            if not valid[i]:
-                i += 1
-                continue
-            j = i
-            while j + 1 < n and joined[j + 1]:
-                j += 1
-            if j - i + 1 >= self.params.min_points:
-                clusters.append((i, j))
-            i = j + 1
+        # a cluster starts at a valid point not joined to the previous one and runs until the
+        # next point that is not joined (joined implies valid)
+        starts = np.flatnonzero(valid & ~joined)
+        breaks = np.flatnonzero(~joined)
+        nxt = np.searchsorted(breaks, starts, side="right")
+        ends = np.where(nxt < len(breaks), breaks[np.minimum(nxt, len(breaks) - 1)] - 1, len(r) - 1)
+        keep = ends - starts + 1 >= self.params.min_points
+        clusters = [(int(a), int(b)) for a, b in zip(starts[keep], ends[keep], strict=True)]
         return clusters
 
     def _split(

@@ -1,7 +1,7 @@
 """Repeatability of keypoints between scans with a known relative pose.
 
 For a pair of scans A and B with the pose of B in A's frame known, A's keypoints are moved
-into B's sensor frame; those B could have seen (:func:`~laser_corners.eval.observability.
+into B's sensor frame; those B could have seen (:func:`~laser_corners.eval.visibility.
 points_in_view`, with occlusion against scan B itself) are *visible*, and a visible keypoint is
 *repeated* when B has a keypoint within ``r`` of it. Repeatability is repeated / visible,
 summed over all pairs.
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from laser_corners.eval.observability import points_in_view
+from laser_corners.eval.visibility import points_in_view
 from laser_corners.scan import LaserScan, Pose2D
 
 __all__ = ["PairCounts", "RepeatabilityResult", "pair_repeatability", "repeatability"]
@@ -64,7 +64,7 @@ def pair_repeatability(
     radii : sequence of float
         Repetition radii r, metres.
     tolerance, occlusion, max_range
-        Visibility test, see :func:`~laser_corners.eval.observability.points_in_view`.
+        Visibility test, see :func:`~laser_corners.eval.visibility.points_in_view`.
 
     Returns
     -------

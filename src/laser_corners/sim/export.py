@@ -30,8 +30,12 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from rosbags.rosbag1 import Writer
+from rosbags.typesys import Stores, get_typestore
 
+from laser_corners.io.arrays import write_scans_npz
 from laser_corners.scan import LaserScan
+from laser_corners.sim.checks import check_number
 from laser_corners.sim.sensors import SensorProfile
 from laser_corners.sim.worlds import World
 
@@ -72,7 +76,14 @@ def simulate_sequence(
     probe: float = 0.25,
     min_beams: float = 4.0,
 ) -> SimSequence:
-    """Scan ``world`` from each pose (stamped at the sensor's rate) with its ground truth."""
+    """Scan ``world`` from each pose (stamped at the sensor's rate) with its ground truth.
+
+    Raises
+    ------
+    InvalidParamsError
+        ``noise_sigma`` is negative or not finite.
+    """
+    noise_sigma = check_number("noise_sigma", noise_sigma)
     scans = []
     visible = np.zeros((len(poses), len(world.corners)), dtype=bool)
     for i, p in enumerate(poses):
@@ -86,8 +97,6 @@ def simulate_sequence(
 
 def write_sequence(sequence: SimSequence, output: Path, bag: bool = True) -> dict[str, Path]:
     """Write ``scans.npz``, ``truth.npz`` and (with ``bag``) ``scans.bag`` into ``output``."""
-    from laser_corners.io.arrays import write_scans_npz
-
     output.mkdir(parents=True, exist_ok=True)
     paths = {"scans": output / "scans.npz", "truth": output / "truth.npz"}
     write_scans_npz(paths["scans"], sequence.scans)
@@ -122,9 +131,6 @@ def _time(typestore: object, stamp: float) -> object:
 
 def write_bag(sequence: SimSequence, path: Path) -> None:
     """Write the sequence as a ROS 1 bag (topics in the module docstring); replaces ``path``."""
-    from rosbags.rosbag1 import Writer
-    from rosbags.typesys import Stores, get_typestore
-
     store = get_typestore(Stores.ROS1_NOETIC)
     t = store.types
     scan_type, odom_type, array_type = (

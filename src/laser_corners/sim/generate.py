@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidParamsError
+from laser_corners.sim.checks import check_number
 from laser_corners.sim.worlds import World, _distance_to_segments, _rotation
 
 __all__ = ["WORLD_KINDS", "random_poses", "random_world", "trajectory"]
@@ -150,7 +151,15 @@ def trajectory(
 
     The robot drives at ``speed`` m/s on straight legs between random collision-free
     waypoints, heading along its motion and turning smoothly (at most 90 deg/s) at waypoints.
+
+    Raises
+    ------
+    InvalidParamsError
+        ``speed`` or ``rate_hz`` is not a finite number > 0, ``clearance`` not one >= 0.
     """
+    speed = check_number("speed", speed, positive=True)
+    rate_hz = check_number("rate_hz", rate_hz, positive=True)
+    clearance = check_number("clearance", clearance)
     dt = 1.0 / rate_hz
     pose = random_poses(world, 1, rng, clearance)[0]
     heading = pose[2]

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.scan import LaserScan
+from laser_corners.sim.checks import check_number
 from laser_corners.sim.raycast import cast_circles, cast_ranges
 from laser_corners.sim.sensors import UST_10LX, SensorProfile
 
@@ -199,6 +200,11 @@ class World:
 
         Ranges are exact (ray casting) plus Gaussian range noise of ``noise_sigma`` metres;
         beams with no hit within ``sensor.range_max`` return ``inf``.
+
+        Raises
+        ------
+        InvalidParamsError
+            ``noise_sigma`` is negative or not finite.
         """
         ranges = self.cast(pose, sensor.angles)
         return _finish_scan(ranges, sensor, noise_sigma, rng, stamp, pose)
@@ -212,6 +218,7 @@ def _finish_scan(
     stamp: float | None,
     pose: tuple[float, float, float] | None,
 ) -> LaserScan:
+    noise_sigma = check_number("noise_sigma", noise_sigma)
     if noise_sigma > 0.0:
         rng = rng if rng is not None else np.random.default_rng()
         finite = np.isfinite(ranges)

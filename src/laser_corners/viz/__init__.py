@@ -1,1 +1,1 @@
-"""Figures (matplotlib) and the live viewer."""
+"""Figures (matplotlib), report folders (:mod:`~laser_corners.viz.report`) and the live viewer."""

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import matplotlib as mpl
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -88,12 +89,15 @@ def plot_pair_std_matrix(ax: Any, pair_std: ArrayLike, title: str = "") -> Any:
 
     Returns
     -------
-    matplotlib.image.AxesImage
-        The matrix image, in millimetres (for a colour bar).
+    matplotlib.image.AxesImage or None
+        The matrix image, in millimetres (for a colour bar); ``None`` without features.
     """
-    import matplotlib as mpl
-
     std_mm = np.asarray(pair_std, dtype=float) * 1000.0
+    if std_mm.size == 0:
+        ax.text(0.5, 0.5, "no persistent features", ha="center", va="center",
+                transform=ax.transAxes)  # fmt: skip
+        ax.set_axis_off()
+        return None
     cmap = mpl.colormaps["viridis"].with_extremes(bad="0.9")
     finite = std_mm[np.isfinite(std_mm)]
     vmax = float(finite.max()) if finite.size else 1.0

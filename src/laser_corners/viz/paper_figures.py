@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.eval.linefit_study import LineFitStudy
-from laser_corners.linefit import fit_line, intersect
+from laser_corners.linefit import Y_ON_X, fit_line, intersect
 from laser_corners.scan import LaserScan
 
 __all__ = ["neighbourhoods", "plot_line_fit_study", "plot_neighbourhoods"]
@@ -98,8 +98,6 @@ def plot_neighbourhoods(
 
 
 def _direction(fit: Any) -> NDArray[np.float64]:
-    from laser_corners.linefit import Y_ON_X
-
     d = np.array([1.0, fit.slope]) if fit.model == Y_ON_X else np.array([fit.slope, 1.0])
     return d / np.hypot(*d)
 
@@ -113,8 +111,6 @@ def _draw_fit(
     ax: Any, fit: Any, pts: NDArray[np.float64], colour: str, extent: float,
     centre: NDArray[np.float64],
 ) -> None:  # fmt: skip
-    from laser_corners.linefit import Y_ON_X
-
     d = _direction(fit)
     mean = pts.mean(axis=0)
     # a point of the fitted line near the neighbourhood's centroid

@@ -18,12 +18,12 @@ from laser_corners.eval.accuracy import (
     markdown_table,
     match_scan,
     run_sweep,
-    write_report,
 )
 from laser_corners.eval.linefit_study import line_fit_study
 from laser_corners.eval.noise import estimate_range_noise
 from laser_corners.sim import SICK_LMS_1DEG, UST_10LX, World, random_poses, random_world
 from laser_corners.viz.paper_figures import neighbourhoods, plot_neighbourhoods
+from laser_corners.viz.report import write_accuracy_report
 
 
 def test_match_scan_counts_found_false_and_duplicates() -> None:
@@ -78,19 +78,21 @@ def test_noise_estimate_from_the_scan_alone(sigma: float) -> None:
 def test_small_sweep_paper_and_baseline(tmp_path) -> None:
     cases = make_cases(4, 3, UST_10LX, seed=3)
     assert all(c.visible.shape[1] == 2 for c in cases)
+    # "baseline": the older name of split-and-merge, still accepted
     stats, used = run_sweep(cases, default_methods(["paper", "baseline"]), sigmas=(0.0, 0.02))
     assert [(s.method, s.sigma) for s in stats] == [
-        ("paper", 0.0), ("baseline", 0.0), ("paper", 0.02), ("baseline", 0.02)
+        ("paper", 0.0), ("split-and-merge", 0.0), ("paper", 0.02), ("split-and-merge", 0.02)
     ]  # fmt: skip
     by = {(s.method, s.sigma): s for s in stats}
     assert by["paper", 0.0].n_visible > 20
     assert by["paper", 0.0].recall > 0.9
-    assert by["baseline", 0.0].recall > 0.9
+    assert by["split-and-merge", 0.0].recall > 0.9
     assert by["paper", 0.0].error_quantile(0.5) < 0.005
     # the paper's thresholds: many more false keypoints with noise
     assert by["paper", 0.02].false_rate > by["paper", 0.0].false_rate
     assert isinstance(used["paper"][0.0], CornerDetector)
-    paths = write_report(stats, tmp_path / "r")
+    paths = write_accuracy_report(stats, tmp_path / "r")
+    assert {p.name for p in paths.values()} == {"accuracy.csv", "accuracy.md", "accuracy.png"}
     assert all(p.is_file() for p in paths.values())
     assert markdown_table(stats).count("\n") == 2 + len(stats)
 
@@ -112,7 +114,7 @@ def test_cli_evaluate_sim_small(tmp_path) -> None:
     assert {"accuracy.csv", "accuracy.md", "accuracy.png", "config.yaml"} <= {
         p.name for p in out.iterdir()
     }
-    assert "baseline" in result.output and "paper" in result.output
+    assert "split-and-merge" in result.output and "paper" in result.output
     bad = CliRunner().invoke(app, ["evaluate", "sim", "-o", str(out), "--noise", "a,b"])
     assert bad.exit_code == 2
     assert "--noise" in bad.output

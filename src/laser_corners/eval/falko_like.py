@@ -1,4 +1,4 @@
-"""A FALKO-style keypoint detector, written from the paper's description (detection only).
+"""``falko-like``: our reading of the FALKO paper's keypoint score (detection only), NOT FALKO.
 
 FALKO (Kallasi, Lodi Rizzini, Caselli, RA-L 2016) looks at each scan point p_i with a
 neighbourhood whose radius grows with the range, ``r_i = a exp(b rho_i)``, split by beam order
@@ -10,9 +10,13 @@ points of a straight side fall in one sector, so the score (the sum, over each s
 sector distances between its points) is lowest at the true apex. Non-maximum suppression keeps
 the best-scoring candidate within a radius. The keypoint is the scan point itself.
 
-This is a *comparison* detector for :mod:`laser_corners.eval`: its thresholds follow the
-paper's spirit, and it is not the reference FALKOLib implementation (no descriptors, no
-sub-beam refinement). See ``docs/real-evaluation.md``.
+This is a *comparison* detector for :mod:`laser_corners.eval`, written from the paper's text; it
+is not falkolib (the authors' C++ library) and does not behave like it. Measured side by side
+with falkolib (commit 836b412, the parameters of its ``testKeypointFalko.cpp``) on the scan
+pairs of ``evaluate real``, repeatability at r = 0.05 / 0.1 m, falkolib vs falko-like: fr079.bag
+36.4 / 46.9 % vs 43.7 / 66.3 %; aces.bag 10.0 / 17.2 % vs 22.1 / 51.4 %; intel-corrected
+32.7 / 38.8 % vs 45.2 / 70.4 %; falko-like finds 2x (fr079) to 7x (aces) as many keypoints. No
+descriptors, no sub-beam refinement. See ``docs/real-evaluation.md``.
 
 References
 ----------
@@ -35,12 +39,12 @@ from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 
-__all__ = ["FalkoDetector", "FalkoParams"]
+__all__ = ["FalkoLikeDetector", "FalkoLikeParams"]
 
 
 @dataclass(frozen=True)
-class FalkoParams:
-    """Parameters of :class:`FalkoDetector`.
+class FalkoLikeParams:
+    """Parameters of :class:`FalkoLikeDetector`.
 
     Attributes
     ----------
@@ -77,18 +81,24 @@ class FalkoParams:
 
     def __post_init__(self) -> None:
         if not (self.neigh_a > 0.0 and math.isfinite(self.neigh_b)):
-            raise InvalidParamsError("FalkoParams.neigh_a must be > 0 and neigh_b finite")
+            raise InvalidParamsError("FalkoLikeParams.neigh_a must be > 0 and neigh_b finite")
         if self.min_neighbours < 1:
-            raise InvalidParamsError(f"FalkoParams.min_neighbours must be >= 1, got "
+            raise InvalidParamsError(f"FalkoLikeParams.min_neighbours must be >= 1, got "
                                      f"{self.min_neighbours}")  # fmt: skip
         if not self.side_ratio >= 1.0:
-            raise InvalidParamsError(f"FalkoParams.side_ratio must be >= 1, got {self.side_ratio}")
+            raise InvalidParamsError(
+                f"FalkoLikeParams.side_ratio must be >= 1, got {self.side_ratio}"
+            )
         if not 0.0 <= self.min_apex_deg < self.max_apex_deg <= 180.0:
-            raise InvalidParamsError("FalkoParams: need 0 <= min_apex_deg < max_apex_deg <= 180")
+            raise InvalidParamsError(
+                "FalkoLikeParams: need 0 <= min_apex_deg < max_apex_deg <= 180"
+            )
         if self.sectors < 4:
-            raise InvalidParamsError(f"FalkoParams.sectors must be >= 4, got {self.sectors}")
+            raise InvalidParamsError(f"FalkoLikeParams.sectors must be >= 4, got {self.sectors}")
         if not self.nms_radius >= 0.0:
-            raise InvalidParamsError(f"FalkoParams.nms_radius must be >= 0, got {self.nms_radius}")
+            raise InvalidParamsError(
+                f"FalkoLikeParams.nms_radius must be >= 0, got {self.nms_radius}"
+            )
 
 
 @nb.njit(cache=True)
@@ -180,12 +190,14 @@ def _falko_candidates(
     return m
 
 
-class FalkoDetector:
-    """FALKO-style keypoint detector (keypoint detection part of Kallasi et al., RA-L 2016).
+class FalkoLikeDetector:
+    """``falko-like``: our reading of FALKO's keypoint detection (Kallasi et al., RA-L 2016).
+
+    Not falkolib: see the module docstring for how the two differ on real data.
 
     Parameters
     ----------
-    params : FalkoParams, optional
+    params : FalkoLikeParams, optional
         Detector parameters.
 
     References
@@ -197,16 +209,16 @@ class FalkoDetector:
     --------
     >>> import numpy as np
     >>> from laser_corners.sim import corner_scan
-    >>> kps = FalkoDetector().detect(corner_scan())
+    >>> kps = FalkoLikeDetector().detect(corner_scan())
     >>> len(kps), np.round(kps.xy, 1).tolist()
     (1, [[2.0, 1.0]])
     """
 
-    def __init__(self, params: FalkoParams | None = None) -> None:
-        self.params = params if params is not None else FalkoParams()
+    def __init__(self, params: FalkoLikeParams | None = None) -> None:
+        self.params = params if params is not None else FalkoLikeParams()
 
     def __repr__(self) -> str:
-        return f"FalkoDetector({self.params!r})"
+        return f"FalkoLikeDetector({self.params!r})"
 
     def detect(self, scan: LaserScan) -> Keypoints:
         """Detect keypoints in one scan (sensor frame; each keypoint is a scan point)."""

@@ -14,14 +14,11 @@ from laser_corners.eval.association import (
     observation_table,
     pair_distance_std,
 )
-from laser_corners.eval.falko import FalkoDetector, FalkoParams
-from laser_corners.eval.observability import (
-    Grid,
-    ObservabilityMap,
-    observability_map,
-    persistent_features,
-    points_in_view,
-)
+from laser_corners.eval.falko_like import FalkoLikeDetector, FalkoLikeParams
+from laser_corners.eval.grid import Grid
+from laser_corners.eval.observability import ObservabilityMap, observability_map
+from laser_corners.eval.pairs import pairs_from_poses, pairs_from_relations
+from laser_corners.eval.persistent import persistent_features
 from laser_corners.eval.poses import (
     Trajectory,
     compose,
@@ -31,8 +28,8 @@ from laser_corners.eval.poses import (
     read_tum,
     relative_pose,
 )
-from laser_corners.eval.real import pairs_from_poses, pairs_from_relations
 from laser_corners.eval.repeatability import pair_repeatability, repeatability
+from laser_corners.eval.visibility import points_in_view
 from laser_corners.scan import LaserScan
 from laser_corners.sim import corner_scan
 
@@ -267,21 +264,21 @@ def test_pairs_from_poses_next_scan_far_enough() -> None:
     assert len(pairs_from_poses(poses, 0.5, 15.0, max_pairs=2)) == 2
 
 
-# ----------------------------------------------------------------------------- FALKO-style
+# ----------------------------------------------------------------------------- falko-like
 def test_falko_finds_the_corner_and_not_a_wall() -> None:
-    kps = FalkoDetector().detect(corner_scan())
+    kps = FalkoLikeDetector().detect(corner_scan())
     assert len(kps) == 1
     assert np.hypot(*(kps.xy[0] - [2.0, 1.0])) < 0.02
     assert 80.0 < kps.opening_angle_deg[0] < 100.0
     straight = LaserScan(2.0 / np.cos(np.linspace(-0.6, 0.6, 200)), -0.6, 1.2 / 199, 0.05, 30.0)
-    assert len(FalkoDetector().detect(straight)) == 0
+    assert len(FalkoLikeDetector().detect(straight)) == 0
 
 
 def test_falko_params_validated() -> None:
     from laser_corners.errors import InvalidParamsError
 
     with pytest.raises(InvalidParamsError, match="side_ratio"):
-        FalkoParams(side_ratio=0.5)
+        FalkoLikeParams(side_ratio=0.5)
 
 
 @pytest.mark.parametrize("occlusion", [True, False])
@@ -314,7 +311,13 @@ def test_observability_block_culling_matches_the_per_point_test(occlusion: bool)
 
 @pytest.mark.parametrize(
     "name",
-    ["laser_corners.eval.falko", "laser_corners.eval.association", "laser_corners.eval.poses"],
+    [
+        "laser_corners.eval.falko_like",
+        "laser_corners.eval.association",
+        "laser_corners.eval.poses",
+        "laser_corners.eval.methods",
+        "laser_corners.eval.no_return",
+    ],
 )
 def test_docstring_examples(name: str) -> None:
     import doctest

@@ -184,3 +184,42 @@ def test_corridor_doors_stay_inside_the_corridor() -> None:
         length = outline[:, 0].max()
         assert outline[:, 0].min() == 0.0 and 8.0 <= length <= 14.0
         assert len(outline) < 60
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda w, rng: w.scan((0.0, 0.0, 0.0), noise_sigma=-1.0), "noise_sigma"),
+        (lambda w, rng: w.scan((0.0, 0.0, 0.0), noise_sigma=math.nan), "noise_sigma"),
+        (lambda w, rng: trajectory(w, 5, rng, speed=math.nan), "speed"),
+        (lambda w, rng: trajectory(w, 5, rng, speed=0.0), "speed"),
+        (lambda w, rng: trajectory(w, 5, rng, speed=-0.5), "speed"),
+        (lambda w, rng: trajectory(w, 5, rng, rate_hz=math.inf), "rate_hz"),
+        (
+            lambda w, rng: simulate_sequence(w, UST_10LX, np.zeros((0, 3)), -0.01, rng),
+            "noise_sigma",
+        ),
+        (lambda w, rng: corner_scan(noise_sigma=-0.5), "noise_sigma"),
+    ],
+)
+def test_nonsense_numbers_are_rejected_naming_the_parameter(call, name: str) -> None:
+    with pytest.raises(InvalidParamsError, match=f"^{name} must be a finite number"):
+        call(rectangular_room(), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize(("option", "value"), [("--noise", "-1"), ("--speed", "nan")])
+def test_cli_simulate_rejects_nonsense_in_one_line(tmp_path, option: str, value: str) -> None:
+    out = tmp_path / "sim"
+    result = CliRunner().invoke(app, ["simulate", "-o", str(out), "--scans", "3", option, value])
+    assert result.exit_code == 2, result.output
+    assert result.output.count("\n") == 1 and "must be a finite number" in result.output
+    assert not out.exists()
+
+
+def test_checks_docstring_examples() -> None:
+    import doctest
+
+    import laser_corners.sim.checks
+
+    result = doctest.testmod(laser_corners.sim.checks, optionflags=doctest.ELLIPSIS)
+    assert result.attempted > 0 and result.failed == 0
