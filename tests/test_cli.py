@@ -247,8 +247,8 @@ def test_auto_preset_finds_more_corners_on_a_one_degree_log() -> None:
 def test_preset_and_reader_docstring_examples() -> None:
     import doctest
 
-    import laser_corners.io.source
+    import laser_corners.io.registry
     import laser_corners.presets
 
-    for module in (laser_corners.presets, laser_corners.io.source):
+    for module in (laser_corners.presets, laser_corners.io.registry):
         assert doctest.testmod(module).failed == 0

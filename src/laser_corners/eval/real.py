@@ -303,7 +303,7 @@ def load_scans(
     """
     from itertools import islice
 
-    from laser_corners.io.source import open_scans
+    from laser_corners.io import open_scans
 
     source = open_scans(path, topic=topic)
     scans = list(islice(iter(source), max_scans))

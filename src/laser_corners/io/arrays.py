@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from laser_corners.errors import InputError, InvalidScanError
-from laser_corners.io.source import ScanSource
+from laser_corners.io.base import ScanSource
 from laser_corners.scan import LaserScan
 
 __all__ = ["CsvSource", "NpzSource", "write_scans_csv", "write_scans_npz"]
@@ -57,6 +57,24 @@ def _scalar(path: Path, data: dict[str, np.ndarray], key: str, default: float | 
         raise InputError(f"{path}: {key!r} must be a number") from None
 
 
+_RECORDING_SUFFIXES = (".g2o", ".clf", ".log", ".gfs", ".carmen", ".txt", ".bag", ".csv", ".gz")
+
+
+def _check_zip(path: Path) -> None:
+    """Refuse, in one line saying what it is, a zip archive that holds no ``.npy`` array."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = [n for n in archive.namelist() if not n.endswith("/")]
+    except (OSError, zipfile.BadZipFile):
+        return  # np.load says what is wrong
+    if not names or any(n.endswith(".npy") for n in names):
+        return
+    held = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+    recordings = [n for n in names if n.lower().endswith(_RECORDING_SUFFIXES)]
+    hint = f"; unzip it and pass the {Path(recordings[0]).name}" if recordings else ""
+    raise InputError(f"{path}: a zip archive holding {held}, not an .npz{hint}")
+
+
 class NpzSource(ScanSource):
     """Scans of an ``.npz`` file (layout in the module docstring)."""
 
@@ -64,6 +82,7 @@ class NpzSource(ScanSource):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
+        _check_zip(path)
         try:
             with np.load(path, allow_pickle=False) as archive:
                 data = {key: archive[key] for key in archive.files}

@@ -16,7 +16,8 @@ from rosbags.typesys import Stores, get_typestore
 
 from conftest import real_file
 from laser_corners import CornerDetector, InputError, Keypoints, LaserScan
-from laser_corners.io import open_keypoint_writer, open_scans
+from laser_corners.errors import OutputError
+from laser_corners.io import WriterSummary, open_keypoint_writer, open_scans
 from laser_corners.io.messages import (
     MARKER_ADD,
     MARKER_ARROW,
@@ -24,7 +25,7 @@ from laser_corners.io.messages import (
     keypoints_to_marker_fields,
     keypoints_to_pose_array_fields,
 )
-from laser_corners.io.rosbag import yaw_from_quaternion
+from laser_corners.io.poses import yaw_from_quaternion
 from laser_corners.io.run import detect_recording
 from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS
 
@@ -117,13 +118,21 @@ def test_table_rows_match_the_keypoints(tmp_path: Path, suffix: str) -> None:
     assert map_x[start] == pytest.approx(first[1].transformed(first[0].pose).xy[0, 0])
 
 
-def test_csv_rows_are_on_disk_before_close(tmp_path: Path) -> None:
+def test_csv_rows_are_on_disk_before_close_under_a_temporary_name(tmp_path: Path) -> None:
     path = tmp_path / "k.csv"
     writer = open_keypoint_writer(path, None, with_map=False, flush_every=1)  # type: ignore[arg-type]
     scan = LaserScan(np.ones(10), 0.0, 0.1, stamp=1.0)
     writer.write(0, scan, _keypoints(3))
-    assert len(path.read_text().splitlines()) == 4  # header + 3 rows, not closed yet
+    running = writer.summary()
+    assert not running.complete and running.n_scans == 1 and running.n_keypoints == 3
+    assert running.path is not None and running.path.parent == tmp_path
+    assert running.path.name.startswith("k.") and running.path.name.endswith(".partial.csv")
+    assert len(running.path.read_text().splitlines()) == 4  # header + 3 rows, not closed yet
+    assert not path.exists()  # the final name appears only when complete
     writer.close()
+    assert writer.summary() == WriterSummary(path, 1, 3, True)
+    assert len(path.read_text().splitlines()) == 4 and not running.path.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.csv"]
 
 
 def test_interrupted_run_keeps_a_readable_parquet(tmp_path: Path) -> None:
@@ -157,7 +166,7 @@ def test_interrupted_run_keeps_a_readable_parquet(tmp_path: Path) -> None:
 
 def test_unknown_output_suffix_and_bag_output_for_a_log(tmp_path: Path) -> None:
     source = open_scans(real_file("intel-corrected.clf.gz"))
-    with pytest.raises(InputError, match=r"unknown output kind '\.txt'"):
+    with pytest.raises(OutputError, match=r"unknown output kind '\.txt'"):
         open_keypoint_writer(tmp_path / "k.txt", source, with_map=True)
     with pytest.raises(InputError, match="a bag output needs a bag input"):
         open_keypoint_writer(tmp_path / "k.bag", source, with_map=True)
@@ -172,7 +181,7 @@ def test_fr079_keypoint_bag_reads_back_with_the_scan_stamps(tmp_path: Path) -> N
     writer = open_keypoint_writer(out, source, with_map=True)
     summary = detect_recording(source, detector, writer)
     assert summary.n_scans == 4934 and not summary.interrupted
-    with pytest.raises(InputError, match="exists already"):
+    with pytest.raises(OutputError, match="exists already"):
         open_keypoint_writer(out, source, with_map=True)
 
     with AnyReader([bag]) as original:
