@@ -190,7 +190,11 @@ def test_truncated_bag_is_one_clear_error(tmp_path: Path) -> None:
         open_scans(bag)
     message = str(info.value)
     assert "\n" not in message
-    assert re.search(r"(chunk|record) at byte \d+ ends at byte \d+, after the end of the file \(1000000 bytes\): truncated", message)
+    assert re.search(
+        r"(chunk|record) at byte \d+ ends at byte \d+, after the end of the file "
+        r"\(1000000 bytes\): truncated",
+        message,
+    )
 
 
 def test_bag_with_a_damaged_index_record_is_read_from_its_chunks(tmp_path: Path) -> None:
