@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import math
 import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -64,3 +67,22 @@ def random_keypoints(n: int, seed: int = 0) -> Keypoints:
         stamp=12.5,
         frame_id="laser",
     )
+
+
+def run_until_killed(script: str, *args: str) -> str:
+    """Run ``script`` in a new Python, read its first output line, then SIGKILL it."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(REPO_ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+    }
+    process = subprocess.Popen(
+        [sys.executable, "-c", script, *args], stdout=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline().strip()
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait(timeout=30)
+    assert process.returncode == -signal.SIGKILL and line, "the writer did not start"
+    return line

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -10,10 +11,10 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from conftest import real_file
+from conftest import real_file, run_until_killed
 from laser_corners import CornerDetector, InputError, LaserScan
 from laser_corners.errors import OutputError
-from laser_corners.io import open_keypoint_writer, open_scans
+from laser_corners.io import BagSource, WriterSummary, open_keypoint_writer, open_scans
 from laser_corners.io.messages import (
     MARKER_DELETEALL,
 )
@@ -135,3 +136,68 @@ def test_ros2_sqlite_bag_is_read(tmp_path: Path) -> None:
     back = list(source)
     assert [round(s.stamp, 6) for s in back] == [round(s.stamp, 6) for s in scans]
     np.testing.assert_allclose(back[3].ranges, scans[3].ranges.astype(np.float32))
+
+
+def test_interrupted_run_keeps_a_complete_bag_with_the_keypoints_so_far(tmp_path: Path) -> None:
+    """Ctrl-C after 250 scans: the bag is finished (rest of the input copied, index written),
+    renamed, and holds the keypoint messages of the 250 scans processed."""
+
+    class Interrupting(BagSource):
+        def _scans(self) -> Iterator[LaserScan]:
+            for index, scan in enumerate(super()._scans()):
+                if index == 250:
+                    raise KeyboardInterrupt
+                yield scan
+
+    bag = real_file("fr079.bag")
+    source = Interrupting(bag, "ros1")
+    out = tmp_path / "k.bag"
+    writer = open_keypoint_writer(out, source, with_map=True)
+    summary = detect_recording(source, CornerDetector(), writer)
+    assert summary.interrupted and summary.n_scans == 250
+    assert writer.summary() == WriterSummary(out, 250, summary.n_keypoints, True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.bag"]
+    with AnyReader([bag]) as original:
+        counts = {c.topic: c.msgcount for c in original.connections}
+    with AnyReader([out]) as reader:
+        got = {c.topic: c.msgcount for c in reader.connections}
+        conns = [c for c in reader.connections if c.topic == "/scan_corners"]
+        n_poses = sum(
+            len(reader.deserialize(raw, c.msgtype).poses)
+            for c, _, raw in reader.messages(connections=conns)
+        )
+    assert got == {**counts, "/scan_corners": 250, "/scan_corner_markers": 250}
+    assert n_poses == summary.n_keypoints > 0
+
+
+_KILLED_BAG_WRITER = """
+import sys, time
+from pathlib import Path
+sys.path.insert(0, sys.argv[3])
+from conftest import random_keypoints
+from laser_corners.io import BagSource, WriterSummary, open_keypoint_writer, open_scans
+source = open_scans(sys.argv[1])
+writer = open_keypoint_writer(Path(sys.argv[2]), source, with_map=True, flush_every=10)
+for index, scan in enumerate(source):
+    writer.write(index, scan, random_keypoints(2, index))
+    if index == 99:
+        break
+print(writer.summary().path, flush=True)
+time.sleep(120)
+"""
+
+
+def test_a_killed_bag_writer_leaves_a_readable_temporary_bag(tmp_path: Path) -> None:
+    """SIGKILL after 100 scans: no bag under the final name; the temporary bag has no index,
+    but its chunks (written every 10 scans) hold the 100 scans' keypoint messages."""
+    out = tmp_path / "k.bag"
+    args = (str(real_file("fr079.bag")), str(out), str(Path(__file__).parents[1]))
+    temporary = Path(run_until_killed(_KILLED_BAG_WRITER, *args))
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == [temporary.name]
+    assert temporary.name.startswith("k.") and temporary.name.endswith(".partial.bag")
+    source = open_scans(temporary)  # read from its chunks
+    assert source.from_chunks  # type: ignore[attr-defined]
+    assert source.topics["/scan_corners"] == ("geometry_msgs/msg/PoseArray", 100)  # type: ignore[attr-defined]
+    assert source.topics["/scan_corner_markers"][1] == 100  # type: ignore[attr-defined]
+    assert len(list(source)) == source.n_scans >= 100

@@ -7,11 +7,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import random_keypoints, real_file
+from conftest import random_keypoints, real_file, run_until_killed
 from laser_corners import CornerDetector, Keypoints, LaserScan
+from laser_corners.errors import OutputError
 from laser_corners.io import (
     WriterSummary,
     open_keypoint_writer,
@@ -111,6 +113,9 @@ def test_interrupted_run_keeps_a_readable_parquet(tmp_path: Path) -> None:
     table = pq.read_table(path)
     assert table.num_rows == summary.n_keypoints > 0
     assert table.column("scan_index").to_numpy().max() <= 249
+    # Ctrl-C: the file is finished and renamed, nothing else is left in the folder
+    assert writer.summary() == WriterSummary(path, 250, summary.n_keypoints, True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k.parquet"]
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])
@@ -132,3 +137,40 @@ def test_write_many_writes_what_write_writes(tmp_path: Path, suffix: str) -> Non
         assert pq.read_table(chunked).equals(pq.read_table(one_by_one))
     with pytest.raises(ValueError, match="2 scans but 1 keypoint sets"):
         chunk_writer.write_many(0, [items[0][0], items[1][0]], [items[0][1]])
+
+
+_KILLED_WRITER = """
+import sys, time
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, sys.argv[2])
+from conftest import random_keypoints
+from laser_corners import LaserScan
+from laser_corners.io import open_keypoint_writer
+writer = open_keypoint_writer(Path(sys.argv[1]), None, with_map=False, flush_every=1)
+for i in range(5):
+    writer.write(i, LaserScan(np.ones(10), 0.0, 0.1, stamp=float(i)), random_keypoints(3, i))
+print(writer.summary().path, flush=True)
+time.sleep(120)
+"""
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_a_killed_writer_leaves_only_its_temporary_file(tmp_path: Path, suffix: str) -> None:
+    path = tmp_path / f"k{suffix}"
+    temporary = Path(run_until_killed(_KILLED_WRITER, str(path), str(Path(__file__).parents[1])))
+    assert not path.exists()  # never a half-written file under the final name
+    assert [p.name for p in tmp_path.iterdir()] == [temporary.name]
+    assert temporary.name.startswith("k.") and temporary.name.endswith(f".partial{suffix}")
+    if suffix == ".csv":  # rows flushed every scan are there
+        assert len(temporary.read_text().splitlines()) == 1 + 5 * 3
+    else:  # the row groups are there, the footer is not: not a Parquet file
+        with pytest.raises(pa.ArrowInvalid):
+            pq.read_table(temporary)
+
+
+def test_outputs_in_a_missing_folder_are_one_clear_output_error(tmp_path: Path) -> None:
+    for suffix in (".csv", ".parquet"):
+        path = tmp_path / "missing" / f"k{suffix}"
+        with pytest.raises(OutputError, match=r"k\.\w+: the folder .*missing does not exist"):
+            open_keypoint_writer(path, None, with_map=False)  # type: ignore[arg-type]
