@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -60,3 +61,22 @@ def test_npz_without_ranges_or_corrupt_is_an_error(tmp_path: Path) -> None:
     damaged_copy(tmp_path / "ok.npz", tmp_path / "cut.npz", keep=200)
     with pytest.raises(InputError, match=r"cut\.npz: not a readable \.npz"):
         open_scans(tmp_path / "cut.npz")
+
+
+def test_a_zip_that_is_not_an_npz_says_what_it_holds(tmp_path: Path) -> None:
+    """Freiburg's killian log ships as a zipped .g2o: say so instead of "missing array"."""
+    archive = tmp_path / "killian.g2o.zip"
+    with zipfile.ZipFile(archive, "w") as handle:
+        handle.writestr("killian.g2o", "VERTEX_SE2 0 0 0 0\n")
+    with pytest.raises(InputError) as info:
+        open_scans(archive)
+    assert str(info.value) == (
+        f"{archive}: a zip archive holding killian.g2o, not an .npz; "
+        "unzip it and pass the killian.g2o"
+    )
+    other = tmp_path / "notes.npz"
+    with zipfile.ZipFile(other, "w") as handle:
+        for i in range(5):
+            handle.writestr(f"note{i}.md", "text")
+    with pytest.raises(InputError, match=r"holding note0\.md, note1\.md, note2\.md and 2 more, "):
+        open_scans(other)

@@ -11,10 +11,8 @@ import numpy as np
 import pytest
 
 from conftest import damaged_copy, real_file
-from laser_corners import InputError
-from laser_corners.io import (
-    open_scans,
-)
+from laser_corners import CornerDetector, InputError
+from laser_corners.io import detect_kind, open_scans
 from laser_corners.io.carmen import parse_carmen_line
 
 pytestmark = pytest.mark.real
@@ -123,3 +121,82 @@ def test_carmen_flaser_and_rawlaser_layouts() -> None:
     )
     assert raw.pose is None and raw.frame_id == "laser2" and raw.n_beams == 5
     assert raw.angles[-1] == pytest.approx(1.0) and raw.stamp == 3.5
+
+
+def _room_ranges(angles: np.ndarray, sensor=(0.5, 0.2), half=(2.0, 1.5)) -> np.ndarray:
+    """Ranges from ``sensor`` to the walls of the box ``|x| <= half[0], |y| <= half[1]``."""
+    c, s = np.cos(angles), np.sin(angles)
+    with np.errstate(divide="ignore"):
+        tx = np.where(c > 0, (half[0] - sensor[0]) / c, (-half[0] - sensor[0]) / c)
+        ty = np.where(s > 0, (half[1] - sensor[1]) / s, (-half[1] - sensor[1]) / s)
+    return np.minimum(np.abs(tx), np.abs(ty))
+
+
+def _robotlaser(start: float, res: float, ranges: np.ndarray, stamp: float) -> str:
+    n = len(ranges)
+    fov = abs(res) * (n - 1)
+    readings = " ".join(f"{r:.4f}" for r in ranges)
+    pose = "1.0 2.0 0.3 1.0 2.0 0.3 0 0 0.55 0.375 1000000"
+    return (
+        f"ROBOTLASER1 0 {start!r} {fov!r} {res!r} 30.0 0.1 0 {n} {readings} 0 {pose} "
+        f"{stamp} host {stamp}\n"
+    )
+
+
+def test_a_negative_angular_resolution_turns_the_beams_clockwise(tmp_path: Path) -> None:
+    """``res < 0``: beam i at ``start + i*res`` (clockwise). The same sweep written
+    counter-clockwise (reversed readings, positive res) gives the same points and keypoints."""
+    res = math.radians(1.0)
+    angles = -math.pi / 2 + res * np.arange(181)
+    ranges = _room_ranges(angles)
+    ccw, cw = tmp_path / "ccw.clf", tmp_path / "cw.clf"
+    ccw.write_text(_robotlaser(-math.pi / 2, res, ranges, 1.0))
+    cw.write_text(_robotlaser(math.pi / 2, -res, ranges[::-1], 1.0))
+    (a,), (b,) = list(open_scans(ccw)), list(open_scans(cw))
+    assert a.angle_increment == pytest.approx(res) and b.angle_increment == pytest.approx(-res)
+    assert b.angles[0] == pytest.approx(math.pi / 2) and b.angles[1] < b.angles[0]
+    (xy_a, valid_a), (xy_b, _) = a.to_cartesian(), b.to_cartesian()
+    assert valid_a.all()
+    np.testing.assert_allclose(xy_b, xy_a[::-1], atol=1e-9)
+    # the points lie on the walls: the geometry is the room's, not a mirror of it
+    on_wall = np.isclose(np.abs(xy_a[:, 0] + 0.5), 2.0, atol=1e-3) | np.isclose(
+        np.abs(xy_a[:, 1] + 0.2), 1.5, atol=1e-3
+    )
+    assert on_wall.all()
+    detector = CornerDetector()
+    ka, kb = detector.detect(a), detector.detect(b)
+    assert len(ka) == len(kb) >= 2  # the two far corners of the room
+    order_a, order_b = np.lexsort(ka.xy.T), np.lexsort(kb.xy.T)
+    np.testing.assert_allclose(kb.xy[order_b], ka.xy[order_a], atol=1e-9)
+    corners = {(round(x + 0.5, 1), round(y + 0.2, 1)) for x, y in ka.xy}
+    assert {(2.0, 1.5), (2.0, -1.5)} <= corners
+
+
+def test_laser_lines_of_a_g2o_file_are_read_and_graph_lines_skipped(tmp_path: Path) -> None:
+    """A ``.g2o`` file mixes VERTEX/EDGE/FIX lines with ROBOTLASER1 lines (Freiburg's killian)."""
+    res = math.radians(1.0)
+    ranges = _room_ranges(-math.pi / 2 + res * np.arange(181))
+    lines = [
+        "VERTEX_SE2 0 0 0 0\n",
+        "FIX 0\n",
+        _robotlaser(-math.pi / 2, res, ranges, 10.0),
+        "VERTEX_SE2 1 0.5 0 0.1\n",
+        "EDGE_SE2 0 1 0.5 0 0.1 500 0 0 500 0 5000\n",
+        _robotlaser(-math.pi / 2, res, ranges * 1.01, 11.0),
+        "VERTEX_XY 7 1.0 2.0\n",
+        "EDGE_SE2_XY 1 7 0.5 1.0 100 0 100\n",
+        "PARAMS_SE2OFFSET 0 0 0 0\n",
+        _robotlaser(-math.pi / 2, res, ranges * 1.02, 12.0),
+    ]
+    graph = tmp_path / "killian.g2o"
+    graph.write_text("".join(lines))
+    assert detect_kind(graph) == "carmen"
+    source = open_scans(graph)
+    scans = list(source)
+    assert [s.stamp for s in scans] == [10.0, 11.0, 12.0]
+    assert source.skipped == {} and source.skip_examples == []  # graph lines are no errors
+    np.testing.assert_allclose(scans[1].ranges, np.round(ranges * 1.01, 4))
+    assert scans[0].pose == pytest.approx((1.0, 2.0, 0.3))
+    no_suffix = tmp_path / "graph"
+    no_suffix.write_text("".join(lines))
+    assert detect_kind(no_suffix) == "carmen"  # VERTEX first: a CARMEN-like file
