@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from conftest import damaged_copy, real_file
-from laser_corners import InputError
+from laser_corners import InputError, LaserScan
+from laser_corners.errors import OutputError
 from laser_corners.io import (
     detect_kind,
     open_scans,
@@ -80,3 +81,21 @@ def test_a_zip_that_is_not_an_npz_says_what_it_holds(tmp_path: Path) -> None:
             handle.writestr(f"note{i}.md", "text")
     with pytest.raises(InputError, match=r"holding note0\.md, note1\.md, note2\.md and 2 more, "):
         open_scans(other)
+
+
+def test_scan_array_writers_write_whole_files_and_name_output_problems(tmp_path: Path) -> None:
+    scans = [LaserScan(np.full(5, 1.0 + i), -0.2, 0.1, stamp=float(i)) for i in range(3)]
+    write_scans_npz(tmp_path / "plain", scans)  # numpy's rule: .npz appended
+    write_scans_csv(tmp_path / "s.csv", scans)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.npz", "s.csv"]
+    for name in ("plain.npz", "s.csv"):
+        read = list(open_scans(tmp_path / name))
+        np.testing.assert_array_equal(read[2].ranges, scans[2].ranges)
+    with pytest.raises(OutputError, match=r"empty\.npz: no scans to write"):
+        write_scans_npz(tmp_path / "empty.npz", [])
+    mixed = [*scans, LaserScan(np.ones(6), -0.2, 0.1)]
+    with pytest.raises(OutputError, match=r"mixed\.csv: scans written to one array file must"):
+        write_scans_csv(tmp_path / "mixed.csv", mixed)
+    with pytest.raises(OutputError, match=r"the folder .*absent does not exist"):
+        write_scans_csv(tmp_path / "absent" / "s.csv", scans)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.npz", "s.csv"]

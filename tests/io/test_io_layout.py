@@ -48,6 +48,7 @@ def test_io_imports_only_go_down() -> None:
     assert graph["base"][0] == set()
     importers = {m for m, (imports, _) in graph.items() if imports & (READERS | WRITERS)}
     assert importers <= {"registry", "__init__"}, importers
+
     # the helpers form no cycle
     def visit(module: str, stack: tuple[str, ...]) -> None:
         assert module not in stack, f"import cycle: {' -> '.join((*stack, module))}"

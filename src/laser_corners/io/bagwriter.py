@@ -30,7 +30,7 @@ from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.base import Nodetype
 
-from laser_corners.errors import InputError
+from laser_corners.errors import InputError, OutputError
 from laser_corners.io.bagfile import BagInput, iter_messages, open_bag_reader, stock_typestore
 from laser_corners.io.base import KeypointWriter, PartialOutput
 from laser_corners.io.messages import keypoints_to_marker_fields, keypoints_to_pose_array_fields
@@ -111,9 +111,10 @@ class BagKeypointWriter(KeypointWriter):
     Raises
     ------
     InputError
-        ``path`` has the suffix of the other ROS version, or the input cannot be read.
+        The input cannot be read.
     OutputError
-        ``path`` exists or its folder cannot be written.
+        ``path`` has the suffix of the other ROS version, exists, or its folder cannot be
+        written.
     """
 
     def __init__(
@@ -127,7 +128,7 @@ class BagKeypointWriter(KeypointWriter):
         super().__init__()
         want = ".bag" if source.kind == "ros1" else ".mcap"
         if path.suffix.lower() != want:
-            raise InputError(
+            raise OutputError(
                 f"{path}: a {source.kind} input is copied to a {want} output, not "
                 f"{path.suffix.lower()}"
             )

@@ -22,6 +22,7 @@ import shutil
 import tempfile
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
@@ -319,6 +320,25 @@ class PartialOutput:
                 f"{self.path}: cannot give the output its name ({exc.strerror}); it is kept as "
                 f"{self.temporary}"
             ) from None
+
+    @contextmanager
+    def writing(self) -> Iterator[Path]:
+        """Yield the temporary path to write in one go; publish it on success, else remove it.
+
+        Raises
+        ------
+        OutputError
+            The file cannot be written (the ``OSError`` named in one line).
+        """
+        try:
+            yield self.temporary
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"{self.path}: cannot write ({exc.strerror or exc})") from None
+        except BaseException:
+            self.discard()
+            raise
+        self.publish()
 
     def discard(self) -> None:
         """Remove the temporary file or folder (a writer that failed to open)."""
