@@ -108,7 +108,7 @@ def test_ros2_mcap_in_and_keypoint_mcap_out(tmp_path: Path) -> None:
     bare = next(bag.glob("*.mcap"))
     assert open_scans(bare).kind == "mcap" and len(list(open_scans(bare))) == 40
     out = tmp_path / "corners.mcap"
-    with pytest.raises(InputError, match=r"copied to a \.mcap output"):
+    with pytest.raises(OutputError, match=r"copied to a \.mcap output"):
         open_keypoint_writer(tmp_path / "corners.bag", source, with_map=False)
     summary = detect_recording(
         source, CornerDetector(), open_keypoint_writer(out, source, with_map=False)
