@@ -37,3 +37,10 @@ def test_unknown_output_suffix_and_bag_output_for_a_log(tmp_path: Path) -> None:
         open_keypoint_writer(tmp_path / "k.txt", source, with_map=True)
     with pytest.raises(InputError, match="a bag output needs a bag input"):
         open_keypoint_writer(tmp_path / "k.bag", source, with_map=True)
+
+
+def test_a_ros1_bag_without_the_bag_suffix_is_one_clear_error(tmp_path: Path) -> None:
+    renamed = tmp_path / "fr079.bag.orig"
+    renamed.write_bytes(real_file("fr079.bag").read_bytes()[:100_000])
+    with pytest.raises(InputError, match=r"fr079\.bag\.orig: a ROS 1 bag is read only under"):
+        open_scans(renamed)

@@ -80,6 +80,11 @@ def open_bag_reader(path: Path, kind: str) -> Iterator[AnyReader]:
     InputError
         The bag cannot be read (damaged or truncated).
     """
+    if kind == "ros1" and path.suffix != ".bag":
+        raise InputError(
+            f"{path}: a ROS 1 bag is read only under a name ending in .bag (rosbags' rule); "
+            "rename or link it"
+        )
     try:
         reader = AnyReader([path], default_typestore=stock_typestore(kind))
         reader.open()
