@@ -1,6 +1,6 @@
 """A copy of the input bag with keypoint topics, for RViz and Foxglove.
 
-The output holds every message of the input, then for each scan two messages with the scan's
+The output holds every message of the input and, for each scan, two messages with the scan's
 header (stamp and frame) and the scan's log time:
 
 * ``<scan_topic>_corners``: ``geometry_msgs/msg/PoseArray`` (orientation = keypoint
