@@ -68,3 +68,13 @@ def test_open_text_reads_plain_and_gzip_and_read_head_names_the_file(tmp_path: P
     folder.mkdir()
     with pytest.raises(InputError, match=r"folder: cannot read \(Is a directory\)"):
         read_head(folder)
+
+
+def test_a_path_that_is_already_a_temporary_name_is_written_directly(tmp_path: Path) -> None:
+    """``batch`` writes ``X.parquet.partial`` and renames it itself: no second temporary."""
+    own = tmp_path / "x.parquet.partial"
+    partial = PartialOutput(own, overwrite=True)
+    assert partial.temporary == own and list(tmp_path.iterdir()) == []
+    own.write_text("rows")
+    partial.publish()  # nothing to rename
+    assert own.read_text() == "rows" and list(tmp_path.iterdir()) == [own]

@@ -51,6 +51,8 @@ KINDS: tuple[str, ...] = ("ros1", "ros2", "mcap", "carmen", "npz", "csv")
 BAG_KINDS: frozenset[str] = frozenset({"ros1", "ros2", "mcap"})
 """The kinds read through rosbags (they have topics)."""
 
+PARTIAL_SUFFIX = ".partial"
+"""An output path ending in this is a caller's own temporary name (see :class:`PartialOutput`)."""
 MAX_SKIP_EXAMPLES = 5
 """How many skipped records a source remembers the position of."""
 
@@ -262,6 +264,10 @@ class PartialOutput:
     system, so the rename is atomic). A process killed before :meth:`publish` leaves only that
     file (or folder), never a half-written file under the final name.
 
+    A ``path`` whose name ends in :data:`PARTIAL_SUFFIX` is a temporary name already (its
+    caller renames it when it is done, as ``laser-corners batch`` does): it is written
+    directly, so a kill leaves the one file the caller knows about.
+
     Parameters
     ----------
     path : Path
@@ -288,6 +294,9 @@ class PartialOutput:
         folder = path.parent
         if not folder.is_dir():
             raise OutputError(f"{path}: the folder {folder} does not exist")
+        if path.name.endswith(PARTIAL_SUFFIX):
+            self.temporary = path
+            return
         try:
             handle, name = tempfile.mkstemp(
                 prefix=f"{path.stem}.", suffix=f".partial{path.suffix}", dir=folder
@@ -307,7 +316,7 @@ class PartialOutput:
         OutputError
             ``path`` appeared meanwhile and must not be overwritten.
         """
-        if not self.temporary.exists():
+        if self.temporary == self.path or not self.temporary.exists():
             return
         if self.path.exists() and not self.overwrite:
             raise OutputError(
