@@ -125,6 +125,9 @@ def test_ros2_mcap_in_and_keypoint_mcap_out(tmp_path: Path) -> None:
         ]
     assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in poses] == source.stamps_ns
     assert sum(len(m.poses) for m in poses) == summary.n_keypoints
+    # written in a temporary folder, moved out when complete: inner names are the final ones
+    assert sorted(p.name for p in out.iterdir()) == ["corners.mcap.mcap", "metadata.yaml"]
+    assert not list(tmp_path.glob("*.partial*"))
 
 
 def test_ros2_sqlite_bag_is_read(tmp_path: Path) -> None:

@@ -11,10 +11,11 @@ header (stamp and frame) and the scan's log time:
 A ROS 1 input gives a ``.bag`` (rosbag1 ``Writer``); a ROS 2 or MCAP input gives a ROS 2 bag
 directory with MCAP storage (its name ends in ``.mcap``). The input is copied as the scans are
 processed, with their keypoint messages; ``close()`` copies the rest, writes the bag's index and
-renames the bag from its temporary name (``STEM.XXXXXXXX.partial.bag`` beside it) to the final
-one, so an interrupted run (Ctrl-C) still leaves a complete bag with the keypoints of the scans
-processed. A ROS 1 output's chunks are written every ``flush_every`` scans: after a kill, the
-temporary bag (no index) holds them and :func:`~laser_corners.io.open_scans` reads it.
+renames the bag from its temporary name (``STEM.XXXXXXXX.partial.bag`` beside it; a ROS 2 bag
+folder is written as ``STEM.XXXXXXXX.partial/NAME.mcap``) to the final one, so an interrupted
+run (Ctrl-C) still leaves a complete bag with the keypoints of the scans processed. A ROS 1
+output's chunks are written every ``flush_every`` scans: after a kill, the temporary bag (no
+index) holds them and :func:`~laser_corners.io.open_scans` reads it.
 """
 
 from __future__ import annotations
@@ -141,7 +142,7 @@ class BagKeypointWriter(KeypointWriter):
         self.markers_topic = f"{source.topic}_corner_markers"
         self.n_copied = 0
         self._ros1 = source.kind == "ros1"
-        self._partial = PartialOutput(path, overwrite=False, create=False)
+        self._partial = PartialOutput(path, overwrite=False, create=False, folder=not self._ros1)
         self._writer: Any = None
         self._input = ExitStack()
         self._unflushed = 0

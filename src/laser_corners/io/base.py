@@ -278,7 +278,11 @@ class PartialOutput:
     create : bool
         Create the temporary file (empty). With False the name is reserved but left free,
         for writers that create their output themselves and refuse an existing one (rosbags'
-        bag writers; a ROS 2 bag is a folder).
+        bag writers).
+    folder : bool
+        The output is a folder whose contents are named after it (a ROS 2 bag): it is written
+        as ``STEM.XXXXXXXX.partial/NAME`` (not created) and moved out of that folder when
+        published, so what is inside keeps its final names.
 
     Raises
     ------
@@ -286,23 +290,32 @@ class PartialOutput:
         Missing folder, no permission, or an existing ``path`` with ``overwrite=False``.
     """
 
-    def __init__(self, path: Path, *, overwrite: bool, create: bool = True) -> None:
+    def __init__(
+        self, path: Path, *, overwrite: bool, create: bool = True, folder: bool = False
+    ) -> None:
         self.path = path
         self.overwrite = overwrite
         if not overwrite and path.exists():
             raise OutputError(f"{path}: exists already; remove it or choose another name")
-        folder = path.parent
-        if not folder.is_dir():
-            raise OutputError(f"{path}: the folder {folder} does not exist")
+        parent = path.parent
+        if not parent.is_dir():
+            raise OutputError(f"{path}: the folder {parent} does not exist")
         if path.name.endswith(PARTIAL_SUFFIX):
-            self.temporary = path
+            self.temporary, self._holder = path, None
             return
+        self._holder: Path | None = None
         try:
+            if folder:
+                self._holder = Path(
+                    tempfile.mkdtemp(prefix=f"{path.stem}.", suffix=".partial", dir=parent)
+                )
+                self.temporary = self._holder / path.name
+                return
             handle, name = tempfile.mkstemp(
-                prefix=f"{path.stem}.", suffix=f".partial{path.suffix}", dir=folder
+                prefix=f"{path.stem}.", suffix=f".partial{path.suffix}", dir=parent
             )
         except OSError as exc:
-            raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror})") from None
+            raise OutputError(f"{path}: cannot write in {parent} ({exc.strerror})") from None
         os.close(handle)
         self.temporary = Path(name)
         if not create:
@@ -329,6 +342,8 @@ class PartialOutput:
                 f"{self.path}: cannot give the output its name ({exc.strerror}); it is kept as "
                 f"{self.temporary}"
             ) from None
+        if self._holder is not None:
+            self._holder.rmdir()
 
     @contextmanager
     def writing(self) -> Iterator[Path]:
@@ -351,7 +366,9 @@ class PartialOutput:
 
     def discard(self) -> None:
         """Remove the temporary file or folder (a writer that failed to open)."""
-        if self.temporary.is_dir():
+        if self._holder is not None:
+            shutil.rmtree(self._holder, ignore_errors=True)
+        elif self.temporary.is_dir():
             shutil.rmtree(self.temporary, ignore_errors=True)
         else:
             self.temporary.unlink(missing_ok=True)
