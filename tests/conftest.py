@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
+import math
 import os
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 import pytest
+
+from laser_corners import Keypoints
 
 matplotlib.use("Agg")
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -29,3 +36,53 @@ def real_file(name: str) -> Path:
     if not path.is_file():
         pytest.skip(f"real data file not found: {path}")
     return path
+
+
+def damaged_copy(
+    src: Path, dst: Path, *, keep: int | None = None, flip: slice | None = None
+) -> Path:
+    """Copy ``src`` to ``dst``, keeping only its first ``keep`` bytes and/or flipping the bits
+    of the bytes in ``flip``; returns ``dst``."""
+    data = bytearray(src.read_bytes())
+    if keep is not None:
+        data = data[:keep]
+    if flip is not None:
+        for i in range(*flip.indices(len(data))):
+            data[i] ^= 0xA5
+    dst.write_bytes(bytes(data))
+    return dst
+
+
+def random_keypoints(n: int, seed: int = 0) -> Keypoints:
+    """``n`` keypoints with random fields (stamp 12.5, frame ``laser``)."""
+    rng = np.random.default_rng(seed)
+    return Keypoints(
+        xy=rng.uniform(-5, 5, (n, 2)),
+        beam_index=rng.integers(0, 100, n),
+        opening_angle_deg=rng.uniform(45, 135, n),
+        orientation=rng.uniform(-math.pi, math.pi, n),
+        n_scales=rng.integers(3, 9, n),
+        rmse=rng.uniform(0, 0.02, n),
+        n_merged=rng.integers(1, 4, n),
+        stamp=12.5,
+        frame_id="laser",
+    )
+
+
+def run_until_killed(script: str, *args: str) -> str:
+    """Run ``script`` in a new Python, read its first output line, then SIGKILL it."""
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(REPO_ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+    }
+    process = subprocess.Popen(
+        [sys.executable, "-c", script, *args], stdout=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline().strip()
+    finally:
+        process.send_signal(signal.SIGKILL)
+        process.wait(timeout=30)
+    assert process.returncode == -signal.SIGKILL and line, "the writer did not start"
+    return line

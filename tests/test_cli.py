@@ -189,7 +189,8 @@ def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
     )  # fmt: skip
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and process.poll() is None:
-        if out.exists() and len(out.read_text().splitlines()) > 1:
+        partial = list(tmp_path.glob("intel.*.partial.csv"))  # the name until it is complete
+        if partial and len(partial[0].read_text().splitlines()) > 1:
             break
         time.sleep(0.02)
     assert process.poll() is None, "the run ended before it could be interrupted"
@@ -201,6 +202,7 @@ def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
         rows = list(csv.DictReader(handle))
     index = [int(r["scan_index"]) for r in rows]
     assert rows and max(index) < 13631
+    assert not list(tmp_path.glob("*.partial.*"))  # finished and renamed
     assert "13631" not in stdout.split("keypoints")[0]
 
 
@@ -247,8 +249,8 @@ def test_auto_preset_finds_more_corners_on_a_one_degree_log() -> None:
 def test_preset_and_reader_docstring_examples() -> None:
     import doctest
 
-    import laser_corners.io.source
+    import laser_corners.io.registry
     import laser_corners.presets
 
-    for module in (laser_corners.presets, laser_corners.io.source):
+    for module in (laser_corners.presets, laser_corners.io.registry):
         assert doctest.testmod(module).failed == 0

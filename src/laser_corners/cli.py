@@ -129,7 +129,11 @@ def _known_errors() -> Iterator[None]:
     try:
         yield
     except LaserCornersError as exc:
-        raise fail(str(exc)) from None
+        message = str(exc)
+        topics = getattr(exc, "topics", None)  # io.TopicChoiceError: one option line per topic
+        if isinstance(topics, list):
+            message = message.splitlines()[0] + "".join(f"\n  --topic {t}" for t in topics)
+        raise fail(message) from None
 
 
 def _resolve_params(

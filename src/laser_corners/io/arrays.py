@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from laser_corners.errors import InputError, InvalidScanError
-from laser_corners.io.source import ScanSource
+from laser_corners.errors import InputError, InvalidScanError, OutputError
+from laser_corners.io.base import PartialOutput, ScanSource
 from laser_corners.scan import LaserScan
 
 __all__ = ["CsvSource", "NpzSource", "write_scans_csv", "write_scans_npz"]
@@ -57,6 +57,24 @@ def _scalar(path: Path, data: dict[str, np.ndarray], key: str, default: float | 
         raise InputError(f"{path}: {key!r} must be a number") from None
 
 
+_RECORDING_SUFFIXES = (".g2o", ".clf", ".log", ".gfs", ".carmen", ".txt", ".bag", ".csv", ".gz")
+
+
+def _check_zip(path: Path) -> None:
+    """Refuse, in one line saying what it is, a zip archive that holds no ``.npy`` array."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names = [n for n in archive.namelist() if not n.endswith("/")]
+    except (OSError, zipfile.BadZipFile):
+        return  # np.load says what is wrong
+    if not names or any(n.endswith(".npy") for n in names):
+        return
+    held = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+    recordings = [n for n in names if n.lower().endswith(_RECORDING_SUFFIXES)]
+    hint = f"; unzip it and pass the {Path(recordings[0]).name}" if recordings else ""
+    raise InputError(f"{path}: a zip archive holding {held}, not an .npz{hint}")
+
+
 class NpzSource(ScanSource):
     """Scans of an ``.npz`` file (layout in the module docstring)."""
 
@@ -64,6 +82,7 @@ class NpzSource(ScanSource):
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
+        _check_zip(path)
         try:
             with np.load(path, allow_pickle=False) as archive:
                 data = {key: archive[key] for key in archive.files}
@@ -198,22 +217,34 @@ class CsvSource(ScanSource):
                     self._skip("malformed row", where, str(exc)[:80])
 
 
-def _stack(scans: Sequence[LaserScan]) -> np.ndarray:
+def _stack(path: Path, scans: Sequence[LaserScan]) -> np.ndarray:
     if not scans:
-        raise InputError("no scans to write")
+        raise OutputError(f"{path}: no scans to write")
     first = scans[0]
     for scan in scans[1:]:
         if (scan.n_beams, scan.angle_min, scan.angle_increment) != (
             first.n_beams, first.angle_min, first.angle_increment,
         ):  # fmt: skip
-            raise InputError("scans written to one array file must share their geometry")
+            raise OutputError(f"{path}: scans written to one array file must share their geometry")
     return np.stack([s.ranges for s in scans])
 
 
 def write_scans_npz(path: str | Path, scans: Iterable[LaserScan]) -> None:
-    """Write scans of one geometry to ``path`` in the NPZ layout :class:`NpzSource` reads."""
+    """Write scans of one geometry to ``path`` in the NPZ layout :class:`NpzSource` reads.
+
+    ``.npz`` is appended to a ``path`` without it (as ``numpy.savez`` does). The file is
+    written under a temporary name and renamed when complete.
+
+    Raises
+    ------
+    OutputError
+        No scans, scans of several geometries, or a path that cannot be written.
+    """
+    path = Path(path)
+    if path.suffix != ".npz":
+        path = path.with_name(path.name + ".npz")
     scans = list(scans)
-    ranges = _stack(scans)
+    ranges = _stack(path, scans)
     first = scans[0]
     arrays: dict[str, np.ndarray] = {
         "ranges": ranges,
@@ -227,17 +258,30 @@ def write_scans_npz(path: str | Path, scans: Iterable[LaserScan]) -> None:
         arrays["stamps"] = np.array([s.stamp for s in scans], dtype=np.float64)
     if all(s.pose is not None for s in scans):
         arrays["poses"] = np.array([s.pose for s in scans], dtype=np.float64)
-    np.savez(path, **arrays)  # type: ignore[arg-type]
+    with PartialOutput(path, overwrite=True).writing() as temporary:
+        np.savez(temporary, **arrays)  # type: ignore[arg-type]
 
 
 def write_scans_csv(path: str | Path, scans: Iterable[LaserScan]) -> None:
-    """Write scans of one geometry to ``path`` in the CSV layout :class:`CsvSource` reads."""
+    """Write scans of one geometry to ``path`` in the CSV layout :class:`CsvSource` reads.
+
+    The file is written under a temporary name and renamed when complete.
+
+    Raises
+    ------
+    OutputError
+        No scans, scans of several geometries, or a path that cannot be written.
+    """
+    path = Path(path)
     scans = list(scans)
-    ranges = _stack(scans)
+    ranges = _stack(path, scans)
     first = scans[0]
     with_stamp = all(s.stamp is not None for s in scans)
     with_pose = all(s.pose is not None for s in scans)
-    with Path(path).open("w", encoding="utf-8", newline="") as handle:
+    with (
+        PartialOutput(path, overwrite=True).writing() as temporary,
+        temporary.open("w", encoding="utf-8", newline="") as handle,
+    ):
         for key in ("angle_min", "angle_increment", "range_min", "range_max"):
             handle.write(f"# {key}: {getattr(first, key)!r}\n")
         handle.write(f"# frame_id: {first.frame_id}\n")

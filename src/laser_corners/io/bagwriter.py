@@ -1,6 +1,6 @@
 """A copy of the input bag with keypoint topics, for RViz and Foxglove.
 
-The output holds every message of the input, then for each scan two messages with the scan's
+The output holds every message of the input and, for each scan, two messages with the scan's
 header (stamp and frame) and the scan's log time:
 
 * ``<scan_topic>_corners``: ``geometry_msgs/msg/PoseArray`` (orientation = keypoint
@@ -9,22 +9,32 @@ header (stamp and frame) and the scan's log time:
   arrow per keypoint).
 
 A ROS 1 input gives a ``.bag`` (rosbag1 ``Writer``); a ROS 2 or MCAP input gives a ROS 2 bag
-directory with MCAP storage (its name ends in ``.mcap``). The input is copied when the writer
-opens, keypoint messages are added as scans are processed, and the bag index is written by
-``close()``, so an interrupted run still leaves a readable bag.
+directory with MCAP storage (its name ends in ``.mcap``). The input is copied as the scans are
+processed, with their keypoint messages; ``close()`` copies the rest, writes the bag's index and
+renames the bag from its temporary name (``STEM.XXXXXXXX.partial.bag`` beside it; a ROS 2 bag
+folder is written as ``STEM.XXXXXXXX.partial/NAME.mcap``) to the final one, so an interrupted
+run (Ctrl-C) still leaves a complete bag with the keypoints of the scans processed. A ROS 1
+output's chunks are written every ``flush_every`` scans: after a kill, the temporary bag (no
+index) holds them and :func:`~laser_corners.io.open_scans` reads it.
 """
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys.base import Nodetype
 
-from laser_corners.errors import InputError
+from laser_corners.errors import InputError, OutputError
+from laser_corners.io.bagfile import BagInput, iter_messages, open_bag_reader, stock_typestore
+from laser_corners.io.base import KeypointWriter, PartialOutput
 from laser_corners.io.messages import keypoints_to_marker_fields, keypoints_to_pose_array_fields
-from laser_corners.io.source import ScanSource
-from laser_corners.io.writers import KeypointWriter
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 
@@ -36,7 +46,6 @@ MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
 
 def default_message(typestore: Any, typename: str) -> Any:
     """An instance of ``typename`` with every field zero, empty or default-constructed."""
-    from rosbags.typesys.base import Nodetype
 
     def value(nodetype: int, detail: Any) -> Any:
         if nodetype == Nodetype.BASE:
@@ -64,8 +73,6 @@ def default_message(typestore: Any, typename: str) -> Any:
 
 def _closure(store: Any, names: list[str]) -> dict[str, Any]:
     """The field definitions of ``names`` and every type they use, from ``store``."""
-    from rosbags.typesys.base import Nodetype
-
     out: dict[str, Any] = {}
     todo = list(names)
     while todo:
@@ -84,97 +91,104 @@ def _closure(store: Any, names: list[str]) -> dict[str, Any]:
 class BagKeypointWriter(KeypointWriter):
     """Copy of a bag plus ``<topic>_corners`` and ``<topic>_corner_markers`` topics.
 
+    The input's messages are copied as the scans are processed (those logged up to each scan,
+    then its two keypoint messages), and the rest of the input by :meth:`close`, so the
+    output is in log-time order and an interrupted run keeps the keypoints written so far.
+
     Parameters
     ----------
     path : Path
         ``.bag`` for a ROS 1 input, ``.mcap`` for a ROS 2/MCAP input; must not exist.
-    source : BagSource
-        The input being processed (:func:`~laser_corners.io.open_scans` of a bag).
+    source : BagInput
+        The input being processed (a ``BagSource``, :func:`~laser_corners.io.open_scans` of
+        a bag).
     ns : str
         Marker namespace.
     lifetime : float
         Marker lifetime, seconds (0: until the next scan's DELETEALL).
+    flush_every : int
+        Write the ROS 1 chunk being filled to the file every ``flush_every`` scans.
+
+    Raises
+    ------
+    InputError
+        The input cannot be read.
+    OutputError
+        ``path`` has the suffix of the other ROS version, exists, or its folder cannot be
+        written.
     """
 
     def __init__(
-        self, path: Path, source: ScanSource, ns: str = "corners", lifetime: float = 0.0
+        self,
+        path: Path,
+        source: BagInput,
+        ns: str = "corners",
+        lifetime: float = 0.0,
+        flush_every: int = 100,
     ) -> None:
         super().__init__()
-        from laser_corners.io.rosbag import BagSource
-
-        if not isinstance(source, BagSource):
-            raise InputError(
-                f"{path}: a bag output needs a bag input, {source.path} is a {source.kind} "
-                "file; write .csv or .parquet"
-            )
         want = ".bag" if source.kind == "ros1" else ".mcap"
         if path.suffix.lower() != want:
-            raise InputError(
+            raise OutputError(
                 f"{path}: a {source.kind} input is copied to a {want} output, not "
                 f"{path.suffix.lower()}"
             )
-        if path.exists():
-            raise InputError(f"{path}: exists already; remove it or choose another name")
         self.path = path
         self.source = source
         self.ns = ns
         self.lifetime = lifetime
+        self.flush_every = max(1, flush_every)
         self.corners_topic = f"{source.topic}_corners"
         self.markers_topic = f"{source.topic}_corner_markers"
         self.n_copied = 0
         self._ros1 = source.kind == "ros1"
-        self._closed = False
+        self._partial = PartialOutput(path, overwrite=False, create=False, folder=not self._ros1)
         self._writer: Any = None
+        self._input = ExitStack()
+        self._unflushed = 0
         try:
-            self._open_and_copy()
+            self._open()
         except BaseException:
-            self.close()
+            self._abort()
             raise
 
-    def _open_and_copy(self) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
-        stock = get_typestore(Stores.ROS1_NOETIC if self._ros1 else Stores.ROS2_HUMBLE)
+    def _open(self) -> None:
+        reader = self._input.enter_context(open_bag_reader(self.source.path, self.source.kind))
+        bag_types = dict(reader.typestore.fielddefs)
+        stock = _closure(stock_typestore(self.source.kind), [POSE_ARRAY, MARKER_ARRAY])
         typestore = get_typestore(Stores.EMPTY)
-        with self.source.reader() as reader:  # type: ignore[attr-defined]
-            bag_types = dict(reader.typestore.fielddefs)
-            extra = {
-                k: v
-                for k, v in _closure(stock, [POSE_ARRAY, MARKER_ARRAY]).items()
-                if k not in bag_types
-            }
-            typestore.register({**bag_types, **extra})
-            self.typestore = typestore
-            if self._ros1:
-                from rosbags.rosbag1 import Writer as Writer1
+        typestore.register({**bag_types, **{k: v for k, v in stock.items() if k not in bag_types}})
+        self.typestore = typestore
+        assert self._partial is not None
+        temporary = self._partial.temporary
+        if self._ros1:
+            self._writer = Writer1(temporary)
+        else:
+            self._writer = Writer2(temporary, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        self._mapping: dict[int, Any] = {}
+        added: dict[tuple[Any, ...], Any] = {}
+        for connection in reader.connections:
+            key = (connection.topic, connection.msgtype, connection.digest, repr(connection.ext))
+            if key not in added:
+                added[key] = self._add_copy(connection)
+            self._mapping[connection.id] = added[key]
+        self._corners = self._add_new(self.corners_topic, POSE_ARRAY)
+        self._markers = self._add_new(self.markers_topic, MARKER_ARRAY)
 
-                self._writer = Writer1(self.path)
-            else:
-                from rosbags.rosbag2 import StoragePlugin
-                from rosbags.rosbag2 import Writer as Writer2
+        def error(message: str) -> InputError:
+            return InputError(f"{self.source.path}: {message} (copying it to {self.path})")
 
-                self._writer = Writer2(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-            self._writer.open()
-            mapping: dict[int, Any] = {}
-            added: dict[tuple[Any, ...], Any] = {}
-            for connection in reader.connections:
-                key = (
-                    connection.topic,
-                    connection.msgtype,
-                    connection.digest,
-                    repr(connection.ext),
-                )
-                if key not in added:
-                    added[key] = self._add_copy(connection)
-                mapping[connection.id] = added[key]
-            self._corners = self._add_new(self.corners_topic, POSE_ARRAY)
-            self._markers = self._add_new(self.markers_topic, MARKER_ARRAY)
-            for connection, log_time, raw in self.source._messages(  # type: ignore[attr-defined]
-                reader,
-                list(self.source.topics),  # type: ignore[attr-defined]
-            ):
-                self._writer.write(mapping[connection.id], log_time, raw)
-                self.n_copied += 1
+        self._pending = iter_messages(reader, list(self.source.topics), error)
+        self._next = next(self._pending, None)
+
+    def _copy_until(self, log_time: int | None) -> None:
+        """Copy the input's messages logged up to ``log_time`` (None: all the rest)."""
+        while self._next is not None and (log_time is None or self._next[1] <= log_time):
+            connection, stamp, raw = self._next
+            self._writer.write(self._mapping[connection.id], stamp, raw)
+            self.n_copied += 1
+            self._next = next(self._pending, None)
 
     def _add_copy(self, connection: Any) -> Any:
         if self._ros1:
@@ -236,18 +250,45 @@ class BagKeypointWriter(KeypointWriter):
         return bytes(self.typestore.serialize_cdr(msg, msgtype))
 
     def write(self, scan_index: int, scan: LaserScan, keypoints: Keypoints) -> None:
-        """Add the keypoint messages of scan ``scan_index`` (its header, its log time)."""
+        """Copy the input up to scan ``scan_index``, then add its keypoint messages (its
+        header, its log time)."""
         super().write(scan_index, scan, keypoints)
-        stamp_ns = self.source.stamps_ns[scan_index]  # type: ignore[attr-defined]
-        log_time = self.source.log_times_ns[scan_index]  # type: ignore[attr-defined]
+        stamp_ns = self.source.stamps_ns[scan_index]
+        log_time = self.source.log_times_ns[scan_index]
+        self._copy_until(log_time)
         poses = self.pose_array(stamp_ns, scan.frame_id, keypoints)
         markers = self.marker_array(stamp_ns, scan.frame_id, keypoints)
         self._writer.write(self._corners, log_time, self._serialize(poses, POSE_ARRAY))
         self._writer.write(self._markers, log_time, self._serialize(markers, MARKER_ARRAY))
+        self._unflushed += 1
+        if self._unflushed >= self.flush_every:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the ROS 1 chunk being filled to the file (ROS 2: the MCAP writer's own)."""
+        self._unflushed = 0
+        if self._ros1 and self._writer.bio is not None:
+            self._writer.write_chunk(self._writer.chunks[-1])
+            self._writer.bio.flush()
 
     def close(self) -> None:
-        """Write the bag's index and close it."""
-        if not self._closed:
-            self._closed = True
-            if self._writer is not None:
-                self._writer.close()
+        """Copy the rest of the input, write the bag's index, give it its final name."""
+        if self.closed or self._writer is None:
+            return
+        try:
+            self._copy_until(None)
+        finally:
+            self._writer.close()
+            self._input.close()
+            assert self._partial is not None
+            self._partial.publish()
+            self.closed = True
+
+    def _abort(self) -> None:
+        """Undo a failed open: close what was opened, remove the temporary output."""
+        if self._writer is not None:
+            self._writer.abort()
+        self._writer = None
+        self._input.close()
+        assert self._partial is not None
+        self._partial.discard()

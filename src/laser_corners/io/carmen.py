@@ -1,4 +1,4 @@
-"""CARMEN logs (plain or gzip): FLASER, ROBOTLASER1 and RAWLASER1-4 lines.
+"""CARMEN logs (plain or gzip): FLASER, ROBOTLASER1 and RAWLASER1-4 lines; also ``.g2o`` files.
 
 Line layouts (whitespace separated; ``ipc_ts`` is the stamp):
 
@@ -9,13 +9,19 @@ Line layouts (whitespace separated; ``ipc_ts`` is the stamp):
 * ``ROBOTLASER1 type start_angle fov res max_range accuracy remission_mode n r1..rn n_rem
   rem1..rem_k laser_x laser_y laser_th robot_x robot_y robot_th tv rv fwd_safety side_safety
   turn_axis ipc_ts host logger_ts`` -- beam i at ``start_angle + i*res``; the pose is
-  ``laser_x laser_y laser_th`` (the map-frame laser pose in the ``*-corrected`` logs).
+  ``laser_x laser_y laser_th`` (the map-frame laser pose in the ``*-corrected`` logs). A
+  negative ``res`` is kept: the beams then turn clockwise (the scan's ``angle_increment`` is
+  negative, as a ``sensor_msgs/LaserScan`` of an upside-down scanner has it).
 * ``RAWLASER1..4 type start_angle fov res max_range accuracy remission_mode n r1..rn n_rem
   rem1..rem_k ipc_ts host logger_ts`` -- no pose.
 
 Readings at or beyond the maximum range mean "no return": the scan's ``range_max`` is the
 declared maximum range, so they become gaps. Other record types (VERTEX2, EDGE2, ODOM, PARAM,
 NEFF, ...) and comments are skipped silently; a malformed laser line is a counted skip.
+
+A ``.g2o`` pose-graph file (as Freiburg's killian log ships, zipped) mixes ``VERTEX_*``,
+``EDGE_*``, ``FIX`` and ``PARAMS_*`` lines with ROBOTLASER1 laser lines of the CARMEN layout:
+it is read as a log, its graph lines skipped silently.
 """
 
 from __future__ import annotations
@@ -29,10 +35,24 @@ from pathlib import Path
 import numpy as np
 
 from laser_corners.errors import InputError, InvalidScanError
-from laser_corners.io.source import ScanSource, open_text
+from laser_corners.io.base import ScanSource, open_text
 from laser_corners.scan import LaserScan
 
-__all__ = ["FLASER_MAX_RANGE", "CarmenSource", "parse_carmen_line"]
+__all__ = [
+    "CARMEN_SUFFIXES",
+    "CARMEN_WORDS",
+    "FLASER_MAX_RANGE",
+    "CarmenSource",
+    "MalformedLine",
+    "parse_carmen_line",
+]
+
+CARMEN_SUFFIXES = frozenset({".clf", ".log", ".carmen", ".txt", ".gfs", ".g2o"})
+"""Suffixes of CARMEN logs (and of ``.g2o`` files, read for their laser lines)."""
+CARMEN_WORDS: tuple[bytes, ...] = (
+    b"FLASER", b"ROBOTLASER1", b"RAWLASER", b"VERTEX", b"EDGE", b"ODOM", b"PARAM", b"#",
+)  # fmt: skip
+"""First words that make a file without a known suffix a CARMEN log."""
 
 FLASER_MAX_RANGE = 80.0
 """Maximum range (m) of FLASER lines, which declare none: the SICK LMS value CARMEN uses."""
@@ -45,6 +65,12 @@ _IGNORED_WORDS = frozenset(
         "TRUEPOS", "RLASER", "ROBOTLASER2", "SYNC", "GPSNMEA", "POSITIONLASER", "FIX",
     }
 )  # fmt: skip
+_IGNORED_PREFIXES = ("VERTEX", "EDGE", "PARAMS_")  # g2o graph lines
+
+
+def _ignored(word: str) -> bool:
+    """Whether lines starting with ``word`` are skipped silently (not laser, not an error)."""
+    return word in _IGNORED_WORDS or word.startswith(_IGNORED_PREFIXES)
 
 
 class MalformedLine(ValueError):
@@ -160,7 +186,7 @@ class CarmenSource(ScanSource):
     def _scans(self) -> Iterator[LaserScan]:
         for line_no, line in self._lines():
             tokens = line.split()
-            if not tokens or tokens[0].startswith("#") or tokens[0] in _IGNORED_WORDS:
+            if not tokens or tokens[0].startswith("#") or _ignored(tokens[0]):
                 continue
             word = tokens[0]
             if word not in _LASER_WORDS:

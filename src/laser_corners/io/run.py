@@ -13,8 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from laser_corners.detector import CornerDetector
-from laser_corners.io.source import ScanSource
-from laser_corners.io.writers import KeypointWriter
+from laser_corners.io import KeypointWriter, ScanSource
 
 __all__ = ["RunSummary", "detect_recording"]
 

@@ -1,10 +1,10 @@
-"""Keypoint writers: CSV, Parquet, a copy of the input bag with keypoint topics, or nothing.
+"""Keypoint tables: CSV and Parquet writers.
 
-Every writer has the same two calls, ``write(scan_index, scan, keypoints)`` and ``close()``, so
-the detection loop never asks which one it has (the base class writes nothing). Output is
-written incrementally: CSV rows are flushed and Parquet row groups written every
-``flush_every`` scans, so an interrupted run (Ctrl-C) keeps what was written once ``close()``
-runs (use the writer as a context manager).
+Both have the calls of :class:`~laser_corners.io.base.KeypointWriter`. Output is written
+incrementally under a temporary name beside the final one (``STEM.XXXXXXXX.partial.SUFFIX``):
+CSV rows are flushed and Parquet row groups written every ``flush_every`` scans; ``close()``
+finishes the file (the Parquet footer) and renames it, so an interrupted run (Ctrl-C) keeps
+what was written, and a killed one leaves only the temporary file.
 
 Table columns, one row per keypoint: ``stamp, scan_index, beam_index, x, y,
 opening_angle_deg, orientation, n_scales, rmse, n_merged`` (sensor frame), plus ``map_x,
@@ -18,13 +18,11 @@ import csv
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from types import TracebackType
-from typing import Any
 
 import numpy as np
 
-from laser_corners.errors import InputError
-from laser_corners.io.source import ScanSource
+from laser_corners.errors import OutputError, first_line
+from laser_corners.io.base import KeypointWriter, PartialOutput
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 
@@ -33,7 +31,6 @@ __all__ = [
     "CsvKeypointWriter",
     "KeypointWriter",
     "ParquetKeypointWriter",
-    "open_keypoint_writer",
 ]
 
 TABLE_COLUMNS: tuple[str, ...] = (
@@ -45,59 +42,13 @@ MAP_COLUMNS: tuple[str, ...] = ("map_x", "map_y")
 _INT_COLUMNS = frozenset({"scan_index", "beam_index", "n_scales", "n_merged"})
 
 
-class KeypointWriter:
-    """Writes nothing: the writer used when no output is asked for (and the base class).
-
-    Attributes
-    ----------
-    path : Path or None
-        The output.
-    n_scans, n_keypoints : int
-        Scans and keypoints handed to :meth:`write` so far.
-    """
-
-    path: Path | None = None
-
-    def __init__(self) -> None:
-        self.n_scans = 0
-        self.n_keypoints = 0
-
-    def write(self, scan_index: int, scan: LaserScan, keypoints: Keypoints) -> None:
-        """Record the keypoints of the scan of index ``scan_index``."""
-        self.n_scans += 1
-        self.n_keypoints += len(keypoints)
-
-    def write_many(
-        self, first_index: int, scans: Sequence[LaserScan], keypoints: Sequence[Keypoints]
-    ) -> None:
-        """Record consecutive scans at once: scan ``first_index + i`` found ``keypoints[i]``.
-
-        Same result as calling :meth:`write` for each; table writers do it in one block.
-        """
-        for offset, (scan, found) in enumerate(zip(scans, keypoints, strict=True)):
-            self.write(first_index + offset, scan, found)
-
-    def close(self) -> None:
-        """Flush and close the output (idempotent)."""
-
-    def __enter__(self) -> KeypointWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
-
-
 class _TableWriter(KeypointWriter):
     """Buffers keypoint rows and flushes them every ``flush_every`` scans."""
 
     def __init__(self, path: Path, with_map: bool, flush_every: int = 100) -> None:
         super().__init__()
         self.path = path
+        self._partial = PartialOutput(path, overwrite=True)
         self.columns = TABLE_COLUMNS + (MAP_COLUMNS if with_map else ())
         self.with_map = with_map
         self.flush_every = max(1, flush_every)
@@ -192,11 +143,16 @@ class _TableWriter(KeypointWriter):
         raise NotImplementedError
 
     def close(self) -> None:
-        """Write the buffered rows and close the file."""
+        """Write the buffered rows, close the file and give it its final name."""
         if not self._closed:
             self._closed = True
-            self.flush()
-            self._finish()
+            try:
+                self.flush()
+            finally:
+                self._finish()
+            assert self._partial is not None
+            self._partial.publish()
+            self.closed = True
 
     def _finish(self) -> None:
         raise NotImplementedError
@@ -207,10 +163,12 @@ class CsvKeypointWriter(_TableWriter):
 
     def __init__(self, path: Path, with_map: bool, flush_every: int = 100) -> None:
         super().__init__(path, with_map, flush_every)
+        assert self._partial is not None
         try:
-            self._handle = path.open("w", encoding="utf-8", newline="")
+            self._handle = self._partial.temporary.open("w", encoding="utf-8", newline="")
         except OSError as exc:
-            raise InputError(f"{path}: cannot write ({exc.strerror})") from None
+            self._partial.discard()
+            raise OutputError(f"{path}: cannot write ({exc.strerror})") from None
         self._csv = csv.writer(self._handle)
         self._csv.writerow(self.columns)
         self._handle.flush()
@@ -256,10 +214,12 @@ class ParquetKeypointWriter(_TableWriter):
             for c in self.columns
         ]
         self._schema = pa.schema(fields, metadata=metadata or {})
+        assert self._partial is not None
         try:
-            self._writer = pq.ParquetWriter(str(path), self._schema)
+            self._writer = pq.ParquetWriter(str(self._partial.temporary), self._schema)
         except OSError as exc:
-            raise InputError(f"{path}: cannot write ({exc})") from None
+            self._partial.discard()
+            raise OutputError(f"{path}: cannot write ({first_line(exc)})") from None
 
     def flush(self) -> None:
         """Write the buffered rows as one row group."""
@@ -274,50 +234,3 @@ class ParquetKeypointWriter(_TableWriter):
 
     def _finish(self) -> None:
         self._writer.close()
-
-
-def open_keypoint_writer(
-    path: str | Path | None,
-    source: ScanSource,
-    *,
-    with_map: bool,
-    metadata: dict[str, str] | None = None,
-    **options: Any,
-) -> KeypointWriter:
-    """The writer for ``path``, chosen by its suffix.
-
-    Parameters
-    ----------
-    path : str, Path or None
-        ``.csv``, ``.parquet``, ``.bag`` (ROS 1 input) or ``.mcap`` (ROS 2/MCAP input); None:
-        a writer that writes nothing.
-    source : ScanSource
-        The recording being processed (the bag writers copy it).
-    with_map : bool
-        Add ``map_x, map_y`` columns (the recording has poses).
-    metadata : dict of str to str, optional
-        Stored in the Parquet schema metadata.
-    **options
-        Passed on to the writer (``flush_every``; ``ns``, ``lifetime`` for bags).
-
-    Raises
-    ------
-    InputError
-        Unknown suffix, a bag output for a non-bag input, or a path that cannot be written.
-    """
-    if path is None:
-        return KeypointWriter()
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return CsvKeypointWriter(path, with_map, **options)
-    if suffix in (".parquet", ".pq"):
-        return ParquetKeypointWriter(path, with_map, metadata=metadata, **options)
-    if suffix in (".bag", ".mcap"):
-        from laser_corners.io.bagwriter import BagKeypointWriter
-
-        return BagKeypointWriter(path, source, **options)
-    raise InputError(
-        f"{path}: unknown output kind {suffix or '(no suffix)'!r}; "
-        "use .csv, .parquet, .bag or .mcap"
-    )

@@ -1,0 +1,126 @@
+"""Open a bag with rosbags, and read its messages, with one-line errors for damaged files.
+
+The bag source and the bag writer both read bags through :func:`open_bag_reader` and
+:func:`iter_messages`. A ROS 1 bag whose index rosbags refuses is read from its chunk records
+(:class:`~laser_corners.io.ros1_chunks.ChunkOrderReader`); only when that fails too is the
+file blamed.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, Protocol
+
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.rosbag1 import ReaderError as Reader1Error
+from rosbags.rosbag2 import ReaderError as Reader2Error
+from rosbags.typesys import Stores, get_typestore
+
+from laser_corners.errors import InputError, first_line
+from laser_corners.io.ros1_chunks import ChunkOrderReader
+
+__all__ = [
+    "CORRUPT_ERRORS",
+    "BagInput",
+    "iter_messages",
+    "open_bag_reader",
+    "read_from_chunks",
+]
+
+CORRUPT_ERRORS: tuple[type[BaseException], ...] = (
+    AnyReaderError, Reader1Error, Reader2Error, AssertionError, OSError, EOFError,
+    struct.error, zlib.error, UnicodeDecodeError, ValueError, IndexError, KeyError,
+)  # fmt: skip
+"""What rosbags lets through on damaged bags (it asserts on some, real or damaged)."""
+_CHUNK_ERRORS = (*CORRUPT_ERRORS, RuntimeError)  # lz4 raises RuntimeError on bad frames
+
+
+class BagInput(Protocol):
+    """What the bag writer needs of the bag being read (a ``BagSource``)."""
+
+    path: Path
+    kind: str
+    topic: str | None
+    topics: dict[str, tuple[str, int]]
+    stamps_ns: list[int]
+    log_times_ns: list[int]
+
+
+def stock_typestore(kind: str) -> Any:
+    """The rosbags typestore of the ROS distribution a bag of ``kind`` most likely uses."""
+    return get_typestore(Stores.ROS1_NOETIC if kind == "ros1" else Stores.ROS2_HUMBLE)
+
+
+def _chunk_reader(path: Path, refused: BaseException) -> AnyReader:
+    """An open ``AnyReader`` over the chunk records of ROS 1 bag ``path``."""
+    reader = AnyReader([path], default_typestore=stock_typestore("ros1"))
+    reader.readers = [ChunkOrderReader(path)]
+    try:
+        reader.open()
+    except _CHUNK_ERRORS as exc:
+        raise InputError(
+            f"{path}: cannot open the ros1 bag, damaged or truncated? ({first_line(exc)}; "
+            f"rosbags: {type(refused).__name__}: {first_line(refused)})"
+        ) from None
+    return reader
+
+
+@contextmanager
+def open_bag_reader(path: Path, kind: str) -> Iterator[AnyReader]:
+    """An open rosbags ``AnyReader`` of the bag ``path`` of ``kind`` (closed on exit).
+
+    A ROS 1 bag whose index rosbags refuses is read from its chunk records instead.
+
+    Raises
+    ------
+    InputError
+        The bag cannot be read (damaged or truncated).
+    """
+    if kind == "ros1" and path.suffix != ".bag":
+        raise InputError(
+            f"{path}: a ROS 1 bag is read only under a name ending in .bag (rosbags' rule); "
+            "rename or link it"
+        )
+    try:
+        reader = AnyReader([path], default_typestore=stock_typestore(kind))
+        reader.open()
+    except CORRUPT_ERRORS as exc:
+        if kind != "ros1" or isinstance(exc, (FileNotFoundError, PermissionError)):
+            raise InputError(
+                f"{path}: cannot open the {kind} bag, damaged or truncated? "
+                f"({type(exc).__name__}: {first_line(exc)})"
+            ) from None
+        reader = _chunk_reader(path, exc)
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def read_from_chunks(reader: AnyReader) -> bool:
+    """Whether ``reader`` reads a ROS 1 bag from its chunks (its index was refused)."""
+    return any(isinstance(r, ChunkOrderReader) for r in reader.readers)
+
+
+def iter_messages(
+    reader: AnyReader, topics: list[str], error: Callable[[str], InputError]
+) -> Iterator[tuple[Any, int, bytes]]:
+    """``(connection, log_time_ns, raw)`` of the messages of ``topics`` in log-time order.
+
+    Damaged data raises ``error(message)`` (an :class:`InputError` naming the file and the
+    position of the caller).
+    """
+    connections = [c for c in reader.connections if c.topic in topics]
+    iterator = reader.messages(connections=connections)
+    while True:
+        try:
+            item = next(iterator)
+        except StopIteration:
+            return
+        except _CHUNK_ERRORS as exc:
+            raise error(f"damaged bag data ({type(exc).__name__}: {first_line(exc)})") from None
+        yield item

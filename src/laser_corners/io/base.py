@@ -1,0 +1,374 @@
+"""The two interfaces of :mod:`laser_corners.io` and the helpers every reader and writer shares.
+
+* :class:`ScanSource`: an iterable of :class:`~laser_corners.LaserScan` with counted skips and
+  a reading position for messages;
+* :class:`KeypointWriter`: ``write(scan_index, scan, keypoints)`` and ``close()`` (this base
+  class writes nothing) plus :meth:`KeypointWriter.summary`, what the output keeps;
+* :class:`PartialOutput`: an output written under a temporary name in its folder and renamed
+  to its final name when complete, so a killed run never leaves a half-written file under the
+  final name;
+* :func:`open_text`, :func:`read_head`: text lines (plain or gzip) and the first bytes of a file.
+
+This module imports no reader and no writer: readers and writers import it, and only
+:mod:`laser_corners.io.registry` imports the readers and writers (rosbags' ``rosbag2/reader.py``
+and its storage plugins are laid out the same way).
+"""
+
+from __future__ import annotations
+
+import gzip
+import os
+import shutil
+import tempfile
+from abc import ABC, abstractmethod
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from itertools import islice
+from pathlib import Path
+from types import TracebackType
+from typing import Literal
+
+from laser_corners.errors import InputError, OutputError
+from laser_corners.keypoints import Keypoints
+from laser_corners.scan import LaserScan
+
+__all__ = [
+    "KINDS",
+    "KeypointWriter",
+    "PartialOutput",
+    "ScanSource",
+    "SourceKind",
+    "TopicChoiceError",
+    "WriterSummary",
+    "open_text",
+    "read_head",
+]
+
+SourceKind = Literal["ros1", "ros2", "mcap", "carmen", "npz", "csv"]
+KINDS: tuple[str, ...] = ("ros1", "ros2", "mcap", "carmen", "npz", "csv")
+"""Every kind of recording :func:`~laser_corners.io.open_scans` reads."""
+BAG_KINDS: frozenset[str] = frozenset({"ros1", "ros2", "mcap"})
+"""The kinds read through rosbags (they have topics)."""
+
+PARTIAL_SUFFIX = ".partial"
+"""An output path ending in this is a caller's own temporary name (see :class:`PartialOutput`)."""
+MAX_SKIP_EXAMPLES = 5
+"""How many skipped records a source remembers the position of."""
+
+
+class TopicChoiceError(InputError):
+    """A bag has several LaserScan topics and none was chosen.
+
+    Attributes
+    ----------
+    path : Path
+        The bag.
+    topics : list of str
+        Its LaserScan topics, one per line of the message.
+    """
+
+    def __init__(self, path: Path, topics: list[str]) -> None:
+        self.path = path
+        self.topics = list(topics)
+        lines = "".join(f"\n  {t}" for t in self.topics)
+        super().__init__(f"{path}: {len(self.topics)} LaserScan topics; choose one of:{lines}")
+
+
+def read_head(path: Path, size: int = 64) -> bytes:
+    """The first ``size`` bytes of ``path``; :class:`InputError` when it cannot be read."""
+    try:
+        with path.open("rb") as handle:
+            return handle.read(size)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+
+
+def open_text(path: Path) -> Iterator[str]:
+    """Lines of a text file, gunzipped when it starts with the gzip magic number."""
+    if read_head(path, 2) == b"\x1f\x8b":
+        return gzip.open(path, "rt", encoding="utf-8", errors="replace")  # type: ignore[return-value]
+    return path.open("r", encoding="utf-8", errors="replace")
+
+
+class ScanSource(ABC):
+    """An iterable of the scans of one recording.
+
+    Attributes
+    ----------
+    path : Path
+        The recording.
+    kind : str
+        One of :data:`KINDS`.
+    topic : str or None
+        The LaserScan topic read (bags only).
+    skipped : dict of str to int
+        Bad records skipped so far in the current (or last) iteration, by reason.
+    skip_examples : list of str
+        Where the first few skips happened (``"line 12: not a number"``).
+    position : str
+        Where the current iteration is (``"message 1200"``, ``"line 345"``), for messages
+        about interruptions and errors.
+    """
+
+    kind: SourceKind
+
+    def __init__(self, path: Path, topic: str | None = None) -> None:
+        self.path = path
+        self.topic = topic
+        self.skipped: dict[str, int] = {}
+        self.skip_examples: list[str] = []
+        self.position = "start"
+
+    @property
+    @abstractmethod
+    def n_scans(self) -> int | None:
+        """Number of scans, or ``None`` when it is unknown without reading the whole file."""
+
+    @abstractmethod
+    def _scans(self) -> Iterator[LaserScan]:
+        """Yield the scans, calling :meth:`_skip` for bad records."""
+
+    def __iter__(self) -> Iterator[LaserScan]:
+        self.skipped = {}
+        self.skip_examples = []
+        self.position = "start"
+        return self._scans()
+
+    def _skip(self, reason: str, where: str, detail: str = "") -> None:
+        """Count a skipped record of kind ``reason`` found at ``where``."""
+        self.skipped[reason] = self.skipped.get(reason, 0) + 1
+        if len(self.skip_examples) < MAX_SKIP_EXAMPLES:
+            self.skip_examples.append(f"{where}: {reason}" + (f" ({detail})" if detail else ""))
+
+    def error(self, message: str) -> InputError:
+        """An :class:`InputError` naming the file and the current position."""
+        return InputError(f"{self.path}: {message} (at {self.position})")
+
+    def first_scan(self) -> LaserScan | None:
+        """The first scan of the recording (reads only as far as needed), or ``None``."""
+        return next(iter(self), None)
+
+    def scan_at(self, index: int) -> LaserScan:
+        """The scan of index ``index`` (0-based) in reading order.
+
+        Raises
+        ------
+        InputError
+            When the recording has fewer scans.
+        """
+        if index < 0:
+            raise InputError(f"{self.path}: scan index must be >= 0, got {index}")
+        scan = next(islice(iter(self), index, None), None)
+        if scan is None:
+            raise InputError(
+                f"{self.path}: scan {index} requested but the recording has fewer scans"
+            )
+        return scan
+
+    def describe(self) -> dict[str, object]:
+        """Facts for ``laser-corners info`` (kind, counts, topics), without the scan geometry."""
+        return {"path": str(self.path), "kind": self.kind, "scans": self.n_scans}
+
+    def __repr__(self) -> str:
+        topic = f", topic={self.topic!r}" if self.topic else ""
+        return f"{type(self).__name__}({str(self.path)!r}, kind={self.kind!r}{topic})"
+
+
+# ----------------------------------------------------------------------------- writers
+@dataclass(frozen=True)
+class WriterSummary:
+    """What a keypoint writer has kept.
+
+    Attributes
+    ----------
+    path : Path or None
+        The output: its final name once closed, the temporary file while it is written,
+        ``None`` for the writer that writes nothing.
+    n_scans, n_keypoints : int
+        Scans and keypoints written.
+    complete : bool
+        The output is closed and under its final name.
+    """
+
+    path: Path | None
+    n_scans: int
+    n_keypoints: int
+    complete: bool
+
+
+class KeypointWriter:
+    """Writes nothing: the writer used when no output is asked for (and the base class).
+
+    Every writer has the same calls, :meth:`write` (or :meth:`write_many`) and :meth:`close`,
+    so a detection loop never asks which one it has. Use it as a context manager: ``close()``
+    also runs on Ctrl-C, and what was written is kept.
+
+    Attributes
+    ----------
+    path : Path or None
+        The output (its final name).
+    n_scans, n_keypoints : int
+        Scans and keypoints handed to :meth:`write` so far.
+    """
+
+    path: Path | None = None
+    _partial: PartialOutput | None = None
+
+    def __init__(self) -> None:
+        self.n_scans = 0
+        self.n_keypoints = 0
+        self.closed = False
+
+    def write(self, scan_index: int, scan: LaserScan, keypoints: Keypoints) -> None:
+        """Record the keypoints of the scan of index ``scan_index``."""
+        self.n_scans += 1
+        self.n_keypoints += len(keypoints)
+
+    def write_many(
+        self, first_index: int, scans: Sequence[LaserScan], keypoints: Sequence[Keypoints]
+    ) -> None:
+        """Record consecutive scans at once: scan ``first_index + i`` found ``keypoints[i]``.
+
+        Same result as calling :meth:`write` for each; table writers do it in one block.
+        """
+        for offset, (scan, found) in enumerate(zip(scans, keypoints, strict=True)):
+            self.write(first_index + offset, scan, found)
+
+    def close(self) -> None:
+        """Flush and close the output, then give it its final name (idempotent)."""
+        self.closed = True
+
+    def summary(self) -> WriterSummary:
+        """What the output keeps so far (path, scans, keypoints, whether complete)."""
+        partial = self._partial
+        path = self.path if self.closed or partial is None else partial.temporary
+        return WriterSummary(path, self.n_scans, self.n_keypoints, self.closed)
+
+    def __enter__(self) -> KeypointWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class PartialOutput:
+    """An output written under a temporary name beside its final name, renamed when complete.
+
+    The temporary name is ``STEM.XXXXXXXX.partial.SUFFIX`` in the same folder (same file
+    system, so the rename is atomic). A process killed before :meth:`publish` leaves only that
+    file (or folder), never a half-written file under the final name.
+
+    A ``path`` whose name ends in :data:`PARTIAL_SUFFIX` is a temporary name already (its
+    caller renames it when it is done, as ``laser-corners batch`` does): it is written
+    directly, so a kill leaves the one file the caller knows about.
+
+    Parameters
+    ----------
+    path : Path
+        The final name.
+    overwrite : bool
+        Replace an existing ``path`` when publishing (tables); with False an existing ``path``
+        is an :class:`OutputError`, checked now and when publishing (bags).
+    create : bool
+        Create the temporary file (empty). With False the name is reserved but left free,
+        for writers that create their output themselves and refuse an existing one (rosbags'
+        bag writers).
+    folder : bool
+        The output is a folder whose contents are named after it (a ROS 2 bag): it is written
+        as ``STEM.XXXXXXXX.partial/NAME`` (not created) and moved out of that folder when
+        published, so what is inside keeps its final names.
+
+    Raises
+    ------
+    OutputError
+        Missing folder, no permission, or an existing ``path`` with ``overwrite=False``.
+    """
+
+    def __init__(
+        self, path: Path, *, overwrite: bool, create: bool = True, folder: bool = False
+    ) -> None:
+        self.path = path
+        self.overwrite = overwrite
+        if not overwrite and path.exists():
+            raise OutputError(f"{path}: exists already; remove it or choose another name")
+        parent = path.parent
+        if not parent.is_dir():
+            raise OutputError(f"{path}: the folder {parent} does not exist")
+        if path.name.endswith(PARTIAL_SUFFIX):
+            self.temporary, self._holder = path, None
+            return
+        self._holder: Path | None = None
+        try:
+            if folder:
+                self._holder = Path(
+                    tempfile.mkdtemp(prefix=f"{path.stem}.", suffix=".partial", dir=parent)
+                )
+                self.temporary = self._holder / path.name
+                return
+            handle, name = tempfile.mkstemp(
+                prefix=f"{path.stem}.", suffix=f".partial{path.suffix}", dir=parent
+            )
+        except OSError as exc:
+            raise OutputError(f"{path}: cannot write in {parent} ({exc.strerror})") from None
+        os.close(handle)
+        self.temporary = Path(name)
+        if not create:
+            self.temporary.unlink()  # the writer creates it itself
+
+    def publish(self) -> None:
+        """Give the complete output its final name.
+
+        Raises
+        ------
+        OutputError
+            ``path`` appeared meanwhile and must not be overwritten.
+        """
+        if self.temporary == self.path or not self.temporary.exists():
+            return
+        if self.path.exists() and not self.overwrite:
+            raise OutputError(
+                f"{self.path}: appeared while writing; the output is kept as {self.temporary}"
+            )
+        try:
+            os.replace(self.temporary, self.path)
+        except OSError as exc:
+            raise OutputError(
+                f"{self.path}: cannot give the output its name ({exc.strerror}); it is kept as "
+                f"{self.temporary}"
+            ) from None
+        if self._holder is not None:
+            self._holder.rmdir()
+
+    @contextmanager
+    def writing(self) -> Iterator[Path]:
+        """Yield the temporary path to write in one go; publish it on success, else remove it.
+
+        Raises
+        ------
+        OutputError
+            The file cannot be written (the ``OSError`` named in one line).
+        """
+        try:
+            yield self.temporary
+        except OSError as exc:
+            self.discard()
+            raise OutputError(f"{self.path}: cannot write ({exc.strerror or exc})") from None
+        except BaseException:
+            self.discard()
+            raise
+        self.publish()
+
+    def discard(self) -> None:
+        """Remove the temporary file or folder (a writer that failed to open)."""
+        if self._holder is not None:
+            shutil.rmtree(self._holder, ignore_errors=True)
+        elif self.temporary.is_dir():
+            shutil.rmtree(self.temporary, ignore_errors=True)
+        else:
+            self.temporary.unlink(missing_ok=True)
