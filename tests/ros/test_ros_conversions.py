@@ -39,7 +39,7 @@ from laser_corners.ros.convert import (
 from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
 from laser_corners.sim import corner_scan
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 ROS_DIR = REPO_ROOT / "src" / "laser_corners" / "ros"
 
 

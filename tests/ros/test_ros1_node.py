@@ -33,7 +33,7 @@ pytestmark = [
     pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),  # Debian's rospy
 ]
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 FR079 = (REPO_ROOT / ".." / "shared" / "data" / "real" / "fr079.bag").resolve()
 ROS_PACKAGE_DIR = REPO_ROOT / "src" / "laser_corners" / "ros"
 N_SCANS = 400  # scans of fr079 played (the first ones)
