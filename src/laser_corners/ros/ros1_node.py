@@ -36,7 +36,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from laser_corners.errors import InvalidParamsError, LaserCornersError
+from laser_corners.errors import InvalidParamsError, LaserCornersError, first_line
 from laser_corners.io.messages import keypoints_to_marker_fields
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array
 from laser_corners.ros.node_core import CornerNodeCore, NodeConfig
@@ -135,8 +135,8 @@ def import_rospy() -> ModuleType:
     root = _ros1_root()
     _install_message_finder(root)
     try:
-        import rospy  # type: ignore[import-not-found]
         import geometry_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+        import rospy  # type: ignore[import-not-found]
         import sensor_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
         import visualization_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
     except ImportError as exc:
@@ -217,8 +217,11 @@ class CornerNode:
 
 
 def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
-         debug: bool = False) -> None:  # fmt: skip
+         debug: bool = False) -> int:  # fmt: skip
     """Run the ROS 1 node until shutdown.
+
+    SIGINT (Ctrl-C), SIGTERM and ``rosnode kill`` end it cleanly, also while it still waits
+    for the ROS master: one log line, exit code 0, no traceback.
 
     Parameters
     ----------
@@ -230,33 +233,62 @@ def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
     debug : bool
         Log at debug level (per-scan latency).
 
+    Returns
+    -------
+    int
+        The exit code: 0 after a shutdown.
+
     Raises
     ------
     InvalidParamsError
         When a parameter is invalid (logged as fatal too).
     LaserCornersError
-        When rospy is not installed.
+        When rospy is not installed, or the node cannot start for another reason.
     """
     rospy = import_rospy()
     args = list(sys.argv if argv is None else ["laser_corners_node", *argv])
-    rospy.init_node(
-        node_name, argv=args, log_level=rospy.DEBUG if debug else rospy.INFO,
-        disable_signals=False,
-    )  # fmt: skip
+    node: CornerNode | None = None
     try:
-        config = NodeConfig.from_mapping(rospy.get_param("~", {}))
+        rospy.init_node(
+            node_name, argv=args, log_level=rospy.DEBUG if debug else rospy.INFO,
+            disable_signals=False,
+        )  # fmt: skip
+        node = CornerNode(_read_config(rospy), rospy)
+        rospy.spin()
+    except InvalidParamsError:
+        raise
+    except (KeyboardInterrupt, Exception) as exc:
+        if not rospy.core.is_shutdown_requested():
+            if isinstance(exc, rospy.ROSException):
+                raise LaserCornersError(f"ROS 1 node failed: {first_line(exc)}") from None
+            raise
+        # a signal (Ctrl-C, SIGTERM) arrived while rospy was busy, e.g. waiting for the master
+    if node is None:
+        import rosgraph  # type: ignore[import-not-found]
+
+        print(
+            f"laser_corners: shut down before the node started (ROS master "
+            f"{rosgraph.get_master_uri()} not reached)",
+            file=sys.stderr,
+        )
+        return 0
+    rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
+    return 0
+
+
+def _read_config(rospy: ModuleType) -> NodeConfig:
+    """The node's private parameters, validated; an invalid one is logged as fatal too."""
+    try:
+        return NodeConfig.from_mapping(rospy.get_param("~", {}))
     except InvalidParamsError as exc:
         rospy.logfatal("laser_corners: %s", exc)
         rospy.signal_shutdown("invalid parameters")
         raise
-    node = CornerNode(config, rospy)
-    rospy.spin()
-    rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
 
 
 if __name__ == "__main__":  # pragma: no cover - `python -m laser_corners.ros.ros1_node`
     try:
-        main()
+        sys.exit(main())
     except LaserCornersError as exc:
         print(f"laser-corners: error: {exc}", file=sys.stderr)
         sys.exit(2)
