@@ -270,7 +270,8 @@ def _check_arguments(args: list[str]) -> None:
         )
 
 
-def _run(rclpy: ModuleType, args: list[str]) -> int:
+def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
+    """Start the node and spin it until ``stop`` sees a signal or the context shuts down."""
     from rclpy.executors import SingleThreadedExecutor  # type: ignore[import-not-found]
     from rclpy.signals import SignalHandlerOptions  # type: ignore[import-not-found]
 
@@ -283,21 +284,19 @@ def _run(rclpy: ModuleType, args: list[str]) -> int:
         raise LaserCornersError(f"ROS 2 arguments: {_rcl_message(exc)}") from None
     node = None
     try:
-        with _StopSignals() as stop:
-            node = _make_node_class()(context=context)
-            executor = SingleThreadedExecutor(context=context)
-            executor.add_node(node)
-            while stop.received is None and context.ok():
-                executor.spin_once(timeout_sec=SPIN_PERIOD)
-            reason = f"stopped by {stop.received}" if stop.received else "ROS 2 context shut down"
-            node.get_logger().info(f"{reason}: {node.summary()}")
-            executor.shutdown(timeout_sec=1.0)
+        node = _make_node_class()(context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        while stop.received is None and context.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
+        reason = f"stopped by {stop.received}" if stop.received else "ROS 2 context shut down"
+        node.get_logger().info(f"{reason}: {node.summary()}")
+        executor.shutdown(timeout_sec=1.0)
     finally:
         if node is not None:
             node.destroy_node()
         if context.ok():
             rclpy.shutdown(context=context)
-    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -318,11 +317,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         missing, invalid arguments, an invalid or unknown parameter).
     """
     args = list(sys.argv[1:] if argv is None else argv)
-    try:
-        return _run(import_rclpy(), args)
-    except LaserCornersError as exc:
-        print(f"laser_corners: error: {first_line(exc)}", file=sys.stderr)
-        return 2
+    with _StopSignals() as stop:  # from the start: Ctrl-C while loading must not raise either
+        try:
+            rclpy = import_rclpy()
+            if stop.received is None:
+                _run(rclpy, args, stop)
+            else:
+                print(f"laser_corners: stopped by {stop.received} while starting", file=sys.stderr)
+        except LaserCornersError as exc:
+            print(f"laser_corners: error: {first_line(exc)}", file=sys.stderr)
+            return 2
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover - `python -m laser_corners.ros.ros2_node`
