@@ -84,12 +84,14 @@ def _is_message_module(name: str) -> bool:
 def isolated_message_packages() -> Iterator[None]:
     """Run a block with no message package imported; afterwards restore the previous ones.
 
-    Also restores ``sys.meta_path`` (the ROS 1 node adds a finder for its message packages).
+    ``sys.meta_path`` is restored too, and has no ROS 1 message finder inside the block (the
+    ROS 1 node adds one for its message packages).
     """
     saved = {k: v for k, v in sys.modules.items() if _is_message_module(k)}
     for name in saved:
         del sys.modules[name]
     meta_path = list(sys.meta_path)
+    sys.meta_path[:] = [f for f in meta_path if type(f).__name__ != "Ros1MessageFinder"]
     try:
         yield
     finally:

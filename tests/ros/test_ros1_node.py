@@ -397,3 +397,35 @@ def test_signal_while_waiting_for_master_exits_cleanly(tmp_path: Path, sig: sign
     assert ours == [
         f"laser_corners: shut down before the node started (ROS master {uri} not reached)"
     ], text
+
+
+# ------------------------------------------------------------------ ROS 1 beside ROS 2 wheels
+def test_message_finder_loads_packages_beside_rospy(tmp_path: Path) -> None:
+    """ROS 2's wheels shadow sensor_msgs & co. on sys.path; the finder picks rospy's folder."""
+    from laser_corners.ros.ros1_node import Ros1MessageFinder
+
+    (tmp_path / "fake_msgs").mkdir()
+    (tmp_path / "fake_msgs" / "__init__.py").write_text("")
+    finder = Ros1MessageFinder(tmp_path)
+    spec = finder.find_spec("fake_msgs")
+    assert spec is not None and Path(spec.origin).parent == tmp_path / "fake_msgs"
+    assert finder.find_spec("fake_msgs.msg") is None  # submodules follow the package's path
+    assert finder.find_spec("other_msgs") is None  # not in the folder
+    assert finder.find_spec("numpy") is None  # not a message package
+
+
+def test_ros1_refuses_when_ros2_messages_are_loaded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from types import SimpleNamespace
+
+    from laser_corners.ros.ros1_node import Ros1MessageFinder, _install_message_finder
+
+    root = tmp_path / "dist-packages"
+    (root / "fake_msgs").mkdir(parents=True)
+    (root / "fake_msgs" / "__init__.py").write_text("")
+    elsewhere = SimpleNamespace(__file__=str(tmp_path / "venv" / "fake_msgs" / "__init__.py"))
+    monkeypatch.setitem(sys.modules, "fake_msgs", elsewhere)
+    with pytest.raises(LaserCornersError, match="ROS 1 and ROS 2 messages cannot share"):
+        _install_message_finder(root)
+    assert not [f for f in sys.meta_path if isinstance(f, Ros1MessageFinder) and f.root == root]

@@ -444,3 +444,22 @@ def test_signal_stops_node_cleanly(ros2: Ros2, sig: signal.Signals) -> None:
     assert returncode == 0, log
     assert "Traceback" not in log and "Exception" not in log, log
     assert f"stopped by {sig.name}: 0 scans processed, 0 skipped" in log, log
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["-r", "scan:=/x"], "unexpected argument(s) -r: ROS arguments go after --ros-args"),
+        (["--ros-args", "-p", "min_points"], "ROS 2 arguments: Failed to parse ROS arguments"),
+        (["--ros-args", "--params-file", "/nonexistent/c.yaml"], "Couldn't parse params file"),
+    ],
+)
+def test_bad_arguments_give_one_line_error(
+    ros2: Ros2, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    from laser_corners.ros.ros2_node import main
+
+    assert main(args) == 2
+    ours = [line for line in capsys.readouterr().err.splitlines() if "laser_corners" in line]
+    assert len(ours) == 1 and ours[0].startswith("laser_corners: error: "), ours
+    assert message in ours[0], ours
