@@ -47,7 +47,7 @@ pytestmark = [
 ]
 
 N_SCANS = 400  # scans of fr079 played (the first ones)
-RATE_HZ = 50.0  # publishing rate
+RATE_HZ = 40.0  # publishing rate (as in the ROS 1 test)
 NODE_OVERRIDES = {"merge_radius": 0.0, "min_points": 4}  # non-defaults: prove params flow
 STARTUP_TIMEOUT = 45.0  # a loaded 2-core machine: python start, numba load, DDS discovery
 DOMAIN_ID = 1 + os.getpid() % 101
@@ -210,8 +210,9 @@ class Outputs:
 
 def _probe(
     pub: Any, scan: LaserScan, sec: int, answered: Callable[[Key], bool], proc: Any, what: str
-) -> None:
-    """Publish copies of ``scan`` stamped ``(sec, k)`` until one is ``answered``.
+) -> int:
+    """Publish copies of ``scan`` stamped ``(sec, k)`` until one is ``answered``; return how
+    many were sent.
 
     An answer proves the whole path is matched: our publisher -> the node's subscription, and
     the node's publisher -> our subscription (DDS discovery is asynchronous on each side).
@@ -224,7 +225,7 @@ def _probe(
         inner = time.monotonic() + 0.2
         while time.monotonic() < inner:
             if any(answered((sec, i)) for i in range(k)):
-                return
+                return k
             time.sleep(0.01)
         if proc.poll() is not None:
             pytest.fail(f"{what}: the node exited with code {proc.returncode}")
@@ -299,7 +300,7 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
         # 2) with a marker subscriber
         marker_sub = node.create_subscription(MarkerArray, ros2.topic(name, "corner_markers"),
                                               out.on_markers, 2 * N_SCANS)  # fmt: skip
-        _probe(pub, scans[0], 4, lambda k: k in out.markers, proc, "a MarkerArray (discovery)")
+        n_probes = _probe(pub, scans[0], 4, lambda k: k in out.markers, proc, "a MarkerArray")
         _publish_paced(pub, msgs[half:], published_at)
         wait_for(lambda: out.count(keys) == N_SCANS and out.count(keys[half:], True) == half,
                  30.0, "PoseArrays and MarkerArrays of phase 2", proc)  # fmt: skip
@@ -323,8 +324,10 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     n_processed, n_skipped, n_markers = map(int, summary.groups())
     assert n_skipped == 1
     assert n_processed >= N_SCANS  # plus the probes that reached the node
-    # every marker array the node built reached us: none was built in phase 1
-    assert n_markers == out.n_marker_arrays
+    # the node built marker arrays for the phase-2 scans and (some of) the marker probes only,
+    # none in phase 1 (that would add 200); all the ones built after discovery reached us
+    assert out.n_marker_arrays <= n_markers <= half + n_probes, (n_markers, n_probes)
+    assert out.n_marker_arrays >= half
     assert not set(keys[:half]) & set(out.markers), "markers for a scan nobody listened to"
 
     assert all(len(out.corners[k]) == 1 for k in keys), "a scan was answered more than once"
@@ -349,12 +352,16 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     )
 
 
-def _call(future: Any, what: str) -> Any:
-    deadline = time.monotonic() + STARTUP_TIMEOUT
-    while not future.done() and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert future.done(), f"no answer to {what}"
-    return future.result()
+def _call(request: Callable[[], Any], what: str) -> Any:
+    """Send a (idempotent) parameter service request; resend if no answer came in 15 s."""
+    for _ in range(3):
+        future = request()
+        deadline = time.monotonic() + 15.0
+        while not future.done() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        if future.done():
+            return future.result()
+    pytest.fail(f"no answer to {what}")
 
 
 def test_parameters_set_at_run_time(ros2: Ros2) -> None:
@@ -384,13 +391,14 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
         assert client.wait_for_services(timeout_sec=STARTUP_TIMEOUT), "no parameter services"
         refused = {"min_points": 1, "preset": "no_such_preset", "max_angle_deg": "wide"}
         for pname, value in refused.items():
-            result = _call(client.set_parameters([Parameter(pname, value=value)]), pname)
+            param = Parameter(pname, value=value)
+            result = _call(lambda p=param: client.set_parameters([p]), pname)
             (res,) = result.results
             assert not res.successful, f"{pname}={value!r} was accepted"
             assert pname in res.reason, res.reason
-        result = _call(client.set_parameters([Parameter("min_points", value=6)]), "min_points")
+        result = _call(lambda: client.set_parameters([Parameter("min_points", value=6)]), "set")
         assert result.results[0].successful, result.results[0].reason
-        got = _call(client.get_parameters(["preset", "min_points"]), "get_parameters")
+        got = _call(lambda: client.get_parameters(["preset", "min_points"]), "get_parameters")
         assert got.values[0].string_value == "auto"
         assert got.values[1].integer_value == 6
 
