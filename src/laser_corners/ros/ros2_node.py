@@ -170,6 +170,8 @@ def _make_node_class() -> type:
         def on_set_parameters(self, parameters: list[Any]) -> Any:
             """Check a change against all current values; apply it only when valid."""
             ours = parameter_names()  # use_sim_time and other ROS parameters pass through
+            if not any(p.name in ours for p in parameters):
+                return SetParametersResult(successful=True)
             current = {p.name: p for p in self.get_parameters(ours)}
             current.update({p.name: p for p in parameters if p.name in current})
             try:
