@@ -18,15 +18,28 @@ import signal
 import subprocess
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from itertools import islice
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+from ros2_tools import (
+    RATE_HZ,
+    STARTUP_TIMEOUT,
+    Key,
+    Outputs,
+    call_service,
+    check_poses,
+    fr079_scans,
+    key_of,
+    probe,
+    publish_paced,
+    to_msg,
+    wait_exit,
+)
 from ros_helpers import (
     FR079,
     cli_command,
@@ -36,9 +49,8 @@ from ros_helpers import (
     wait_for,
 )
 
-from laser_corners import CornerDetector, DetectorParams, Keypoints, LaserScan
+from laser_corners import CornerDetector, DetectorParams
 from laser_corners.presets import get_preset
-from laser_corners.ros.convert import seconds_to_sec_nanosec
 
 pytestmark = [
     pytest.mark.ros2,
@@ -47,12 +59,9 @@ pytestmark = [
 ]
 
 N_SCANS = 400  # scans of fr079 played (the first ones)
-RATE_HZ = 40.0  # publishing rate (as in the ROS 1 test)
 NODE_OVERRIDES = {"merge_radius": 0.0, "min_points": 4}  # non-defaults: prove params flow
-STARTUP_TIMEOUT = 45.0  # a loaded 2-core machine: python start, numba load, DDS discovery
 DOMAIN_ID = 1 + os.getpid() % 101
 NAMESPACE = f"/lc_test_{os.getpid()}"
-Key = tuple[int, int]
 
 
 @dataclass
@@ -151,124 +160,15 @@ def _spin(executor: Any) -> None:
         pass
 
 
-def _fr079_scans(n: int) -> list[LaserScan]:
-    from laser_corners.io import open_scans
-
-    return list(islice(open_scans(FR079), n))
-
-
-def _to_msg(scan: LaserScan, stamp: Key | None = None) -> Any:
-    """A ROS 2 sensor_msgs/LaserScan with the scan's fields (stamp overridable)."""
-    from sensor_msgs.msg import LaserScan as LaserScanMsg
-
-    msg = LaserScanMsg()
-    sec, nanosec = stamp if stamp is not None else seconds_to_sec_nanosec(scan.stamp)
-    msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
-    msg.header.frame_id = scan.frame_id
-    msg.angle_min = float(scan.angle_min)
-    msg.angle_increment = float(scan.angle_increment)
-    msg.angle_max = float(scan.angle_min + (scan.n_beams - 1) * scan.angle_increment)
-    msg.range_min, msg.range_max = float(scan.range_min), float(scan.range_max)
-    msg.ranges = np.asarray(scan.ranges, dtype=np.float32).tolist()
-    return msg
-
-
-def _key(stamp: Any) -> Key:
-    return (int(stamp.sec), int(stamp.nanosec))
-
-
-class Outputs:
-    """What the node published, by input stamp, with receive times (thread-safe)."""
-
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.corners: dict[Key, list[Any]] = {}
-        self.order: list[Key] = []
-        self.markers: dict[Key, list[Any]] = {}
-        self.n_marker_arrays = 0
-        self.received_at: dict[Key, float] = {}
-
-    def on_corners(self, msg: Any) -> None:
-        now = time.perf_counter()
-        key = _key(msg.header.stamp)
-        with self.lock:
-            self.corners.setdefault(key, []).append(msg)
-            self.order.append(key)
-            self.received_at.setdefault(key, now)
-
-    def on_markers(self, msg: Any) -> None:
-        with self.lock:
-            self.n_marker_arrays += 1
-            if msg.markers:
-                self.markers.setdefault(_key(msg.markers[0].header.stamp), []).append(msg)
-
-    def count(self, keys: list[Key], markers: bool = False) -> int:
-        table = self.markers if markers else self.corners
-        with self.lock:
-            return sum(k in table for k in keys)
-
-
-def _probe(
-    pub: Any, scan: LaserScan, sec: int, answered: Callable[[Key], bool], proc: Any, what: str
-) -> int:
-    """Publish copies of ``scan`` stamped ``(sec, k)`` until one is ``answered``; return how
-    many were sent.
-
-    An answer proves the whole path is matched: our publisher -> the node's subscription, and
-    the node's publisher -> our subscription (DDS discovery is asynchronous on each side).
-    """
-    deadline = time.monotonic() + STARTUP_TIMEOUT
-    k = 0
-    while time.monotonic() < deadline:
-        pub.publish(_to_msg(scan, (sec, k)))
-        k += 1
-        inner = time.monotonic() + 0.2
-        while time.monotonic() < inner:
-            if any(answered((sec, i)) for i in range(k)):
-                return k
-            time.sleep(0.01)
-        if proc.poll() is not None:
-            pytest.fail(f"{what}: the node exited with code {proc.returncode}")
-    pytest.fail(f"timed out after {STARTUP_TIMEOUT:.0f} s waiting for {what}")
-
-
-def _publish_paced(pub: Any, msgs: list[Any], published_at: dict[Key, float]) -> None:
-    period = 1.0 / RATE_HZ
-    start = time.perf_counter()
-    for i, msg in enumerate(msgs):
-        delay = start + i * period - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
-        published_at[_key(msg.header.stamp)] = time.perf_counter()
-        pub.publish(msg)
-
-
-def _check_poses(msg: Any, kps: Keypoints, key: Key) -> None:
-    got = np.array([[p.position.x, p.position.y] for p in msg.poses]).reshape(-1, 2)
-    assert got.shape == kps.xy.shape, f"scan {key}: {len(got)} poses, expected {len(kps)}"
-    np.testing.assert_allclose(got, kps.xy, rtol=0, atol=1e-9)
-    z = np.array([p.orientation.z for p in msg.poses])
-    w = np.array([p.orientation.w for p in msg.poses])
-    np.testing.assert_allclose(z, np.sin(kps.orientation / 2), rtol=0, atol=1e-9)
-    np.testing.assert_allclose(w, np.cos(kps.orientation / 2), rtol=0, atol=1e-9)
-
-
-def _wait_exit(proc: subprocess.Popen[bytes], what: str) -> int:
-    try:
-        return proc.wait(timeout=STARTUP_TIMEOUT)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"the node kept running after {what}")
-
-
 def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Path) -> None:
     """400 fr079 scans in, one PoseArray per scan out; markers only while subscribed."""
     from geometry_msgs.msg import PoseArray
     from sensor_msgs.msg import LaserScan as LaserScanMsg
     from visualization_msgs.msg import MarkerArray
 
-    scans = _fr079_scans(N_SCANS)
-    msgs = [_to_msg(s) for s in scans]
-    keys = [_key(m.header.stamp) for m in msgs]
+    scans = fr079_scans(N_SCANS)
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
     assert len(set(keys)) == N_SCANS, "fr079 stamps are not unique"
     detector, default = CornerDetector(DetectorParams(**NODE_OVERRIDES)), CornerDetector()
     expected = {k: detector.detect(s) for k, s in zip(keys, scans, strict=True)}
@@ -289,23 +189,23 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     marker_sub = None
     published_at: dict[Key, float] = {}
     try:
-        _probe(pub, scans[0], 3, lambda k: k in out.corners, proc, "a PoseArray (discovery)")
-        bad = _to_msg(scans[0], (1, 0))  # a malformed scan: logged, skipped, the node carries on
+        probe(pub, scans[0], 3, lambda k: k in out.corners, proc, "a PoseArray (discovery)")
+        bad = to_msg(scans[0], (1, 0))  # a malformed scan: logged, skipped, the node carries on
         bad.angle_increment = 0.0
         pub.publish(bad)
         half = N_SCANS // 2
         # 1) nobody subscribes corner_markers: the node must not build them
-        _publish_paced(pub, msgs[:half], published_at)
+        publish_paced(pub, msgs[:half], published_at)
         wait_for(lambda: out.count(keys[:half]) == half, 30.0, "PoseArrays of phase 1", proc)
         # 2) with a marker subscriber
         marker_sub = node.create_subscription(MarkerArray, ros2.topic(name, "corner_markers"),
                                               out.on_markers, 2 * N_SCANS)  # fmt: skip
-        n_probes = _probe(pub, scans[0], 4, lambda k: k in out.markers, proc, "a MarkerArray")
-        _publish_paced(pub, msgs[half:], published_at)
+        n_probes = probe(pub, scans[0], 4, lambda k: k in out.markers, proc, "a MarkerArray")
+        publish_paced(pub, msgs[half:], published_at)
         wait_for(lambda: out.count(keys) == N_SCANS and out.count(keys[half:], True) == half,
                  30.0, "PoseArrays and MarkerArrays of phase 2", proc)  # fmt: skip
         os.kill(proc.pid, signal.SIGINT)
-        returncode = _wait_exit(proc, "SIGINT")
+        returncode = wait_exit(proc, "SIGINT")
     finally:
         node.destroy_subscription(corners_sub)
         if marker_sub is not None:
@@ -336,7 +236,7 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     for key, scan in zip(keys, scans, strict=True):
         (msg,) = out.corners[key]
         assert msg.header.frame_id == scan.frame_id
-        _check_poses(msg, expected[key], key)
+        check_poses(msg, expected[key], key)
     for key in keys[half:]:
         (markers,) = out.markers[key]
         arrows = [m for m in markers.markers if m.type == 0 and m.action == 0]
@@ -353,18 +253,6 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     )
 
 
-def _call(request: Callable[[], Any], what: str) -> Any:
-    """Send a (idempotent) parameter service request; resend if no answer came in 15 s."""
-    for _ in range(3):
-        future = request()
-        deadline = time.monotonic() + 15.0
-        while not future.done() and time.monotonic() < deadline:
-            time.sleep(0.02)
-        if future.done():
-            return future.result()
-    pytest.fail(f"no answer to {what}")
-
-
 def test_parameters_set_at_run_time(ros2: Ros2) -> None:
     """A parameter client: valid changes apply to the next scans, invalid ones are refused."""
     from geometry_msgs.msg import PoseArray
@@ -372,7 +260,7 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
     from rclpy.parameter_client import AsyncParameterClient
     from sensor_msgs.msg import LaserScan as LaserScanMsg
 
-    scans = _fr079_scans(40)
+    scans = fr079_scans(40)
     changed = {"min_points": 6}
     expected = [get_preset("auto", s).with_overrides(changed) for s in scans]
     before = [get_preset("auto", s) for s in scans]
@@ -393,19 +281,23 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
         refused = {"min_points": 1, "preset": "no_such_preset", "max_angle_deg": "wide"}
         for pname, value in refused.items():
             param = Parameter(pname, value=value)
-            result = _call(lambda p=param: client.set_parameters([p]), pname)
+            result = call_service(lambda p=param: client.set_parameters([p]), pname)
             (res,) = result.results
             assert not res.successful, f"{pname}={value!r} was accepted"
             assert pname in res.reason, res.reason
-        result = _call(lambda: client.set_parameters([Parameter("min_points", value=6)]), "set")
+        result = call_service(
+            lambda: client.set_parameters([Parameter("min_points", value=6)]), "set"
+        )
         assert result.results[0].successful, result.results[0].reason
-        got = _call(lambda: client.get_parameters(["preset", "min_points"]), "get_parameters")
+        got = call_service(
+            lambda: client.get_parameters(["preset", "min_points"]), "get_parameters"
+        )
         assert got.values[0].string_value == "auto"
         assert got.values[1].integer_value == 6
 
-        _probe(pub, scans[0], 5, lambda k: k in out.corners, proc, "a PoseArray (discovery)")
-        msgs = [_to_msg(s) for s in scans]
-        keys = [_key(m.header.stamp) for m in msgs]
+        probe(pub, scans[0], 5, lambda k: k in out.corners, proc, "a PoseArray (discovery)")
+        msgs = [to_msg(s) for s in scans]
+        keys = [key_of(m.header.stamp) for m in msgs]
         for msg in msgs:
             pub.publish(msg)
             time.sleep(1.0 / RATE_HZ)
@@ -415,7 +307,7 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
         node.destroy_publisher(pub)
         stop(proc, name)
     for key, scan, params in zip(keys, scans, expected, strict=True):
-        _check_poses(out.corners[key][0], CornerDetector(params).detect(scan), key)
+        check_poses(out.corners[key][0], CornerDetector(params).detect(scan), key)
     assert "Traceback" not in ros2.log(name)
 
 
@@ -432,7 +324,7 @@ def test_invalid_parameter_stops_node_with_one_line_error(
 ) -> None:
     name = f"lc_bad_{arg.split(':')[0]}"
     proc = ros2.start(name, "-p", arg)
-    returncode = _wait_exit(proc, f"an invalid parameter ({arg})")
+    returncode = wait_exit(proc, f"an invalid parameter ({arg})")
     log = ros2.log(name)
     assert returncode == 2, log
     assert "Traceback" not in log, log
@@ -448,7 +340,7 @@ def test_signal_stops_node_cleanly(ros2: Ros2, sig: signal.Signals) -> None:
     wait_for(lambda: ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1,
              STARTUP_TIMEOUT, "the node's scan subscription", proc)  # fmt: skip
     os.kill(proc.pid, sig)
-    returncode = _wait_exit(proc, sig.name)
+    returncode = wait_exit(proc, sig.name)
     log = ros2.log(name)
     assert returncode == 0, log
     assert "Traceback" not in log and "Exception" not in log, log
