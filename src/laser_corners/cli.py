@@ -92,7 +92,21 @@ def ros1(
         return
     from laser_corners.ros.ros1_node import main as run_ros1_node
 
-    run_ros1_node(list(ctx.args), debug=debug)
+    raise typer.Exit(run_ros1_node(list(ctx.args), debug=debug))
+
+
+@app.command(
+    context_settings={"allow_extra_args": True, "ignore_unknown_options": True},
+)
+def ros2(ctx: typer.Context) -> None:
+    """Run the ROS 2 node: scan -> corners (PoseArray) and corner_markers (MarkerArray).
+
+    Arguments after --ros-args go to rclpy: remappings (-r scan:=/front/scan), parameters
+    (-p preset:=auto, --params-file corners.yaml), --log-level. See docs/ros.md.
+    """
+    from laser_corners.ros.ros2_node import main as run_ros2_node
+
+    raise typer.Exit(run_ros2_node(list(ctx.args)))
 
 
 # ------------------------------------------------------------------ recordings (docs/io-and-cli.md)

@@ -66,8 +66,19 @@ class NodeConfig:
     options: dict[str, Any] = field(default_factory=lambda: dict(NODE_OPTIONS))
 
     @classmethod
-    def from_mapping(cls, values: Mapping[str, Any], source: str = "ROS parameter") -> NodeConfig:
+    def from_mapping(
+        cls, values: Mapping[str, Any], source: str = "ROS parameter", prefix: str = "~"
+    ) -> NodeConfig:
         """Validate a mapping of parameter name -> value (e.g. ``rospy.get_param("~")``).
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter name -> value.
+        source, prefix : str
+            How messages name a parameter: ``"ROS parameter ~min_points"`` (ROS 1, the
+            default) or ``"ROS 2 parameter min_points"`` (``source="ROS 2 parameter"``,
+            ``prefix=""``).
 
         Raises
         ------
@@ -81,19 +92,20 @@ class NodeConfig:
         unknown = sorted(str(k) for k in values if k not in known)
         if unknown:
             raise InvalidParamsError(
-                f"unknown {source} {', '.join('~' + k for k in unknown)}; "
+                f"unknown {source} {', '.join(prefix + k for k in unknown)}; "
                 f"known: {', '.join(parameter_names())}"
             )
         preset = values.get("preset", "paper")
         if not isinstance(preset, str) or preset not in PRESETS:
             raise InvalidParamsError(
-                f"{source} ~preset: unknown preset {preset!r}; choose one of: {', '.join(PRESETS)}"
+                f"{source} {prefix}preset: unknown preset {preset!r}; "
+                f"choose one of: {', '.join(PRESETS)}"
             )
         overrides = {k: v for k, v in values.items() if k in DetectorParams.model_fields}
         options = dict(NODE_OPTIONS)
         for name in NODE_OPTIONS:
             if name in values:
-                options[name] = _check_option(name, values[name], source)
+                options[name] = _check_option(name, values[name], f"{source} {prefix}{name}")
         config = cls(preset=preset, overrides=overrides, options=options)
         config.start_params()  # validates the overrides now, not at the first scan
         return config
@@ -142,18 +154,18 @@ class NodeConfig:
             raise InvalidParamsError(f"ROS parameters: {exc}") from None
 
 
-def _check_option(name: str, value: Any, source: str) -> Any:
+def _check_option(name: str, value: Any, what: str) -> Any:
     if name == "marker_ns":
         if not isinstance(value, str):
-            raise InvalidParamsError(f"{source} ~marker_ns must be a string, got {value!r}")
+            raise InvalidParamsError(f"{what} must be a string, got {value!r}")
         return value
     if name == "queue_size":
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise InvalidParamsError(f"{source} ~queue_size must be an integer >= 1, got {value!r}")
+            raise InvalidParamsError(f"{what} must be an integer >= 1, got {value!r}")
         return value
     # marker_lifetime
     if isinstance(value, bool) or not isinstance(value, int | float) or not (value >= 0.0):
-        raise InvalidParamsError(f"{source} ~{name} must be a number >= 0, got {value!r}")
+        raise InvalidParamsError(f"{what} must be a number >= 0, got {value!r}")
     return float(value)
 
 

@@ -21,23 +21,27 @@ rospy) or with the launch file ``laser_corners/ros/launch/laser_corners.launch``
 
 rospy is not on PyPI. When it is not importable, :func:`import_rospy` adds Debian's
 ``/usr/lib/python3/dist-packages`` (where ``apt-get install python3-rospy`` puts it) at the end
-of ``sys.path``, so a virtualenv's own packages (numpy, numba) keep precedence.
+of ``sys.path``, so a virtualenv's own packages (numpy, numba) keep precedence, and loads the
+ROS 1 message packages from rospy's folder even where ROS 2's same-named packages are installed.
 """
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
+import importlib.util
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from laser_corners.errors import InvalidParamsError, LaserCornersError
+from laser_corners.errors import InvalidParamsError, LaserCornersError, first_line
 from laser_corners.io.messages import keypoints_to_marker_fields
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array
 from laser_corners.ros.node_core import CornerNodeCore, NodeConfig
 
-__all__ = ["DEBIAN_DIST_PACKAGES", "CornerNode", "import_rospy", "main"]
+__all__ = ["DEBIAN_DIST_PACKAGES", "CornerNode", "Ros1MessageFinder", "import_rospy", "main"]
 
 DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
 """Where Debian's ``python3-rospy`` and the message packages install."""
@@ -49,28 +53,90 @@ ROS1_INSTALL_HINT = (
 )
 
 
-def import_rospy() -> ModuleType:
-    """Import rospy, falling back to Debian's dist-packages appended to ``sys.path``.
+class Ros1MessageFinder(importlib.abc.MetaPathFinder):
+    """Import ROS 1 message packages (``*_msgs``, ``*_srvs``) from the folder that holds rospy.
+
+    ROS 2's wheels (``pip install laser-corners[ros2]``) put packages with the same names
+    (``std_msgs``, ``sensor_msgs``, ``geometry_msgs``, ``visualization_msgs``,
+    ``rosgraph_msgs``) into the environment, ahead of Debian's dist-packages on ``sys.path``.
+    Placed first on ``sys.meta_path``, this finder makes ``import sensor_msgs`` in a ROS 1
+    process load the genpy package beside rospy. Other names are left to the normal finders.
+
+    Parameters
+    ----------
+    root : Path
+        The folder that contains ``rospy`` and the ROS 1 message packages.
+    """
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> Any:
+        """The spec of a top-level ROS 1 message package under :attr:`root`, else ``None``."""
+        if "." in fullname or not fullname.endswith(ROS1_MESSAGE_SUFFIXES):
+            return None
+        if not (self.root / fullname / "__init__.py").is_file():
+            return None
+        return importlib.machinery.PathFinder.find_spec(fullname, [str(self.root)])
+
+
+ROS1_MESSAGE_SUFFIXES = ("_msgs", "_srvs")
+
+
+def _ros1_root() -> Path:
+    """The folder holding rospy: on ``sys.path`` already, or Debian's dist-packages."""
+    spec = importlib.util.find_spec("rospy")
+    if spec is not None and spec.origin:
+        return Path(spec.origin).resolve().parent.parent
+    if not (DEBIAN_DIST_PACKAGES / "rospy").is_dir():
+        raise LaserCornersError(ROS1_INSTALL_HINT)
+    dist = str(DEBIAN_DIST_PACKAGES)
+    if dist not in sys.path:
+        sys.path.append(dist)  # appended: the environment's own packages win
+    return DEBIAN_DIST_PACKAGES
+
+
+def _install_message_finder(root: Path) -> None:
+    """Put a :class:`Ros1MessageFinder` for ``root`` first on ``sys.meta_path`` (once).
 
     Raises
     ------
     LaserCornersError
-        With the install hint, when rospy or the message packages are not found.
+        When a message package of the same name is already imported from elsewhere (ROS 2's
+        rclpy messages): both cannot live in one process.
     """
-    try:
-        import rospy  # type: ignore[import-not-found]
-    except ImportError:
-        dist = str(DEBIAN_DIST_PACKAGES)
-        if not (DEBIAN_DIST_PACKAGES / "rospy").is_dir():
-            raise LaserCornersError(ROS1_INSTALL_HINT) from None
-        if dist not in sys.path:
-            sys.path.append(dist)  # appended: the environment's own packages win
-        try:
-            import rospy  # type: ignore[import-not-found]
-        except ImportError as exc:
-            raise LaserCornersError(f"{ROS1_INSTALL_HINT} ({exc})") from None
+    for name, module in list(sys.modules.items()):
+        if "." in name or not name.endswith(ROS1_MESSAGE_SUFFIXES):
+            continue
+        origin = Path(getattr(module, "__file__", None) or "")
+        if (root / name).is_dir() and root not in origin.resolve().parents:
+            raise LaserCornersError(
+                f"ROS 1 needs its own {name} package but this process already imported "
+                f"{name} from {origin.parent}: ROS 1 and ROS 2 messages cannot share a process"
+            )
+    if not any(isinstance(f, Ros1MessageFinder) and f.root == root for f in sys.meta_path):
+        sys.meta_path.insert(0, Ros1MessageFinder(root))
+
+
+def import_rospy() -> ModuleType:
+    """Import rospy and ROS 1's message packages, whatever else is installed.
+
+    rospy comes from ``sys.path`` or, when it is not there, from Debian's dist-packages
+    appended to ``sys.path``. Message packages come from rospy's folder (see
+    :class:`Ros1MessageFinder`), so ROS 2's same-named packages in the environment do not
+    shadow them.
+
+    Raises
+    ------
+    LaserCornersError
+        With the install hint, when rospy or the message packages are not found, or when ROS 2
+        message packages are already imported in this process.
+    """
+    root = _ros1_root()
+    _install_message_finder(root)
     try:
         import geometry_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+        import rospy  # type: ignore[import-not-found]
         import sensor_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
         import visualization_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
     except ImportError as exc:
@@ -151,8 +217,11 @@ class CornerNode:
 
 
 def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
-         debug: bool = False) -> None:  # fmt: skip
+         debug: bool = False) -> int:  # fmt: skip
     """Run the ROS 1 node until shutdown.
+
+    SIGINT (Ctrl-C), SIGTERM and ``rosnode kill`` end it cleanly, also while it still waits
+    for the ROS master: one log line, exit code 0, no traceback.
 
     Parameters
     ----------
@@ -164,33 +233,62 @@ def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
     debug : bool
         Log at debug level (per-scan latency).
 
+    Returns
+    -------
+    int
+        The exit code: 0 after a shutdown.
+
     Raises
     ------
     InvalidParamsError
         When a parameter is invalid (logged as fatal too).
     LaserCornersError
-        When rospy is not installed.
+        When rospy is not installed, or the node cannot start for another reason.
     """
     rospy = import_rospy()
     args = list(sys.argv if argv is None else ["laser_corners_node", *argv])
-    rospy.init_node(
-        node_name, argv=args, log_level=rospy.DEBUG if debug else rospy.INFO,
-        disable_signals=False,
-    )  # fmt: skip
+    node: CornerNode | None = None
     try:
-        config = NodeConfig.from_mapping(rospy.get_param("~", {}))
+        rospy.init_node(
+            node_name, argv=args, log_level=rospy.DEBUG if debug else rospy.INFO,
+            disable_signals=False,
+        )  # fmt: skip
+        node = CornerNode(_read_config(rospy), rospy)
+        rospy.spin()
+    except InvalidParamsError:
+        raise
+    except (KeyboardInterrupt, Exception) as exc:
+        if not rospy.core.is_shutdown_requested():
+            if isinstance(exc, rospy.ROSException):
+                raise LaserCornersError(f"ROS 1 node failed: {first_line(exc)}") from None
+            raise
+        # a signal (Ctrl-C, SIGTERM) arrived while rospy was busy, e.g. waiting for the master
+    if node is None:
+        import rosgraph  # type: ignore[import-not-found]
+
+        print(
+            f"laser_corners: shut down before the node started (ROS master "
+            f"{rosgraph.get_master_uri()} not reached)",
+            file=sys.stderr,
+        )
+        return 0
+    rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
+    return 0
+
+
+def _read_config(rospy: ModuleType) -> NodeConfig:
+    """The node's private parameters, validated; an invalid one is logged as fatal too."""
+    try:
+        return NodeConfig.from_mapping(rospy.get_param("~", {}))
     except InvalidParamsError as exc:
         rospy.logfatal("laser_corners: %s", exc)
         rospy.signal_shutdown("invalid parameters")
         raise
-    node = CornerNode(config, rospy)
-    rospy.spin()
-    rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
 
 
 if __name__ == "__main__":  # pragma: no cover - `python -m laser_corners.ros.ros1_node`
     try:
-        main()
+        sys.exit(main())
     except LaserCornersError as exc:
         print(f"laser-corners: error: {exc}", file=sys.stderr)
         sys.exit(2)

