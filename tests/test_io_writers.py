@@ -25,8 +25,8 @@ from laser_corners.io.messages import (
     keypoints_to_pose_array_fields,
 )
 from laser_corners.io.rosbag import yaw_from_quaternion
-from laser_corners.io.run import detect_recording
 from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS
+from laser_corners.pipeline import detect_recording
 
 
 def _keypoints(n: int, seed: int = 0) -> Keypoints:

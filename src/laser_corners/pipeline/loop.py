@@ -1,0 +1,250 @@
+"""THE detect loop: scans -> keypoints -> writer, with timings, progress and a clean stop.
+
+``detect``, ``batch`` and ``view`` all run :func:`detect_recording`. Scans are handled in
+chunks of consecutive scans of one geometry (at most ``chunk_scans``): with one numba thread
+each scan goes through :meth:`~laser_corners.CornerDetector.detect`, with more the chunk goes
+through the parallel :meth:`~laser_corners.CornerDetector.detect_many`. With ``prefetch`` a
+reader thread (:mod:`laser_corners.pipeline.prefetch`) reads and decodes the next chunks while
+this thread detects: the numba kernels release the GIL, and so does the decompression of bag
+chunks, so reading and detecting overlap.
+
+The time of each phase is recorded (:class:`RunSummary`): ``read_seconds`` (waiting for
+scans: all of the reading without ``prefetch``, the part the reader thread could not hide
+with it), ``detect_seconds``, ``write_seconds`` and ``reader_seconds`` (the reader thread's
+own time). Ctrl-C, a read error or a writer error stop the loop; the writer is closed either
+way (so what was written stays readable) and ``interrupted``/``position`` say how far it got.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from laser_corners.detector import CornerDetector
+from laser_corners.io import KeypointWriter
+from laser_corners.keypoints import Keypoints
+from laser_corners.pipeline.prefetch import Chunk, chunked, prefetched
+from laser_corners.pipeline.recording import Recording
+from laser_corners.scan import LaserScan
+
+__all__ = ["CHUNK_SCANS", "RunSummary", "detect_recording", "set_threads", "warm_up"]
+
+CHUNK_SCANS = 256
+"""Most scans read, detected and written at a time."""
+PREFETCH_CHUNKS = 4
+"""Chunks the reader thread may read ahead."""
+# numba's fallback threading layer (workqueue) must not be entered by two threads at once;
+# Dask workers may run several jobs in threads of one process
+_PARALLEL_KERNEL_LOCK = threading.Lock()
+_KERNELS_READY: set[int] = set()  # numba thread counts whose kernels this process has loaded
+
+
+@dataclass
+class RunSummary:
+    """What a run of :func:`detect_recording` did.
+
+    Attributes
+    ----------
+    n_scans, n_keypoints : int
+        Scans processed and keypoints found (and handed to the writer).
+    seconds : float
+        Wall time of the loop (closing the writer included).
+    read_seconds, detect_seconds, write_seconds : float
+        Time this thread spent waiting for scans, detecting, and writing (closing included).
+    reader_seconds : float
+        Time the reader thread spent reading (``prefetch``; it overlaps the others).
+    skipped : dict of str to int
+        Bad records skipped, by reason.
+    skip_examples : list of str
+        Where the first skips happened.
+    interrupted : bool
+        Stopped by Ctrl-C (the exception is not re-raised).
+    position : str
+        Where reading stopped: the last scan processed (``"message 1200 of /scan"``,
+        ``"line 345"``).
+    """
+
+    n_scans: int = 0
+    n_keypoints: int = 0
+    seconds: float = 0.0
+    read_seconds: float = 0.0
+    detect_seconds: float = 0.0
+    write_seconds: float = 0.0
+    reader_seconds: float = 0.0
+    skipped: dict[str, int] = field(default_factory=dict)
+    skip_examples: list[str] = field(default_factory=list)
+    interrupted: bool = False
+    position: str = "start"
+
+    @property
+    def keypoints_per_scan(self) -> float:
+        """Mean keypoints per scan (0 without scans)."""
+        return self.n_keypoints / self.n_scans if self.n_scans else 0.0
+
+    @property
+    def scans_per_second(self) -> float:
+        """Processing rate."""
+        return self.n_scans / self.seconds if self.seconds > 0 else 0.0
+
+
+def set_threads(threads: int | None) -> int:
+    """Limit numba's threads (in this thread); returns the number in use."""
+    import numba
+
+    if threads is not None:
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    return int(numba.get_num_threads())
+
+
+def warm_up(detector: CornerDetector, scan: LaserScan, threads: int = 1) -> float:
+    """Load (or compile) the kernels ``detect_recording`` will call; seconds it took.
+
+    Done once per process and thread count (0.0 afterwards), so callers can time it apart.
+    """
+    if threads in _KERNELS_READY:
+        return 0.0
+    start = time.perf_counter()
+    detector.detect(scan)
+    if threads > 1:
+        with _PARALLEL_KERNEL_LOCK:
+            detector.detect_many([scan, scan])
+    _KERNELS_READY.add(threads)
+    return time.perf_counter() - start
+
+
+def _detect_chunk(
+    detector: CornerDetector, scans: list[LaserScan], threads: int
+) -> list[Keypoints]:
+    if threads == 1 or len(scans) == 1:
+        return [detector.detect(scan) for scan in scans]
+    with _PARALLEL_KERNEL_LOCK:
+        return detector.detect_many(scans)
+
+
+def _write_chunk(writer: KeypointWriter, chunk: Chunk, found: list[Keypoints]) -> None:
+    first = chunk.indices[0]
+    if chunk.indices[-1] - first == len(chunk.indices) - 1:  # consecutive: one block
+        writer.write_many(first, chunk.scans, found)
+    else:
+        for index, scan, keypoints in zip(chunk.indices, chunk.scans, found, strict=True):
+            writer.write(index, scan, keypoints)
+
+
+def detect_recording(
+    source: Recording | Iterable[LaserScan],
+    detector: CornerDetector | None = None,
+    writer: KeypointWriter | None = None,
+    progress: Callable[[RunSummary], None] | None = None,
+    every: int = 25,
+    *,
+    threads: int = 1,
+    chunk_scans: int = CHUNK_SCANS,
+    prefetch: bool = True,
+    step: int = 1,
+    max_scans: int | None = None,
+) -> RunSummary:
+    """Detect keypoints in every scan of ``source`` and hand them to ``writer``.
+
+    Parameters
+    ----------
+    source : Recording or iterable of LaserScan
+        An opened :class:`~laser_corners.pipeline.Recording` (its first scan is not read
+        twice), a :class:`~laser_corners.io.ScanSource`, or any iterable of scans.
+    detector : CornerDetector, optional
+        The detector (default: the recording's).
+    writer : KeypointWriter, optional
+        Where keypoints go (default: nowhere); closed before returning, also on errors and
+        Ctrl-C.
+    progress : callable, optional
+        Called with the running summary after a chunk once ``every`` more scans are done, and
+        at the end.
+    every : int
+        Progress period in scans.
+    threads : int
+        numba threads: 1 detects scan by scan, more runs ``detect_many`` over each chunk.
+    chunk_scans : int
+        Most scans per chunk.
+    prefetch : bool
+        Read in a separate thread, overlapping the kernels.
+    step : int
+        Detect only every ``step``-th scan (indices keep counting every scan).
+    max_scans : int, optional
+        Stop after this many scans detected.
+
+    Returns
+    -------
+    RunSummary
+        ``interrupted`` is True after Ctrl-C (the exception is not re-raised).
+
+    Raises
+    ------
+    InputError
+        A read error in the middle of the recording (after closing the writer; the scans read
+        before it are written).
+    """
+    if detector is None:
+        if not isinstance(source, Recording):
+            raise TypeError("detect_recording needs a detector unless given a Recording")
+        detector = source.detector
+    writer = writer if writer is not None else KeypointWriter()
+    holder: Any = source.source if isinstance(source, Recording) else source
+    scans = source.scans() if isinstance(source, Recording) else iter(source)
+    chunks = chunked(scans, holder, max(1, chunk_scans), max(1, step), max_scans)
+    summary = RunSummary()
+    report = progress or (lambda _: None)
+    start = time.perf_counter()
+    reader = prefetched(chunks, PREFETCH_CHUNKS) if prefetch else None
+    stream: Iterator[Chunk] = iter(reader) if reader is not None else chunks
+    try:
+        _run(stream, detector, writer, summary, report, every, threads, start)
+    except KeyboardInterrupt:
+        summary.interrupted = True
+    finally:
+        if reader is not None:
+            reader.stop()
+            summary.reader_seconds = reader.busy_seconds
+        else:
+            chunks.close()
+        t0 = time.perf_counter()
+        writer.close()
+        summary.write_seconds += time.perf_counter() - t0
+        summary.seconds = time.perf_counter() - start
+        summary.skipped = dict(getattr(holder, "skipped", {}))
+        summary.skip_examples = list(getattr(holder, "skip_examples", []))
+    report(summary)
+    return summary
+
+
+def _run(
+    stream: Iterator[Chunk],
+    detector: CornerDetector,
+    writer: KeypointWriter,
+    summary: RunSummary,
+    report: Callable[[RunSummary], None],
+    every: int,
+    threads: int,
+    start: float,
+) -> None:
+    reported = 0
+    while True:
+        t0 = time.perf_counter()
+        chunk = next(stream, None)
+        t1 = time.perf_counter()
+        summary.read_seconds += t1 - t0
+        if chunk is None:
+            return
+        found = _detect_chunk(detector, chunk.scans, threads)
+        t2 = time.perf_counter()
+        _write_chunk(writer, chunk, found)
+        summary.write_seconds += time.perf_counter() - t2
+        summary.detect_seconds += t2 - t1
+        summary.n_scans += len(chunk.scans)
+        summary.n_keypoints += sum(len(k) for k in found)
+        summary.position = chunk.position
+        if summary.n_scans - reported >= every:
+            reported = summary.n_scans
+            summary.seconds = time.perf_counter() - start
+            report(summary)
