@@ -56,6 +56,10 @@ class RunSummary:
         Time this thread spent waiting for scans, detecting, and writing (closing included).
     reader_seconds : float
         Time the reader thread spent reading (``prefetch``; it overlaps the others).
+    cpu_seconds, reader_cpu_seconds : float
+        CPU time of this thread in the loop, and of the reader thread: with ``prefetch`` the
+        loop cannot run faster than ``n_scans / max(cpu_seconds, reader_cpu_seconds)`` even
+        on idle cores (an upper bound: the Python parts of both threads share the GIL).
     skipped : dict of str to int
         Bad records skipped, by reason.
     skip_examples : list of str
@@ -74,6 +78,8 @@ class RunSummary:
     detect_seconds: float = 0.0
     write_seconds: float = 0.0
     reader_seconds: float = 0.0
+    cpu_seconds: float = 0.0
+    reader_cpu_seconds: float = 0.0
     skipped: dict[str, int] = field(default_factory=dict)
     skip_examples: list[str] = field(default_factory=list)
     interrupted: bool = False
@@ -196,6 +202,7 @@ def detect_recording(
     summary = RunSummary()
     report = progress or (lambda _: None)
     start = time.perf_counter()
+    cpu_start = time.thread_time()
     reader = prefetched(chunks, PREFETCH_CHUNKS) if prefetch else None
     stream: Iterator[Chunk] = iter(reader) if reader is not None else chunks
     try:
@@ -206,12 +213,14 @@ def detect_recording(
         if reader is not None:
             reader.stop()
             summary.reader_seconds = reader.busy_seconds
+            summary.reader_cpu_seconds = reader.cpu_seconds
         else:
             chunks.close()
         t0 = time.perf_counter()
         writer.close()
         summary.write_seconds += time.perf_counter() - t0
         summary.seconds = time.perf_counter() - start
+        summary.cpu_seconds = time.thread_time() - cpu_start
         summary.skipped = dict(getattr(holder, "skipped", {}))
         summary.skip_examples = list(getattr(holder, "skip_examples", []))
     report(summary)

@@ -113,6 +113,8 @@ class Prefetcher:
     ----------
     busy_seconds : float
         Time the thread spent producing chunks.
+    cpu_seconds : float
+        CPU time of the thread (``time.thread_time``).
     """
 
     def __init__(self, chunks: Iterator[Chunk], depth: int = 4) -> None:
@@ -120,6 +122,7 @@ class Prefetcher:
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=max(1, depth))
         self._stop = threading.Event()
         self.busy_seconds = 0.0
+        self.cpu_seconds = 0.0
         self._thread = threading.Thread(target=self._run, name="laser-corners-reader", daemon=True)
         self._thread.start()
 
@@ -133,6 +136,7 @@ class Prefetcher:
         return False
 
     def _run(self) -> None:
+        cpu_start = time.thread_time()
         try:
             while not self._stop.is_set():
                 start = time.perf_counter()
@@ -147,6 +151,7 @@ class Prefetcher:
                     return
         finally:
             self._chunks.close()  # type: ignore[attr-defined]
+            self.cpu_seconds = time.thread_time() - cpu_start
 
     def __iter__(self) -> Iterator[Chunk]:
         while True:
