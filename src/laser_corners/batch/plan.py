@@ -119,19 +119,30 @@ def _input_size(path: Path) -> int:
         return 0
 
 
-def not_a_recording(path: str | Path) -> str | None:
-    """Why ``path`` is not a recording (one line), or None when it is one or cannot be told.
+_LASER_WORDS = (b"FLASER", b"ROBOTLASER1", b"RAWLASER")
+_PEEK_BYTES = 256 * 1024
 
-    Only a file or folder that exists and is of no known kind is "not a recording"; a missing
-    or empty file is a recording that failed (its job says so).
+
+def not_a_recording(path: str | Path) -> str | None:
+    """Why ``path`` is not a recording (a few words), or None when it is one or may be one.
+
+    Only a file or folder that exists and is of no known kind, or a text file without any
+    CARMEN laser line at its start (a README), is "not a recording"; a missing or empty file is
+    a recording that failed (its job says so).
     """
     path = Path(path).expanduser()
     try:
         if not path.exists() or (path.is_file() and path.stat().st_size == 0):
             return None
-        detect_kind(path)
+        kind = detect_kind(path)
+        if kind == "carmen" and path.is_file():
+            with path.open("rb") as handle:
+                head = handle.read(_PEEK_BYTES)
+            if not head.startswith(b"\x1f\x8b") and not any(w in head for w in _LASER_WORDS):
+                return "text without CARMEN laser lines"
     except InputError as exc:
-        return first_line(exc)
+        reason = first_line(exc).removeprefix(f"{path}: ")
+        return reason.split(";")[0]
     except OSError:
         return None
     return None

@@ -122,7 +122,10 @@ def _present(report: BatchReport, outdir: Path, err: Any) -> None:
     from rich.table import Table
 
     for skipped in report.skipped:
-        err.print(f"skipped {skipped.input}: not a recording ({skipped.reason})", highlight=False)
+        err.print(
+            f"skipped {skipped.input}: not a recording ({skipped.reason})",
+            highlight=False, soft_wrap=True,
+        )  # fmt: skip
     table = Table(title=f"batch -> {outdir}", caption="r/d/w: seconds reading/detecting/writing")
     for column in ("job", "status", "scans", "keypoints", "s", "scans/s", "r/d/w"):
         table.add_column(column, justify="left" if column in ("job", "status") else "right")

@@ -122,12 +122,15 @@ def warm_up(detector: CornerDetector, scan: LaserScan, threads: int = 1) -> floa
 
 
 def _detect_chunk(
-    detector: CornerDetector, scans: list[LaserScan], threads: int
-) -> list[Keypoints]:
+    detector: CornerDetector, scans: list[LaserScan], threads: int, found: list[Keypoints]
+) -> None:
+    """Append the keypoints of each scan to ``found`` (scan by scan with one thread)."""
     if threads == 1 or len(scans) == 1:
-        return [detector.detect(scan) for scan in scans]
-    with _PARALLEL_KERNEL_LOCK:
-        return detector.detect_many(scans)
+        for scan in scans:
+            found.append(detector.detect(scan))
+    else:
+        with _PARALLEL_KERNEL_LOCK:
+            found.extend(detector.detect_many(scans))
 
 
 def _write_chunk(writer: KeypointWriter, chunk: Chunk, found: list[Keypoints]) -> None:
@@ -245,15 +248,28 @@ def _run(
         summary.read_seconds += t1 - t0
         if chunk is None:
             return
-        found = _detect_chunk(detector, chunk.scans, threads)
+        found: list[Keypoints] = []
+        try:
+            _detect_chunk(detector, chunk.scans, threads, found)
+        except KeyboardInterrupt:  # keep the scans of the chunk done so far
+            if found:
+                _finish_chunk(writer, chunk.head(len(found)), found, summary)
+            raise
         t2 = time.perf_counter()
-        _write_chunk(writer, chunk, found)
-        summary.write_seconds += time.perf_counter() - t2
         summary.detect_seconds += t2 - t1
-        summary.n_scans += len(chunk.scans)
-        summary.n_keypoints += sum(len(k) for k in found)
-        summary.position = chunk.position
+        _finish_chunk(writer, chunk, found, summary)
+        summary.write_seconds += time.perf_counter() - t2
         if summary.n_scans - reported >= every:
             reported = summary.n_scans
             summary.seconds = time.perf_counter() - start
             report(summary)
+
+
+def _finish_chunk(
+    writer: KeypointWriter, chunk: Chunk, found: list[Keypoints], summary: RunSummary
+) -> None:
+    """Hand a detected chunk to the writer and count it."""
+    _write_chunk(writer, chunk, found)
+    summary.n_scans += len(chunk.scans)
+    summary.n_keypoints += sum(len(k) for k in found)
+    summary.position = chunk.position

@@ -33,13 +33,22 @@ class Chunk:
         Index of each scan in the recording.
     scans : list of LaserScan
         The scans.
-    position : str
-        Where the reader stood after the last scan (``ScanSource.position``).
+    positions : list of str
+        Where the reader stood after each scan (``ScanSource.position``).
     """
 
     indices: list[int]
     scans: list[LaserScan]
-    position: str
+    positions: list[str]
+
+    @property
+    def position(self) -> str:
+        """Where the reader stood after the last scan."""
+        return self.positions[-1]
+
+    def head(self, count: int) -> Chunk:
+        """The first ``count`` scans of the chunk."""
+        return Chunk(self.indices[:count], self.scans[:count], self.positions[:count])
 
 
 def same_geometry(a: LaserScan, b: LaserScan) -> bool:
@@ -65,7 +74,7 @@ def chunked(
     """
     indices: list[int] = []
     batch: list[LaserScan] = []
-    position = "start"
+    positions: list[str] = []
     kept = 0
     try:
         for index, scan in enumerate(scans):
@@ -74,24 +83,24 @@ def chunked(
             if max_scans is not None and kept >= max_scans:
                 break
             if batch and (len(batch) >= size or not same_geometry(scan, batch[0])):
-                yield Chunk(indices, batch, position)
-                indices, batch = [], []
+                yield Chunk(indices, batch, positions)
+                indices, batch, positions = [], [], []
             indices.append(index)
             batch.append(scan)
             kept += 1
-            position = getattr(holder, "position", None) or f"scan {index}"
+            positions.append(getattr(holder, "position", None) or f"scan {index}")
     except GeneratorExit:
         raise
     except BaseException:
         if batch:
-            yield Chunk(indices, batch, position)
+            yield Chunk(indices, batch, positions)
         raise
     finally:
         close = getattr(scans, "close", None)
         if close is not None:
             close()
     if batch:
-        yield Chunk(indices, batch, position)
+        yield Chunk(indices, batch, positions)
 
 
 @dataclass

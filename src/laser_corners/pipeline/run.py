@@ -4,11 +4,14 @@
 opens the writer for ``output`` (CSV, Parquet, or a copy of the input bag with keypoint
 topics; the resolved parameters go into its metadata and beside it as
 ``<output>.params.yaml``) and runs the detect loop. Ctrl-C at any point after the recording
-is open ends in a :class:`DetectRun` with ``summary.interrupted`` set, the writer closed.
+is open ends in a :class:`DetectRun` with ``summary.interrupted`` set and the writer closed:
+the output keeps the keypoints of the scans processed, or, when the interruption came while
+the output was being created (a bag output copies the input first), it is removed.
 """
 
 from __future__ import annotations
 
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -39,18 +42,31 @@ class DetectRun:
     recording: Recording
     output: Path | None
     summary: RunSummary
+    removed: bool = False
 
     @property
     def kept(self) -> str:
         """What the output holds after an interruption, in words ("" without an output)."""
         if self.output is None:
             return ""
+        if self.removed:
+            return (
+                f"{self.output} removed: interrupted while it was being created, before any "
+                "keypoint was written"
+            )
         if not self.output.exists():
             return f"{self.output} was not created"
         return (
             f"{self.output} keeps what was written: the keypoints of the "
             f"{self.summary.n_scans} scans processed"
         )
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir():
+        shutil.rmtree(path, ignore_errors=True)  # a ROS 2 bag output is a folder
+    else:
+        path.unlink(missing_ok=True)
 
 
 def detect_file(
@@ -108,7 +124,10 @@ def detect_file(
             Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")
     except KeyboardInterrupt:  # while the writer was opening (a bag copy takes a while)
         writer.close()
+        if out is not None:  # an incomplete copy without keypoints: not worth keeping
+            _remove(out)
+            Path(f"{out}.params.yaml").unlink(missing_ok=True)
         summary = RunSummary(interrupted=True, seconds=time.perf_counter() - start)
-        return DetectRun(recording, out, summary)
+        return DetectRun(recording, out, summary, removed=out is not None)
     summary = detect_recording(recording, writer=writer, progress=progress, threads=threads)
     return DetectRun(recording, out, summary)
