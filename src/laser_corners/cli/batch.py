@@ -23,53 +23,59 @@ if TYPE_CHECKING:
 __all__ = ["batch"]
 
 
+_Inputs = Annotated[
+    list[Path],
+    typer.Argument(metavar="INPUT", help="Recordings (any kind detect reads).", show_default=False),
+]
+_Outdir = Annotated[
+    Path,
+    typer.Option(
+        "--output",
+        "-o",
+        help="Output folder: one Parquet per input, "
+        "manifest.jsonl, batch-params.yaml. Running again resumes.",
+        show_default=False,
+    ),
+]
+_Workers = Annotated[
+    int | None,
+    typer.Option("--workers", "-w", min=1, help="Worker processes (default: CPU cores)."),
+]
+_Scheduler = Annotated[
+    str | None,
+    typer.Option(
+        "--scheduler",
+        help="Dask: 'local' (a LocalCluster of --workers "
+        "processes) or tcp://host:port (an existing cluster). Default: a local "
+        "process pool.",
+    ),
+]
+_Threads = Annotated[
+    int | None,
+    typer.Option(
+        "--threads",
+        min=1,
+        help="numba threads per worker (default: cores // workers; 1 on a remote cluster).",
+    ),
+]
+_Topic = Annotated[
+    str | None,
+    typer.Option(
+        "--topic",
+        "-t",
+        help="LaserScan topic of the bags (default: every LaserScan topic, one output each).",
+    ),
+]
+
+
 @app.command()
 def batch(
-    inputs: Annotated[
-        list[Path],
-        typer.Argument(
-            metavar="INPUT", help="Recordings (any kind detect reads).", show_default=False
-        ),
-    ],
-    outdir: Annotated[
-        Path,
-        typer.Option(
-            "--output",
-            "-o",
-            help="Output folder: one Parquet per input, "
-            "manifest.jsonl, batch-params.yaml. Running again resumes.",
-            show_default=False,
-        ),
-    ],
-    workers: Annotated[
-        int | None,
-        typer.Option("--workers", "-w", min=1, help="Worker processes (default: CPU cores)."),
-    ] = None,
-    scheduler: Annotated[
-        str | None,
-        typer.Option(
-            "--scheduler",
-            help="Dask: 'local' (a LocalCluster of --workers "
-            "processes) or tcp://host:port (an existing cluster). Default: a local "
-            "process pool.",
-        ),
-    ] = None,
-    threads: Annotated[
-        int | None,
-        typer.Option(
-            "--threads",
-            min=1,
-            help="numba threads per worker (default: cores // workers; 1 on a remote cluster).",
-        ),
-    ] = None,
-    topic: Annotated[
-        str | None,
-        typer.Option(
-            "--topic",
-            "-t",
-            help="LaserScan topic of the bags (default: every LaserScan topic, one output each).",
-        ),
-    ] = None,
+    inputs: _Inputs,
+    outdir: _Outdir,
+    workers: _Workers = None,
+    scheduler: _Scheduler = None,
+    threads: _Threads = None,
+    topic: _Topic = None,
     params_file: ParamsOption = None,
     set_: SetOption = None,
     preset: PresetOption = None,

@@ -60,6 +60,66 @@ def _mount(text: str) -> tuple[float, float, float]:
     return mount  # type: ignore[return-value]
 
 
+_Trajectory = Annotated[
+    Path | None,
+    typer.Option(
+        "--trajectory",
+        help="TUM trajectory (t x y z qx qy qz qw) giving the "
+        "sensor poses, instead of the recording's.",
+    ),
+]
+_Relations = Annotated[
+    Path | None,
+    typer.Option(
+        "--relations",
+        help="Ground-truth relative poses (t1 t2 x y z roll pitch "
+        "yaw) for repeatability. Default: <name>.relations beside a <name>.bag, "
+        "else pairs from the poses.",
+    ),
+]
+_RelationsMount = Annotated[
+    str,
+    typer.Option(
+        "--relations-mount", help="Sensor pose x,y,theta in the robot frame of the relations."
+    ),
+]
+_MaxScans = Annotated[
+    int | None, typer.Option("--max-scans", min=1, help="Read at most this many scans.")
+]
+_MaxPairs = Annotated[
+    int, typer.Option("--max-pairs", min=1, help="At most this many repeatability pairs.")
+]
+_MaxRange = Annotated[
+    float | None,
+    typer.Option(
+        "--max-range",
+        help="Only count cells/keypoints this close to the sensor "
+        "as in view, metres (default: the sensor's range).",
+    ),
+]
+_Resolution = Annotated[
+    float, typer.Option("--resolution", help="Observability cell size, metres.")
+]
+_AssociationRadius = Annotated[
+    float, typer.Option("--association-radius", help="Keypoint-feature radius, metres.")
+]
+_MinRatio = Annotated[
+    float, typer.Option("--min-ratio", help="Lowest N8 observability of a persistent feature.")
+]
+_MinViews = Annotated[
+    int, typer.Option("--min-views", help="Fewest scans that saw a persistent feature's cell.")
+]
+_Occlusion = Annotated[
+    bool, typer.Option("--occlusion/--no-occlusion", help="Ray-cast against each scan.")
+]
+_Methods = Annotated[
+    str,
+    typer.Option(
+        "--methods", help="Repeatability rows, comma-separated: preset names, baseline, falko."
+    ),
+]
+
+
 @evaluate_app.command("real")
 def evaluate_real_command(
     input_path: InputArg,
@@ -70,64 +130,18 @@ def evaluate_real_command(
     preset: PresetOption = None,
     params_file: ParamsOption = None,
     set_: SetOption = None,
-    trajectory: Annotated[
-        Path | None,
-        typer.Option(
-            "--trajectory",
-            help="TUM trajectory (t x y z qx qy qz qw) giving the "
-            "sensor poses, instead of the recording's.",
-        ),
-    ] = None,
-    relations: Annotated[
-        Path | None,
-        typer.Option(
-            "--relations",
-            help="Ground-truth relative poses (t1 t2 x y z roll pitch "
-            "yaw) for repeatability. Default: <name>.relations beside a <name>.bag, "
-            "else pairs from the poses.",
-        ),
-    ] = None,
-    relations_mount: Annotated[
-        str,
-        typer.Option(
-            "--relations-mount", help="Sensor pose x,y,theta in the robot frame of the relations."
-        ),
-    ] = "0,0,0",
-    max_scans: Annotated[
-        int | None, typer.Option("--max-scans", min=1, help="Read at most this many scans.")
-    ] = None,
-    max_pairs: Annotated[
-        int, typer.Option("--max-pairs", min=1, help="At most this many repeatability pairs.")
-    ] = 1000,
-    max_range: Annotated[
-        float | None,
-        typer.Option(
-            "--max-range",
-            help="Only count cells/keypoints this close to the sensor "
-            "as in view, metres (default: the sensor's range).",
-        ),
-    ] = None,
-    resolution: Annotated[
-        float, typer.Option("--resolution", help="Observability cell size, metres.")
-    ] = 0.03,
-    association_radius: Annotated[
-        float, typer.Option("--association-radius", help="Keypoint-feature radius, metres.")
-    ] = 0.06,
-    min_ratio: Annotated[
-        float, typer.Option("--min-ratio", help="Lowest N8 observability of a persistent feature.")
-    ] = 0.25,
-    min_views: Annotated[
-        int, typer.Option("--min-views", help="Fewest scans that saw a persistent feature's cell.")
-    ] = 20,
-    occlusion: Annotated[
-        bool, typer.Option("--occlusion/--no-occlusion", help="Ray-cast against each scan.")
-    ] = True,
-    methods: Annotated[
-        str,
-        typer.Option(
-            "--methods", help="Repeatability rows, comma-separated: preset names, baseline, falko."
-        ),
-    ] = "paper,auto,baseline,falko",
+    trajectory: _Trajectory = None,
+    relations: _Relations = None,
+    relations_mount: _RelationsMount = "0,0,0",
+    max_scans: _MaxScans = None,
+    max_pairs: _MaxPairs = 1000,
+    max_range: _MaxRange = None,
+    resolution: _Resolution = 0.03,
+    association_radius: _AssociationRadius = 0.06,
+    min_ratio: _MinRatio = 0.25,
+    min_views: _MinViews = 20,
+    occlusion: _Occlusion = True,
+    methods: _Methods = "paper,auto,baseline,falko",
 ) -> None:
     """Paper section IV on a recording with poses (maps, features, association, repeatability).
 
