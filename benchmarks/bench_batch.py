@@ -9,7 +9,8 @@ ROS 1 bags, each LaserScan topic of the three-topic bag as its own job, and the 
 into a fresh temporary folder, end to end: reading, detection (paper preset) and writing one
 Parquet file per job. Configurations:
 
-* 1 worker, 1 numba thread (jobs run in this process, scans one by one through ``detect``);
+* 1 worker, 1 numba thread (jobs run in this process, scans one by one through ``detect``),
+  without and with the reader thread;
 * 1 worker, 2 numba threads (chunks of scans through the parallel ``detect_many``);
 * 2 workers (spawned process pool), 1 thread each;
 * with ``--dask``: a Dask LocalCluster of 2 worker processes (start-up included).
@@ -53,14 +54,20 @@ def recordings() -> list[Path]:
 
 
 def run(
-    inputs: list[Path], workers: int, threads: int, scheduler: str | None, repeats: int
+    inputs: list[Path],
+    workers: int,
+    threads: int,
+    scheduler: str | None,
+    repeats: int,
+    prefetch: bool | None = None,
 ) -> BatchReport:
     best: BatchReport | None = None
     for _ in range(repeats):
         with tempfile.TemporaryDirectory(prefix="bench-batch-") as outdir:
             report = run_batch(
-                inputs, outdir, workers=workers, threads=threads, scheduler=scheduler
-            )
+                inputs, outdir, workers=workers, threads=threads, scheduler=scheduler,
+                prefetch=prefetch,
+            )  # fmt: skip
         failed = report.failed
         if failed:
             raise SystemExit(f"jobs failed: {[(r.input, r.error) for r in failed]}")
@@ -144,18 +151,19 @@ def main() -> None:
     compare_prefetch(max(args.repeats, 3))
     if args.loop_only:
         return
-    configs: list[tuple[str, int, int, str | None]] = [
-        ("1 worker x 1 thread (in process)", 1, 1, None),
-        ("1 worker x 2 threads (in process, detect_many)", 1, 2, None),
-        ("2 workers x 1 thread (process pool)", 2, 1, None),
+    configs: list[tuple[str, int, int, str | None, bool | None]] = [
+        ("1 worker x 1 thread (in process, no reader thread)", 1, 1, None, False),
+        ("1 worker x 1 thread + reader thread (in process)", 1, 1, None, True),
+        ("1 worker x 2 threads (in process, detect_many)", 1, 2, None, None),
+        ("2 workers x 1 thread (process pool)", 2, 1, None, None),
     ]
     if args.dask:
-        configs.append(("2 workers x 1 thread (Dask LocalCluster)", 2, 1, "local"))
+        configs.append(("2 workers x 1 thread (Dask LocalCluster)", 2, 1, "local", None))
     reports = []
     print("| configuration | jobs | scans | wall [s] | scans/s | scans/s per worker |")
     print("|---|---:|---:|---:|---:|---:|")
-    for label, workers, threads, scheduler in configs:
-        report = run(inputs, workers, threads, scheduler, args.repeats)
+    for label, workers, threads, scheduler, prefetch in configs:
+        report = run(inputs, workers, threads, scheduler, args.repeats, prefetch)
         reports.append((label, report))
         print(f"| {label} | {len(report.results)} | {report.n_scans} | {report.seconds:.2f} | "
               f"{report.scans_per_second:,.0f} | "

@@ -29,11 +29,16 @@ Choice = ParamsChoice | DetectorParams
 
 
 def run_here(
-    jobs: Sequence[BatchJob], outdir: Path, params: Choice, threads: int, deliver: Deliver
+    jobs: Sequence[BatchJob],
+    outdir: Path,
+    params: Choice,
+    threads: int,
+    deliver: Deliver,
+    prefetch: bool = True,
 ) -> None:
     """Run the jobs one after the other in this process."""
     for job in jobs:
-        deliver(run_job(job, outdir, params, threads))
+        deliver(run_job(job, outdir, params, threads, prefetch))
 
 
 def _result_of(future: Any, job: BatchJob) -> JobResult | None:
@@ -55,6 +60,7 @@ def run_pool(
     workers: int,
     threads: int,
     deliver: Deliver,
+    prefetch: bool = False,
 ) -> None:
     """Run the jobs on a pool of ``workers`` spawned processes, at most one job per worker.
 
@@ -81,7 +87,7 @@ def run_pool(
         while waiting or running:
             while waiting and len(running) < workers:
                 job = waiting.pop(0)
-                running[pool.submit(run_job, job, outdir, params, threads)] = job
+                running[pool.submit(run_job, job, outdir, params, threads, prefetch)] = job
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             broken = False
             for future in done:
@@ -134,6 +140,7 @@ def run_dask(
     timeout: float,
     started: Callable[[int], None],
     deliver: Deliver,
+    prefetch: bool = False,
 ) -> None:
     """Run the jobs on a Dask cluster: ``"local"`` (a LocalCluster) or ``tcp://host:port``.
 
@@ -153,7 +160,7 @@ def run_dask(
         started(len(client.scheduler_info().get("workers", {})) or workers)
         futures = {
             client.submit(
-                run_job, job, str(outdir), params, threads,
+                run_job, job, str(outdir), params, threads, prefetch,
                 key=f"laser-corners-{short_hash(job.key)}-{time.time_ns()}", pure=False,
             ): job
             for job in jobs

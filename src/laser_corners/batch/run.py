@@ -48,6 +48,7 @@ def run_batch(
     scheduler: str | None = None,
     threads: int | None = None,
     timeout: float = 30.0,
+    prefetch: bool | None = None,
     on_result: Callable[[JobResult], None] | None = None,
     on_plan: Callable[[list[BatchJob], list[JobResult]], None] | None = None,
 ) -> BatchReport:
@@ -75,6 +76,10 @@ def run_batch(
         numba threads per worker (default: cores // workers, at least 1; remote clusters: 1).
     timeout : float
         Seconds to wait for a Dask scheduler to answer.
+    prefetch : bool, optional
+        Read each recording in a thread of its own while detecting (see
+        :mod:`laser_corners.pipeline`). Default: only when a core is left for it (local
+        workers x threads < cores); it costs a little CPU for the hand-over.
     on_result : callable, optional
         Called with each :class:`JobResult` as its job ends (after the manifest has it).
     on_plan : callable, optional
@@ -101,6 +106,8 @@ def run_batch(
     n_workers = max(1, int(workers) if workers else cores)
     if threads is None:
         threads = 1 if scheduler not in (None, "local") else max(1, cores // n_workers)
+    if prefetch is None:
+        prefetch = scheduler in (None, "local") and n_workers * threads < cores
     manifest = Manifest(outdir)
     records = manifest.load()
     jobs, skipped = plan_inputs(inputs, topic, reserved={k: r.output for k, r in records.items()})
@@ -128,13 +135,13 @@ def run_batch(
             pass
         elif scheduler is not None:
             run_dask(pending, outdir, choice, scheduler, n_workers, threads, timeout, started,
-                     deliver)  # fmt: skip
+                     deliver, prefetch)  # fmt: skip
         elif n_workers == 1 or len(pending) == 1:
             report.workers = 1
-            run_here(pending, outdir, choice, threads, deliver)
+            run_here(pending, outdir, choice, threads, deliver, prefetch)
         else:
             report.workers = min(n_workers, len(pending))
-            run_pool(pending, outdir, choice, report.workers, threads, deliver)
+            run_pool(pending, outdir, choice, report.workers, threads, deliver, prefetch)
     except KeyboardInterrupt:
         report.interrupted = True
     finally:
