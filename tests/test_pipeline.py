@@ -44,11 +44,13 @@ class _Recorder(KeypointWriter):
     def __init__(self) -> None:
         super().__init__()
         self.rows: list[tuple[int, int]] = []  # scan index, keypoint count
+        self.xy: list[np.ndarray] = []
         self.closed = False
 
     def write(self, scan_index: int, scan: LaserScan, keypoints) -> None:  # type: ignore[no-untyped-def]
         super().write(scan_index, scan, keypoints)
         self.rows.append((scan_index, len(keypoints)))
+        self.xy.append(keypoints.xy)
 
     def close(self) -> None:
         self.closed = True
@@ -135,7 +137,8 @@ def _room_scans(n: int) -> list[LaserScan]:
 def test_the_loop_finds_what_detect_finds(prefetch: bool, threads: int) -> None:
     scans = _room_scans(40)
     detector = CornerDetector()
-    expected = [len(detector.detect(s)) for s in scans]
+    found = [detector.detect(s) for s in scans]
+    expected = [len(k) for k in found]
     source = _Source(scans, 99, RuntimeError("unused"))
     writer = _Recorder()
     summary = detect_recording(
@@ -143,6 +146,7 @@ def test_the_loop_finds_what_detect_finds(prefetch: bool, threads: int) -> None:
     )
     assert writer.closed and not summary.interrupted
     assert writer.rows == list(enumerate(expected))
+    np.testing.assert_array_equal(np.concatenate(writer.xy), np.concatenate([k.xy for k in found]))
     assert summary.n_scans == 40 and summary.n_keypoints == sum(expected) > 40
     assert summary.position == "row 39"
     assert summary.detect_seconds > 0 and summary.seconds >= summary.detect_seconds
@@ -201,6 +205,24 @@ def test_ctrl_c_in_the_detector_keeps_the_chunk_done_so_far(
     monkeypatch.setattr(CornerDetector, "detect", detect)
     writer = _Recorder()
     source = _Source(_scans(40), 99, RuntimeError("unused"))
-    summary = detect_recording(source, CornerDetector(), writer, chunk_scans=256)
+    summary = detect_recording(source, CornerDetector(), writer, chunk_scans=256, prefetch=False)
     assert summary.interrupted and summary.n_scans == len(writer.rows) == 20
     assert summary.position == "row 19"
+
+
+def test_ctrl_c_in_detect_many_keeps_the_blocks_done(monkeypatch: pytest.MonkeyPatch) -> None:
+    real = CornerDetector.detect_many
+    calls = {"n": 0}
+
+    def detect_many(self, scans):  # type: ignore[no-untyped-def]
+        calls["n"] += 1
+        if calls["n"] == 2:  # the second block of 32
+            raise KeyboardInterrupt
+        return real(self, scans)
+
+    monkeypatch.setattr(CornerDetector, "detect_many", detect_many)
+    writer = _Recorder()
+    source = _Source(_scans(100), 999, RuntimeError("unused"))
+    summary = detect_recording(source, CornerDetector(), writer, prefetch=True)
+    assert summary.interrupted and summary.n_scans == len(writer.rows) == 32
+    assert summary.position == "row 31"

@@ -171,6 +171,7 @@ def test_unexpected_error_is_recorded_with_its_traceback(
         raise RuntimeError("kernel exploded")
 
     monkeypatch.setattr(CornerDetector, "detect", broken)
+    monkeypatch.setattr(CornerDetector, "detect_many", broken)
     result = run_job(BatchJob(str(log), None, "fr079.parquet"), tmp_path, threads=1)
     assert result.status == "failed"
     assert result.error.startswith("RuntimeError: kernel exploded")

@@ -92,16 +92,16 @@ def test_detect_to_bag_interrupted_keeps_the_keypoints_written(
     from laser_corners import CornerDetector
 
     bag = _small_bag(tmp_path / "room.bag")
-    real_detect = CornerDetector.detect
-    calls = {"n": 0}
+    real_detect_many = CornerDetector.detect_many
+    done = {"scans": 0}
 
-    def detect_then_ctrl_c(self, scan, return_candidates=False):  # type: ignore[no-untyped-def]
-        calls["n"] += 1
-        if calls["n"] == 120:  # Ctrl-C in the middle of the run
+    def detect_many_then_ctrl_c(self, scans):  # type: ignore[no-untyped-def]
+        if done["scans"] >= 120:  # Ctrl-C in the middle of the run
             raise KeyboardInterrupt
-        return real_detect(self, scan, return_candidates)
+        done["scans"] += len(scans)
+        return real_detect_many(self, scans)
 
-    monkeypatch.setattr(CornerDetector, "detect", detect_then_ctrl_c)
+    monkeypatch.setattr(CornerDetector, "detect_many", detect_many_then_ctrl_c)
     out = tmp_path / "x.bag"
     result = _invoke("detect", bag, "-o", out)
     assert result.exit_code == 130, result.output
@@ -110,7 +110,7 @@ def test_detect_to_bag_interrupted_keeps_the_keypoints_written(
     scans = int(re.search(r"after (\d+) scans", message).group(1))  # type: ignore[union-attr]
     counts = _topic_counts(out)
     assert counts["/scan"] == 300  # the copy of the input is whole
-    assert counts["/scan_corners"] == counts["/scan_corner_markers"] == scans > 0
+    assert counts["/scan_corners"] == counts["/scan_corner_markers"] == scans == done["scans"] > 0
 
 
 def test_detect_to_bag_interrupted_while_copying_removes_it(

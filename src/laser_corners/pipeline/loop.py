@@ -1,12 +1,14 @@
 """THE detect loop: scans -> keypoints -> writer, with timings, progress and a clean stop.
 
 ``detect``, ``batch`` and ``view`` all run :func:`detect_recording`. Scans are handled in
-chunks of consecutive scans of one geometry (at most ``chunk_scans``): with one numba thread
-each scan goes through :meth:`~laser_corners.CornerDetector.detect`, with more the chunk goes
-through the parallel :meth:`~laser_corners.CornerDetector.detect_many`. With ``prefetch`` a
+chunks of consecutive scans of one geometry (at most ``chunk_scans``). With ``prefetch`` a
 reader thread (:mod:`laser_corners.pipeline.prefetch`) reads and decodes the next chunks while
 this thread detects: the numba kernels release the GIL, and so does the decompression of bag
-chunks, so reading and detecting overlap.
+chunks, so reading and detecting overlap. Detection then goes through
+:meth:`~laser_corners.CornerDetector.detect_many` in blocks of :data:`BLOCK_SCANS` scans (one
+GIL release per block, parallel over scans with more numba threads; the same keypoints as
+:meth:`~laser_corners.CornerDetector.detect`); with one thread and no reader thread, scan by
+scan through ``detect``.
 
 The time of each phase is recorded (:class:`RunSummary`): ``read_seconds`` (waiting for
 scans: all of the reading without ``prefetch``, the part the reader thread could not hide
@@ -36,6 +38,8 @@ CHUNK_SCANS = 256
 """Most scans read, detected and written at a time."""
 PREFETCH_CHUNKS = 4
 """Chunks the reader thread may read ahead."""
+BLOCK_SCANS = 32
+"""Scans per ``detect_many`` call (at most this much work is lost to Ctrl-C)."""
 # numba's fallback threading layer (workqueue) must not be entered by two threads at once;
 # Dask workers may run several jobs in threads of one process
 _PARALLEL_KERNEL_LOCK = threading.Lock()
@@ -122,15 +126,24 @@ def warm_up(detector: CornerDetector, scan: LaserScan, threads: int = 1) -> floa
 
 
 def _detect_chunk(
-    detector: CornerDetector, scans: list[LaserScan], threads: int, found: list[Keypoints]
+    detector: CornerDetector, scans: list[LaserScan], batched: bool, found: list[Keypoints]
 ) -> None:
-    """Append the keypoints of each scan to ``found`` (scan by scan with one thread)."""
-    if threads == 1 or len(scans) == 1:
+    """Append the keypoints of each scan to ``found``.
+
+    ``batched``: through ``detect_many`` in blocks of :data:`BLOCK_SCANS` (one GIL release
+    per block instead of several per scan, which matters when a reader thread wants the GIL);
+    else scan by scan. Ctrl-C keeps the blocks (scans) done.
+    """
+    if not batched or len(scans) == 1:
         for scan in scans:
             found.append(detector.detect(scan))
-    else:
+        return
+    for start in range(0, len(scans), BLOCK_SCANS):
+        block = scans[start : start + BLOCK_SCANS]
         with _PARALLEL_KERNEL_LOCK:
-            found.extend(detector.detect_many(scans))
+            found.extend(
+                detector.detect_many(block) if len(block) > 1 else [detector.detect(block[0])]
+            )
 
 
 def _write_chunk(writer: KeypointWriter, chunk: Chunk, found: list[Keypoints]) -> None:
@@ -173,7 +186,8 @@ def detect_recording(
     every : int
         Progress period in scans.
     threads : int
-        numba threads: 1 detects scan by scan, more runs ``detect_many`` over each chunk.
+        numba threads. With 1 and no ``prefetch`` scans go one by one through ``detect``;
+        otherwise through ``detect_many`` in blocks (parallel over scans with more threads).
     chunk_scans : int
         Most scans per chunk.
     prefetch : bool
@@ -209,7 +223,8 @@ def detect_recording(
     reader = prefetched(chunks, PREFETCH_CHUNKS) if prefetch else None
     stream: Iterator[Chunk] = iter(reader) if reader is not None else chunks
     try:
-        _run(stream, detector, writer, summary, report, every, threads, start)
+        batched = threads > 1 or prefetch
+        _run(stream, detector, writer, summary, report, every, batched, start)
     except KeyboardInterrupt:
         summary.interrupted = True
     finally:
@@ -237,7 +252,7 @@ def _run(
     summary: RunSummary,
     report: Callable[[RunSummary], None],
     every: int,
-    threads: int,
+    batched: bool,
     start: float,
 ) -> None:
     reported = 0
@@ -250,7 +265,7 @@ def _run(
             return
         found: list[Keypoints] = []
         try:
-            _detect_chunk(detector, chunk.scans, threads, found)
+            _detect_chunk(detector, chunk.scans, batched, found)
         except KeyboardInterrupt:  # keep the scans of the chunk done so far
             if found:
                 _finish_chunk(writer, chunk.head(len(found)), found, summary)
