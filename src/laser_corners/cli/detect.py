@@ -229,9 +229,9 @@ def _plot_scan(
     from laser_corners.pipeline import open_recording, scan_at
     from laser_corners.viz.plots import plot_scan
 
-    recording = open_recording(input_path, topic, choice)
-    scan = recording.first if index == 0 else scan_at(recording.source, index)
-    keypoints, candidates = recording.detector.detect(scan, return_candidates=True)
+    with open_recording(input_path, topic, choice) as recording:
+        scan = recording.first if index == 0 else scan_at(recording.source, index)
+        keypoints, candidates = recording.detector.detect(scan, return_candidates=True)
     fig, ax = plt.subplots(figsize=(8, 8))
     try:
         plot_scan(ax, scan, keypoints=keypoints, candidates=candidates)

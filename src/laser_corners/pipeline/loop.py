@@ -6,9 +6,9 @@ reader thread (:mod:`laser_corners.pipeline.prefetch`) reads and decodes the nex
 this thread detects: the numba kernels release the GIL, and so does the decompression of bag
 chunks, so reading and detecting overlap. Detection then goes through
 :meth:`~laser_corners.CornerDetector.detect_many` in blocks of :data:`BLOCK_SCANS` scans (one
-GIL release per block, parallel over scans with more numba threads; the same keypoints as
-:meth:`~laser_corners.CornerDetector.detect`); with one thread and no reader thread, scan by
-scan through ``detect``.
+GIL release per block; the same keypoints as :meth:`~laser_corners.CornerDetector.detect`);
+with more numba threads through ``detect_many`` per chunk (parallel over scans); with one
+thread and no reader thread, scan by scan through ``detect``.
 
 The time of each phase is recorded (:class:`RunSummary`): ``read_seconds`` (waiting for
 scans: all of the reading without ``prefetch``, the part the reader thread could not hide
@@ -126,23 +126,23 @@ def warm_up(detector: CornerDetector, scan: LaserScan, threads: int = 1) -> floa
 
 
 def _detect_chunk(
-    detector: CornerDetector, scans: list[LaserScan], batched: bool, found: list[Keypoints]
+    detector: CornerDetector, scans: list[LaserScan], block: int, found: list[Keypoints]
 ) -> None:
     """Append the keypoints of each scan to ``found``.
 
-    ``batched``: through ``detect_many`` in blocks of :data:`BLOCK_SCANS` (one GIL release
-    per block instead of several per scan, which matters when a reader thread wants the GIL);
-    else scan by scan. Ctrl-C keeps the blocks (scans) done.
+    ``block`` 0: scan by scan through ``detect``; else through ``detect_many`` in blocks of
+    ``block`` scans (one GIL release per block instead of several per scan, which matters when
+    a reader thread wants the GIL). Ctrl-C keeps the scans (blocks) done.
     """
-    if not batched or len(scans) == 1:
+    if not block or len(scans) == 1:
         for scan in scans:
             found.append(detector.detect(scan))
         return
-    for start in range(0, len(scans), BLOCK_SCANS):
-        block = scans[start : start + BLOCK_SCANS]
+    for start in range(0, len(scans), block):
+        part = scans[start : start + block]
         with _PARALLEL_KERNEL_LOCK:
             found.extend(
-                detector.detect_many(block) if len(block) > 1 else [detector.detect(block[0])]
+                detector.detect_many(part) if len(part) > 1 else [detector.detect(part[0])]
             )
 
 
@@ -162,7 +162,7 @@ def detect_recording(
     progress: Callable[[RunSummary], None] | None = None,
     every: int = 25,
     *,
-    threads: int = 1,
+    threads: int | None = 1,
     chunk_scans: int = CHUNK_SCANS,
     prefetch: bool = True,
     step: int = 1,
@@ -185,8 +185,9 @@ def detect_recording(
         at the end.
     every : int
         Progress period in scans.
-    threads : int
-        numba threads. With 1 and no ``prefetch`` scans go one by one through ``detect``;
+    threads : int, optional
+        numba threads of this thread during the loop (restored after); None: leave numba's
+        setting. With 1 and no ``prefetch`` scans go one by one through ``detect``;
         otherwise through ``detect_many`` in blocks (parallel over scans with more threads).
     chunk_scans : int
         Most scans per chunk.
@@ -220,11 +221,15 @@ def detect_recording(
     report = progress or (lambda _: None)
     start = time.perf_counter()
     cpu_start = time.thread_time()
+    previous = set_threads(None)
+    n_threads = set_threads(threads)
     reader = prefetched(chunks, PREFETCH_CHUNKS) if prefetch else None
     stream: Iterator[Chunk] = iter(reader) if reader is not None else chunks
     try:
-        batched = threads > 1 or prefetch
-        _run(stream, detector, writer, summary, report, every, batched, start)
+        # several numba threads: whole chunks (a parallel launch per block costs); one thread
+        # and a reader thread: blocks; one thread alone: scan by scan
+        block = max(1, chunk_scans) if n_threads > 1 else (BLOCK_SCANS if prefetch else 0)
+        _run(stream, detector, writer, summary, report, every, block, start)
     except KeyboardInterrupt:
         summary.interrupted = True
     finally:
@@ -234,6 +239,7 @@ def detect_recording(
             summary.reader_cpu_seconds = reader.cpu_seconds
         else:
             chunks.close()
+        set_threads(previous)
         t0 = time.perf_counter()
         writer.close()
         summary.write_seconds += time.perf_counter() - t0
@@ -252,7 +258,7 @@ def _run(
     summary: RunSummary,
     report: Callable[[RunSummary], None],
     every: int,
-    batched: bool,
+    block: int,
     start: float,
 ) -> None:
     reported = 0
@@ -265,7 +271,7 @@ def _run(
             return
         found: list[Keypoints] = []
         try:
-            _detect_chunk(detector, chunk.scans, batched, found)
+            _detect_chunk(detector, chunk.scans, block, found)
         except KeyboardInterrupt:  # keep the scans of the chunk done so far
             if found:
                 _finish_chunk(writer, chunk.head(len(found)), found, summary)

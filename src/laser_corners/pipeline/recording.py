@@ -155,6 +155,19 @@ class Recording:
     description: str
     _rest: Iterator[LaserScan] | None = field(default=None, repr=False)
 
+    def close(self) -> None:
+        """Close the reading started by :func:`open_recording` if :meth:`scans` never took it."""
+        rest, self._rest = self._rest, None
+        close = getattr(rest, "close", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> Recording:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def scans(self) -> Iterator[LaserScan]:
         """The scans, first one included; the first call goes on from the read of ``first``."""
         rest, self._rest = self._rest, None
