@@ -737,7 +737,9 @@ class CornerDetector:
 
     # ----------------------------------------------------------------- public API
     @overload
-    def detect(self, scan: LaserScan, return_candidates: Literal[False] = ...) -> Keypoints: ...
+    def detect(
+        self, scan: LaserScan, return_candidates: Literal[False] = ...
+    ) -> Keypoints: ...
 
     @overload
     def detect(

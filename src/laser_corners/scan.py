@@ -126,10 +126,8 @@ class LaserScan:
     def valid(self) -> NDArray[np.bool_]:
         """Mask of beams with a valid return (finite, strictly inside the range interval)."""
         with np.errstate(invalid="ignore"):
-            return (
-                np.isfinite(self.ranges)
-                & (self.ranges > self.range_min)
-                & (self.ranges < self.range_max)
+            return np.isfinite(self.ranges) & (self.ranges > self.range_min) & (
+                self.ranges < self.range_max
             )
 
     @property
