@@ -9,7 +9,8 @@ ROS 1 bags, each LaserScan topic of the three-topic bag as its own job, and the 
 into a fresh temporary folder, end to end: reading, detection (paper preset) and writing one
 Parquet file per job. Configurations:
 
-* 1 worker, 1 numba thread (jobs run in this process, scans one by one through ``detect``);
+* 1 worker, 1 numba thread (jobs run in this process, scans one by one through ``detect``),
+  without and with the reader thread;
 * 1 worker, 2 numba threads (chunks of scans through the parallel ``detect_many``);
 * 2 workers (spawned process pool), 1 thread each;
 * with ``--dask``: a Dask LocalCluster of 2 worker processes (start-up included).
@@ -21,6 +22,13 @@ one-off loading of numba's cached kernels in each worker process is counted apar
 360-beam recordings (fr079.bag, fr079-corrected.clf.gz) are summarised separately, against
 the issue's target of 10,000 scans/s per worker. A warm-up job first loads numba's cache.
 The machine is shared: the load average is printed with the numbers.
+
+First, fr079.bag alone (4,934 scans of 360 beams) through the pipeline's detect loop into
+Parquet, one numba thread, with the reader thread off and on (``prefetch``), alternating in
+the same process, best of ``--repeats``: wall scans/s, and the CPU time of the detecting
+thread and of the reader thread per scan. ``bound`` is ``scans / max(thread CPU times)``: what
+one worker would reach with a core per thread (an upper bound: the Python parts of the two
+threads share the GIL); on a loaded machine the wall rate is far below it.
 """
 
 from __future__ import annotations
@@ -33,6 +41,8 @@ import time
 from pathlib import Path
 
 from laser_corners.batch import BatchJob, BatchReport, JobResult, run_batch, run_job
+from laser_corners.io.writers import ParquetKeypointWriter
+from laser_corners.pipeline import RunSummary, detect_recording, open_recording, set_threads
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 BEAMS_360 = ("fr079.bag", "fr079-corrected.clf.gz")
@@ -44,14 +54,20 @@ def recordings() -> list[Path]:
 
 
 def run(
-    inputs: list[Path], workers: int, threads: int, scheduler: str | None, repeats: int
+    inputs: list[Path],
+    workers: int,
+    threads: int,
+    scheduler: str | None,
+    repeats: int,
+    prefetch: bool | None = None,
 ) -> BatchReport:
     best: BatchReport | None = None
     for _ in range(repeats):
         with tempfile.TemporaryDirectory(prefix="bench-batch-") as outdir:
             report = run_batch(
-                inputs, outdir, workers=workers, threads=threads, scheduler=scheduler
-            )
+                inputs, outdir, workers=workers, threads=threads, scheduler=scheduler,
+                prefetch=prefetch,
+            )  # fmt: skip
         failed = report.failed
         if failed:
             raise SystemExit(f"jobs failed: {[(r.input, r.error) for r in failed]}")
@@ -59,6 +75,41 @@ def run(
             best = report
     assert best is not None
     return best
+
+
+def fr079_loop(prefetch: bool) -> RunSummary:
+    """fr079.bag through the detect loop into a Parquet file (reading, detection, writing)."""
+    recording = open_recording(REAL / "fr079.bag")
+    with tempfile.TemporaryDirectory(prefix="bench-loop-") as outdir:
+        writer = ParquetKeypointWriter(Path(outdir) / "k.parquet", recording.has_poses)
+        return detect_recording(recording, writer=writer, threads=1, prefetch=prefetch)
+
+
+def compare_prefetch(repeats: int) -> None:
+    set_threads(1)
+    best: dict[bool, RunSummary] = {}
+    for _ in range(repeats):
+        for prefetch in (False, True):
+            summary = fr079_loop(prefetch)
+            if prefetch not in best or summary.seconds < best[prefetch].seconds:
+                best[prefetch] = summary
+    print("## fr079.bag, one worker, one numba thread: reader thread off / on\n")
+    print("| reader thread | scans | wall [s] | scans/s | detect+write thread CPU us/scan | "
+          "reader thread CPU us/scan | bound scans/s |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for prefetch, s in best.items():
+        n = s.n_scans
+        main_us = 1e6 * s.cpu_seconds / n
+        reader_us = 1e6 * s.reader_cpu_seconds / n
+        bound = n / max(s.cpu_seconds, s.reader_cpu_seconds)
+        label = "on" if prefetch else "off"
+        print(f"| {label} | {n} | {s.seconds:.3f} | {s.scans_per_second:,.0f} | "
+              f"{main_us:.1f} | {reader_us:.1f} | {bound:,.0f} |")  # fmt: skip
+    ratio = best[False].seconds / best[True].seconds
+    print(
+        f"\nspeed-up of the reader thread (wall, same run): {ratio:.2f}x; "
+        f"load average now {os.getloadavg()[0]:.2f}\n"
+    )
 
 
 def split(results: list[JobResult]) -> tuple[int, float, float, float, float, float]:
@@ -81,6 +132,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--dask", action="store_true", help="Also time a Dask LocalCluster.")
+    parser.add_argument(
+        "--loop-only", action="store_true", help="Only the fr079.bag reader-thread comparison."
+    )
     args = parser.parse_args()
     if not REAL.is_dir():
         print(f"skipped: real data folder not found: {REAL.resolve()}")
@@ -94,18 +148,22 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as warm:  # numba cache load / compile, not timed
         run_job(BatchJob(str(REAL / "fr079-corrected.clf.gz"), None, "w.parquet"), warm)
 
-    configs: list[tuple[str, int, int, str | None]] = [
-        ("1 worker x 1 thread (in process)", 1, 1, None),
-        ("1 worker x 2 threads (in process, detect_many)", 1, 2, None),
-        ("2 workers x 1 thread (process pool)", 2, 1, None),
+    compare_prefetch(max(args.repeats, 3))
+    if args.loop_only:
+        return
+    configs: list[tuple[str, int, int, str | None, bool | None]] = [
+        ("1 worker x 1 thread (in process, no reader thread)", 1, 1, None, False),
+        ("1 worker x 1 thread + reader thread (in process)", 1, 1, None, True),
+        ("1 worker x 2 threads (in process, detect_many)", 1, 2, None, None),
+        ("2 workers x 1 thread (process pool)", 2, 1, None, None),
     ]
     if args.dask:
-        configs.append(("2 workers x 1 thread (Dask LocalCluster)", 2, 1, "local"))
+        configs.append(("2 workers x 1 thread (Dask LocalCluster)", 2, 1, "local", None))
     reports = []
     print("| configuration | jobs | scans | wall [s] | scans/s | scans/s per worker |")
     print("|---|---:|---:|---:|---:|---:|")
-    for label, workers, threads, scheduler in configs:
-        report = run(inputs, workers, threads, scheduler, args.repeats)
+    for label, workers, threads, scheduler, prefetch in configs:
+        report = run(inputs, workers, threads, scheduler, args.repeats, prefetch)
         reports.append((label, report))
         print(f"| {label} | {len(report.results)} | {report.n_scans} | {report.seconds:.2f} | "
               f"{report.scans_per_second:,.0f} | "

@@ -28,7 +28,8 @@ def demo_world() -> World:
 def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005) -> int:
     """Simulate, detect, print keypoints against the true corners, write a PNG.
 
-    Returns the number of visible true corners without a keypoint within 0.1 m.
+    The PNG's folder is created when missing. Returns the number of visible true corners
+    without a keypoint within 0.1 m.
     """
     world = demo_world()
     rng = np.random.default_rng(7)
@@ -56,6 +57,8 @@ def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005)
     print(f"\nfound {len(truth) - missed}/{len(truth)} visible corners, {false} false keypoints")
     if output is not None:
         import matplotlib
+
+        Path(output).parent.mkdir(parents=True, exist_ok=True)
 
         from laser_corners.viz.plots import plot_scan
 

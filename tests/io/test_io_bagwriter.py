@@ -18,7 +18,7 @@ from laser_corners.io import BagSource, WriterSummary, open_keypoint_writer, ope
 from laser_corners.io.messages import (
     MARKER_DELETEALL,
 )
-from laser_corners.io.run import detect_recording
+from laser_corners.pipeline import detect_recording
 
 
 def test_fr079_keypoint_bag_reads_back_with_the_scan_stamps(tmp_path: Path) -> None:

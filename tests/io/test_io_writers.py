@@ -19,7 +19,7 @@ from laser_corners.io import (
     open_keypoint_writer,
     open_scans,
 )
-from laser_corners.io.run import detect_recording
+from laser_corners.pipeline import detect_recording
 from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS
 
 

@@ -42,8 +42,7 @@ __all__ = [
     "markdown_table",
     "match_scan",
     "run_sweep",
-    "write_report",
-    "write_tables",
+        "write_tables",
 ]
 
 DEFAULT_SIGMAS: tuple[float, ...] = (0.0, 0.005, 0.01, 0.02, 0.03)
@@ -290,17 +289,6 @@ def write_tables(stats: Sequence[AccuracyStats], output: Path) -> dict[str, Path
         writer.writerows(rows)
     paths["markdown"].write_text(markdown_table(stats))
     return paths
-
-
-def write_report(stats: Sequence[AccuracyStats], output: Path) -> dict[str, Path]:
-    """Deprecated: use :func:`laser_corners.viz.report.write_accuracy_report`.
-
-    Kept only until ``cli.py`` imports the writer from :mod:`laser_corners.viz.report`
-    (an upward import, made at call time); remove it then.
-    """
-    from laser_corners.viz.report import write_accuracy_report
-
-    return write_accuracy_report(stats, output)
 
 
 def markdown_table(stats: Sequence[AccuracyStats]) -> str:

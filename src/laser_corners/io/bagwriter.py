@@ -251,8 +251,7 @@ class BagKeypointWriter(KeypointWriter):
 
     def write(self, scan_index: int, scan: LaserScan, keypoints: Keypoints) -> None:
         """Copy the input up to scan ``scan_index``, then add its keypoint messages (its
-        header, its log time)."""
-        super().write(scan_index, scan, keypoints)
+        header, its log time); counted once both are written."""
         stamp_ns = self.source.stamps_ns[scan_index]
         log_time = self.source.log_times_ns[scan_index]
         self._copy_until(log_time)
@@ -260,6 +259,7 @@ class BagKeypointWriter(KeypointWriter):
         markers = self.marker_array(stamp_ns, scan.frame_id, keypoints)
         self._writer.write(self._corners, log_time, self._serialize(poses, POSE_ARRAY))
         self._writer.write(self._markers, log_time, self._serialize(markers, MARKER_ARRAY))
+        super().write(scan_index, scan, keypoints)
         self._unflushed += 1
         if self._unflushed >= self.flush_every:
             self.flush()

@@ -20,7 +20,7 @@ import math
 import os
 import shutil
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,11 +29,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.detector import CornerDetector
-from laser_corners.errors import InputError
+from laser_corners.errors import InputError, MissingDependencyError, OutputError, first_line
+from laser_corners.io import KeypointWriter
 from laser_corners.keypoints import Keypoints
+from laser_corners.pipeline import ParamsChoice, Recording, detect_recording, open_recording
 from laser_corners.scan import LaserScan, Pose2D
 
-__all__ = ["APPLICATION_ID", "ViewSummary", "open_recording_stream", "stream_scans"]
+__all__ = [
+    "APPLICATION_ID",
+    "ViewSummary",
+    "ViewerUnavailableError",
+    "open_recording_stream",
+    "stream_scans",
+    "view_recording",
+]
 
 APPLICATION_ID = "laser-corners"
 """rerun application id of every recording the viewer makes."""
@@ -42,6 +51,10 @@ ARROW_LENGTH = 0.3
 _SCAN_COLOR = (150, 150, 150)
 _KEYPOINT_COLOR = (230, 30, 30)
 _SENSOR_COLOR = (40, 110, 230)
+
+
+class ViewerUnavailableError(InputError):
+    """The rerun viewer cannot be started or reached (no display, no viewer, it went away)."""
 
 
 @dataclass
@@ -78,19 +91,25 @@ def open_recording_stream(
 
     Raises
     ------
-    InputError
-        rerun-sdk is not installed, or the ``.rrd`` cannot be written.
+    MissingDependencyError
+        rerun-sdk is not installed.
+    OutputError
+        The ``.rrd`` cannot be written.
+    ViewerUnavailableError
+        No display to spawn a viewer on, or the viewer does not start.
     """
     try:
         import rerun as rr
     except ImportError:
-        raise InputError("view needs rerun-sdk: pip install 'laser-corners[viewer]'") from None
+        raise MissingDependencyError(
+            "rerun-sdk is needed: pip install 'laser-corners[viewer]'"
+        ) from None
     recording = rr.RecordingStream(APPLICATION_ID)
     recording.send_recording_name(name)
     if save is not None:
         path = Path(save)
         if not path.parent.is_dir():
-            raise InputError(f"{path}: cannot write the recording, no folder {path.parent}")
+            raise OutputError(f"{path}: cannot write the recording, no folder {path.parent}")
         recording.save(str(path))
     elif connect is not None:
         recording.connect_grpc(connect)
@@ -98,9 +117,9 @@ def open_recording_stream(
         if sys.platform.startswith("linux") and not (
             os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
         ):
-            raise InputError(
+            raise ViewerUnavailableError(
                 "no display to open the rerun viewer on (DISPLAY and WAYLAND_DISPLAY are unset);"
-                " use --save FILE.rrd and open it elsewhere, or --connect ADDRESS"
+                " save to an .rrd file and open it elsewhere, or connect to a running viewer"
             )
         # the viewer ships with rerun-sdk next to this Python, which may not be on PATH
         beside = Path(sys.executable).parent / "rerun"
@@ -108,10 +127,9 @@ def open_recording_stream(
         try:
             rr.spawn(executable_path=executable, recording=recording)
         except RuntimeError as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise InputError(
-                f"cannot start the rerun viewer ({first}); use --save FILE.rrd (no display "
-                "needed) or --connect ADDRESS"
+            raise ViewerUnavailableError(
+                f"cannot start the rerun viewer ({first_line(exc)}); save to an .rrd file (no "
+                "display needed) or connect to a running viewer"
             ) from None
     return recording
 
@@ -140,9 +158,56 @@ def _log_keypoints(rr: Any, recording: Any, path: str, keypoints: Keypoints) -> 
     )
 
 
+class _RerunWriter(KeypointWriter):
+    """A keypoint "writer" that logs each scan and its keypoints to a rerun recording."""
+
+    def __init__(self, recording: Any) -> None:
+        import rerun as rr
+
+        super().__init__()
+        self.rr = rr
+        self.recording = recording
+        self.n_with_pose = 0
+
+    def write(self, scan_index: int, scan: LaserScan, keypoints: Keypoints) -> None:
+        """Log one scan: points, keypoints and, with a pose, the map frame."""
+        super().write(scan_index, scan, keypoints)
+        rr, recording = self.rr, self.recording
+        recording.set_time("scan", sequence=scan_index)
+        if scan.stamp is not None:
+            recording.set_time("stamp", timestamp=scan.stamp)
+        for root in ("sensor", "map"):
+            recording.log(root, rr.Clear(recursive=True))
+        xy, valid = scan.to_cartesian()
+        points = xy[valid]
+        radii = rr.Radius.ui_points(2.0)
+        recording.log("sensor/scan", rr.Points2D(points, colors=_SCAN_COLOR, radii=radii))
+        _log_keypoints(rr, recording, "sensor/keypoints", keypoints)
+        if scan.pose is not None:
+            self.n_with_pose += 1
+            recording.log(
+                "map/scan",
+                rr.Points2D(_rotate(points, scan.pose), colors=_SCAN_COLOR, radii=radii),
+            )
+            _log_keypoints(rr, recording, "map/keypoints", keypoints.transformed(scan.pose))
+            heading = (ARROW_LENGTH * math.cos(scan.pose[2]), ARROW_LENGTH * math.sin(scan.pose[2]))
+            recording.log(
+                "map/sensor",
+                rr.Arrows2D(origins=[scan.pose[:2]], vectors=[heading], colors=_SENSOR_COLOR),
+            )
+        recording.log("stats/keypoints", rr.Scalars(len(keypoints)))
+
+    def write_many(
+        self, first_index: int, scans: Sequence[LaserScan], keypoints: Sequence[Keypoints]
+    ) -> None:
+        """Log consecutive scans one by one."""
+        for offset, (scan, found) in enumerate(zip(scans, keypoints, strict=True)):
+            self.write(first_index + offset, scan, found)
+
+
 def stream_scans(
-    scans: Iterable[LaserScan],
-    detector: CornerDetector,
+    scans: Iterable[LaserScan] | Recording,
+    detector: CornerDetector | None,
     recording: Any,
     *,
     every: int = 1,
@@ -150,12 +215,16 @@ def stream_scans(
 ) -> ViewSummary:
     """Detect keypoints in each scan and log scan, keypoints (and map frame) to ``recording``.
 
+    Runs the pipeline's detect loop (:func:`laser_corners.pipeline.detect_recording`) with a
+    writer that logs to rerun.
+
     Parameters
     ----------
-    scans : iterable of LaserScan
-        The scans (for instance a :func:`laser_corners.io.open_scans` source).
-    detector : CornerDetector
-        The detector.
+    scans : iterable of LaserScan or Recording
+        The scans (for instance a :func:`laser_corners.io.open_scans` source, or an opened
+        :class:`~laser_corners.pipeline.Recording`).
+    detector : CornerDetector, optional
+        The detector (None: the recording's).
     recording : rerun.RecordingStream
         Where to log (see :func:`open_recording_stream`).
     every : int
@@ -167,49 +236,49 @@ def stream_scans(
     -------
     ViewSummary
     """
-    import rerun as rr
-
-    summary = ViewSummary()
-    step = max(1, int(every))
-    for index, scan in enumerate(scans):
-        if max_scans is not None and summary.n_scans >= max_scans:
-            break
-        if index % step:
-            continue
-        keypoints = detector.detect(scan)
-        recording.set_time("scan", sequence=index)
-        if scan.stamp is not None:
-            recording.set_time("stamp", timestamp=scan.stamp)
-        for root in ("sensor", "map"):
-            recording.log(root, rr.Clear(recursive=True))
-        xy, valid = scan.to_cartesian()
-        points = xy[valid]
-        recording.log(
-            "sensor/scan",
-            rr.Points2D(points, colors=_SCAN_COLOR, radii=rr.Radius.ui_points(2.0)),
-        )
-        _log_keypoints(rr, recording, "sensor/keypoints", keypoints)
-        if scan.pose is not None:
-            summary.n_with_pose += 1
-            recording.log(
-                "map/scan",
-                rr.Points2D(
-                    _rotate(points, scan.pose), colors=_SCAN_COLOR,
-                    radii=rr.Radius.ui_points(2.0),
-                ),
-            )  # fmt: skip
-            _log_keypoints(rr, recording, "map/keypoints", keypoints.transformed(scan.pose))
-            heading = (ARROW_LENGTH * math.cos(scan.pose[2]), ARROW_LENGTH * math.sin(scan.pose[2]))
-            recording.log(
-                "map/sensor",
-                rr.Arrows2D(origins=[scan.pose[:2]], vectors=[heading], colors=_SENSOR_COLOR),
-            )
-        recording.log("stats/keypoints", rr.Scalars(len(keypoints)))
-        summary.n_scans += 1
-        summary.n_keypoints += len(keypoints)
+    writer = _RerunWriter(recording)
+    summary = detect_recording(
+        scans, detector, writer, step=max(1, int(every)), max_scans=max_scans, chunk_scans=16
+    )
     try:
         recording.flush()
     except RuntimeError as exc:  # the viewer went away or never answered
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(f"could not send the recording to the rerun viewer ({first})") from None
-    return summary
+        raise ViewerUnavailableError(
+            f"could not send the recording to the rerun viewer ({first_line(exc)})"
+        ) from None
+    if summary.interrupted:
+        raise KeyboardInterrupt
+    return ViewSummary(summary.n_scans, summary.n_keypoints, writer.n_with_pose)
+
+
+def view_recording(
+    path: str | Path,
+    topic: str | None = None,
+    params: ParamsChoice | None = None,
+    *,
+    save: str | Path | None = None,
+    connect: str | None = None,
+    every: int = 1,
+    max_scans: int | None = None,
+) -> ViewSummary:
+    """Open a recording and stream it to rerun (what ``laser-corners view`` runs).
+
+    Parameters
+    ----------
+    path, topic, params
+        As :func:`laser_corners.pipeline.open_recording`.
+    save, connect
+        As :func:`open_recording_stream` (neither: spawn a viewer).
+    every, max_scans
+        As :func:`stream_scans`.
+
+    Returns
+    -------
+    ViewSummary
+    """
+    opened = open_recording(path, topic, params)
+    recording = open_recording_stream(opened.path.name, save=save, connect=connect)
+    try:
+        return stream_scans(opened, None, recording, every=every, max_scans=max_scans)
+    finally:
+        recording.disconnect()

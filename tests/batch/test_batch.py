@@ -3,7 +3,6 @@ with damaged inputs and a resumed run, a killed run that resumes, and the CLI (p
 
 from __future__ import annotations
 
-import doctest
 import json
 import os
 import signal
@@ -33,7 +32,7 @@ from laser_corners.batch import (
     run_job,
 )
 from laser_corners.cli import app
-from laser_corners.errors import InputError
+from laser_corners.errors import ClusterError
 from laser_corners.io import open_scans
 
 CLUSTER_TIMEOUT_S = 120  # a batch on the cluster that takes longer fails the test, not hangs
@@ -126,13 +125,6 @@ def test_manifest_survives_a_torn_line(tmp_path: Path) -> None:
     assert records["/a.bag"].keypoints == 4 and records["/c.bag"].error == "boom"
 
 
-def test_docstring_examples() -> None:
-    import laser_corners.batch
-
-    result = doctest.testmod(laser_corners.batch, optionflags=doctest.NORMALIZE_WHITESPACE)
-    assert result.attempted > 0 and result.failed == 0
-
-
 # ------------------------------------------------------------------ one job
 def test_run_job_writes_what_the_detector_finds(tmp_path: Path) -> None:
     log = real_file("fr079-corrected.clf.gz")
@@ -179,6 +171,7 @@ def test_unexpected_error_is_recorded_with_its_traceback(
         raise RuntimeError("kernel exploded")
 
     monkeypatch.setattr(CornerDetector, "detect", broken)
+    monkeypatch.setattr(CornerDetector, "detect_many", broken)
     result = run_job(BatchJob(str(log), None, "fr079.parquet"), tmp_path, threads=1)
     assert result.status == "failed"
     assert result.error.startswith("RuntimeError: kernel exploded")
@@ -250,7 +243,7 @@ def test_dask_cluster_batch_with_damaged_inputs_resumes(tmp_path: Path, cluster)
 def test_unreachable_scheduler_is_a_known_error(tmp_path: Path) -> None:
     log = real_file("fr079-corrected.clf.gz")
     with pytest.raises(
-        InputError, match=r"cannot reach the Dask scheduler at tcp://127\.0\.0\.1:9"
+        ClusterError, match=r"cannot reach the Dask scheduler at tcp://127\.0\.0\.1:9"
     ):
         run_batch([log], tmp_path / "out", scheduler="tcp://127.0.0.1:9", timeout=2)
     # nothing ran, nothing was recorded as done

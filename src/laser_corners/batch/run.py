@@ -1,0 +1,149 @@
+"""``run_batch``: plan, check the output folder, run the jobs, record each result at once."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from laser_corners.batch.executors import run_dask, run_here, run_pool
+from laser_corners.batch.manifest import PARAMS_NAME, BatchJob, BatchReport, JobResult, Manifest
+from laser_corners.batch.plan import plan_inputs
+from laser_corners.errors import OutputError
+from laser_corners.params import DetectorParams
+from laser_corners.pipeline import ParamsChoice, as_choice
+
+__all__ = ["run_batch"]
+
+
+def _claim_folder(outdir: Path, choice: ParamsChoice) -> None:
+    """Create ``outdir`` and record the parameter choice; refuse a folder of another choice."""
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise OutputError(f"{outdir}: a file is in the way of the output folder") from None
+    except OSError as exc:
+        raise OutputError(f"{outdir}: cannot create the output folder ({exc.strerror})") from None
+    described = choice.describe()
+    params_file = outdir / PARAMS_NAME
+    if params_file.exists() and params_file.read_text(encoding="utf-8") != described:
+        raise OutputError(
+            f"{outdir}: holds results made with other parameters (see {params_file}); "
+            "use another output folder, or delete this one to start over"
+        )
+    try:
+        params_file.write_text(described, encoding="utf-8")
+    except OSError as exc:
+        raise OutputError(f"{params_file}: cannot write ({exc.strerror})") from None
+
+
+def run_batch(
+    inputs: Iterable[str | Path],
+    outdir: str | Path,
+    *,
+    params: ParamsChoice | DetectorParams | None = None,
+    topic: str | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    threads: int | None = None,
+    timeout: float = 30.0,
+    prefetch: bool | None = None,
+    on_result: Callable[[JobResult], None] | None = None,
+    on_plan: Callable[[list[BatchJob], list[JobResult]], None] | None = None,
+) -> BatchReport:
+    """Detect keypoints in many recordings in parallel, resumably (see the module docstring).
+
+    Parameters
+    ----------
+    inputs : iterable of str or Path
+        Recordings.
+    outdir : str or Path
+        Output folder (created). Running again on the same folder skips finished jobs.
+    params : ParamsChoice or DetectorParams, optional
+        Parameters (default: the ``paper`` preset). The folder records the choice and refuses
+        another one, so its results always share one choice.
+    topic : str, optional
+        LaserScan topic of the bags (default: each of their LaserScan topics).
+    workers : int, optional
+        Worker processes (default: the number of CPU cores). With 1 and no ``scheduler`` the
+        jobs run in this process.
+    scheduler : str, optional
+        None: a local process pool. ``"local"``: a ``dask.distributed.LocalCluster`` of
+        ``workers`` processes. ``"tcp://host:port"``: an existing Dask cluster; its workers
+        need this package installed and must see the inputs and ``outdir`` at the same paths.
+    threads : int, optional
+        numba threads per worker (default: cores // workers, at least 1; remote clusters: 1).
+    timeout : float
+        Seconds to wait for a Dask scheduler to answer.
+    prefetch : bool, optional
+        Read each recording in a thread of its own while detecting (see
+        :mod:`laser_corners.pipeline`). Default: only when a core is left for it (local
+        workers x threads < cores); it costs a little CPU for the hand-over.
+    on_result : callable, optional
+        Called with each :class:`JobResult` as its job ends (after the manifest has it).
+    on_plan : callable, optional
+        Called once with the jobs to run and the results of the jobs already done.
+
+    Returns
+    -------
+    BatchReport
+        Inputs that are not recordings are listed in ``skipped``, not run.
+
+    Raises
+    ------
+    OutputError
+        ``outdir`` is not a writable folder, or holds results of another parameter choice.
+    MissingDependencyError
+        A Dask ``scheduler`` is asked for and Dask is not installed.
+    ClusterError
+        The Dask scheduler cannot be reached.
+    """
+    outdir = Path(outdir)
+    choice = as_choice(params)
+    _claim_folder(outdir, choice)
+    cores = os.cpu_count() or 1
+    n_workers = max(1, int(workers) if workers else cores)
+    if threads is None:
+        threads = 1 if scheduler not in (None, "local") else max(1, cores // n_workers)
+    if prefetch is None:
+        prefetch = scheduler in (None, "local") and n_workers * threads < cores
+    manifest = Manifest(outdir)
+    records = manifest.load()
+    jobs, skipped = plan_inputs(inputs, topic, reserved={k: r.output for k, r in records.items()})
+    completed = manifest.completed(outdir)
+    pending = sorted((job for job in jobs if job.key not in completed), key=lambda job: -job.size)
+    report = BatchReport(
+        outdir, already_done=[completed[j.key] for j in jobs if j.key in completed],
+        workers=n_workers, skipped=skipped,
+    )  # fmt: skip
+    if on_plan is not None:
+        on_plan(pending, report.already_done)
+
+    def started(count: int) -> None:
+        report.workers = count
+
+    def deliver(result: JobResult) -> None:
+        manifest.append(result)  # flushed and synced: a killed run keeps the record
+        report.results.append(result)
+        if on_result is not None:
+            on_result(result)
+
+    start = time.perf_counter()
+    try:
+        if not pending:
+            pass
+        elif scheduler is not None:
+            run_dask(pending, outdir, choice, scheduler, n_workers, threads, timeout, started,
+                     deliver, prefetch)  # fmt: skip
+        elif n_workers == 1 or len(pending) == 1:
+            report.workers = 1
+            run_here(pending, outdir, choice, threads, deliver, prefetch)
+        else:
+            report.workers = min(n_workers, len(pending))
+            run_pool(pending, outdir, choice, report.workers, threads, deliver, prefetch)
+    except KeyboardInterrupt:
+        report.interrupted = True
+    finally:
+        report.seconds = time.perf_counter() - start
+    return report

@@ -1,0 +1,171 @@
+"""One job, as a worker runs it: open, detect (the pipeline's loop), write Parquet, rename.
+
+Also the worker processes' initializer: on Linux a worker asks the kernel to kill it when its
+parent dies (``prctl(PR_SET_PDEATHSIG, SIGKILL)``), elsewhere a watchdog thread polls the
+parent's process id, so a batch killed with SIGKILL leaves no worker running.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import threading
+import time
+import traceback
+from pathlib import Path
+
+from laser_corners.batch.manifest import PARTIAL_SUFFIX, BatchJob, JobResult
+from laser_corners.errors import LaserCornersError, first_line
+from laser_corners.io import KeypointWriter
+from laser_corners.io.writers import ParquetKeypointWriter
+from laser_corners.params import DetectorParams
+from laser_corners.pipeline import (
+    ParamsChoice,
+    Recording,
+    detect_recording,
+    open_recording,
+    set_threads,
+    warm_up,
+)
+
+__all__ = ["die_with_parent", "failed_result", "run_job"]
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _watch_parent(parent: int, period: float = 0.5) -> None:
+    while os.getppid() == parent:
+        time.sleep(period)
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def die_with_parent(parent: int | None = None) -> None:
+    """Make this process die when its parent process dies (a worker initializer).
+
+    Parameters
+    ----------
+    parent : int, optional
+        The parent's process id (default: the current one). If the parent is already gone,
+        the process ends at once.
+    """
+    parent = os.getppid() if parent is None else parent
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent:  # the parent died before the signal was armed
+        os.kill(os.getpid(), signal.SIGKILL)
+    if not armed:
+        threading.Thread(
+            target=_watch_parent, args=(parent,), name="laser-corners-parent-watch", daemon=True
+        ).start()
+
+
+def _worker_name() -> str:
+    import socket
+
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _open_writer(recording: Recording, partial: Path, job: BatchJob) -> KeypointWriter:
+    # the Parquet writer by name: the partial file's suffix is not ".parquet"
+    return ParquetKeypointWriter(
+        partial, recording.has_poses,
+        metadata={
+            "laser_corners.params": recording.params.to_yaml(),
+            "laser_corners.input": job.input,
+            "laser_corners.topic": job.topic or "",
+        },
+    )  # fmt: skip
+
+
+def run_job(
+    job: BatchJob,
+    outdir: str | Path,
+    params: ParamsChoice | DetectorParams | None = None,
+    threads: int | None = 1,
+    prefetch: bool = True,
+) -> JobResult:
+    """Detect keypoints in every scan of one job's recording and write its Parquet file.
+
+    The output is written to ``<name>.parquet.partial`` and renamed to ``<name>.parquet`` when
+    complete. Known errors (:class:`~laser_corners.errors.LaserCornersError`, such as a
+    damaged file) and unexpected ones give a ``failed`` result instead of raising; the
+    traceback of an unexpected one goes to ``errors/<name>.txt``. Ctrl-C removes the partial
+    file and propagates.
+
+    Parameters
+    ----------
+    job : BatchJob
+        The job.
+    outdir : str or Path
+        Output folder (on a remote cluster: a path the worker can write).
+    params : ParamsChoice or DetectorParams, optional
+        Parameters (default: the paper's).
+    threads : int, optional
+        numba threads for this worker: 1 detects scan by scan, more runs the parallel
+        :meth:`~laser_corners.CornerDetector.detect_many` over chunks of one geometry. None:
+        leave numba's setting.
+    prefetch : bool
+        Read in a thread of its own while detecting (see :mod:`laser_corners.pipeline`).
+
+    Returns
+    -------
+    JobResult
+    """
+    start = time.perf_counter()
+    outdir = Path(outdir)
+    partial = outdir / (job.output + PARTIAL_SUFFIX)
+    result = JobResult(job.input, job.topic, job.output, "failed", worker=_worker_name())
+    n_threads = set_threads(threads)
+    writer = KeypointWriter()
+    recording: Recording | None = None
+    try:
+        partial.unlink(missing_ok=True)  # a leftover of an interrupted run
+        recording = open_recording(job.input, job.topic, params)
+        result.read_seconds = time.perf_counter() - start
+        result.startup_seconds = warm_up(recording.detector, recording.first, n_threads)
+        writer = _open_writer(recording, partial, job)
+        summary = detect_recording(recording, writer=writer, threads=n_threads, prefetch=prefetch)
+        if summary.interrupted:
+            raise KeyboardInterrupt
+        result.read_seconds += summary.read_seconds
+        result.detect_seconds = summary.detect_seconds
+        result.write_seconds = summary.write_seconds
+        result.reader_seconds = summary.reader_seconds
+        os.replace(partial, outdir / job.output)
+        result.status = "done"
+    except KeyboardInterrupt:
+        writer.close()
+        partial.unlink(missing_ok=True)
+        raise
+    except LaserCornersError as exc:
+        writer.close()
+        partial.unlink(missing_ok=True)
+        result.error = first_line(exc)
+    except Exception as exc:  # a surprise: keep the traceback next to the results
+        writer.close()
+        partial.unlink(missing_ok=True)
+        result.error = f"{type(exc).__name__}: {first_line(exc)} (traceback in errors/)"
+        errors = outdir / "errors"
+        errors.mkdir(exist_ok=True)
+        (errors / f"{job.output}.txt").write_text(traceback.format_exc(), encoding="utf-8")
+    result.scans = writer.n_scans
+    result.keypoints = writer.n_keypoints
+    result.skipped = sum(recording.source.skipped.values()) if recording is not None else 0
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def failed_result(job: BatchJob, exc: BaseException) -> JobResult:
+    """The result of a job whose worker failed before returning one (crash, lost worker)."""
+    return JobResult(
+        job.input, job.topic, job.output, "failed",
+        error=f"worker failed: {type(exc).__name__}: {first_line(exc)}",
+    )  # fmt: skip

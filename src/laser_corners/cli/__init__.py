@@ -1,0 +1,31 @@
+"""The ``laser-corners`` command line (typer + rich), one module per command group.
+
+* :mod:`~laser_corners.cli.app`: the typer app, :func:`main` (the entry point) and the
+  one-line error exit;
+* :mod:`~laser_corners.cli.common`: shared options, option checks, known-error handling;
+* :mod:`~laser_corners.cli.detect` (``detect``, ``info``, ``plot``, ``params``),
+  :mod:`~laser_corners.cli.evaluate` (``evaluate sim|real``), :mod:`~laser_corners.cli.batch`,
+  :mod:`~laser_corners.cli.view`, :mod:`~laser_corners.cli.sim` (``simulate``, ``demo``),
+  :mod:`~laser_corners.cli.ros` (``ros1``).
+
+A command parses its options, makes one library call (mostly :mod:`laser_corners.pipeline`)
+and presents the result. Heavy modules (numba kernels, readers, matplotlib) are imported
+inside the commands, so ``--help`` stays instant. Known errors
+(:class:`~laser_corners.errors.LaserCornersError`) print one line and exit 2.
+"""
+
+from laser_corners.cli import batch, detect, evaluate, ros, sim, view
+from laser_corners.cli.app import app, evaluate_app, fail, main
+
+__all__ = [
+    "app",
+    "batch",
+    "detect",
+    "evaluate",
+    "evaluate_app",
+    "fail",
+    "main",
+    "ros",
+    "sim",
+    "view",
+]

@@ -1,0 +1,67 @@
+"""``view``: stream a recording's scans and keypoints to rerun (docs/batch-and-viewer.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from laser_corners.cli.app import app, fail
+from laser_corners.cli.common import (
+    InputArg,
+    ParamsOption,
+    PresetOption,
+    SetOption,
+    TopicOption,
+    known_errors,
+    params_choice,
+)
+
+__all__ = ["view"]
+
+
+@app.command()
+def view(
+    input_path: InputArg,
+    save: Annotated[
+        Path | None,
+        typer.Option(
+            "--save", help="Write a rerun .rrd file instead of opening a viewer (works headless)."
+        ),
+    ] = None,
+    connect: Annotated[
+        str | None,
+        typer.Option(
+            "--connect",
+            help="Send to a running rerun viewer at this gRPC address "
+            "(rerun+http://127.0.0.1:9876/proxy).",
+        ),
+    ] = None,
+    every: Annotated[int, typer.Option("--every", min=1, help="Log every N-th scan.")] = 1,
+    max_scans: Annotated[
+        int | None, typer.Option("--max-scans", min=1, help="Stop after this many scans.")
+    ] = None,
+    topic: TopicOption = None,
+    params_file: ParamsOption = None,
+    set_: SetOption = None,
+    preset: PresetOption = None,
+) -> None:
+    """Stream scans and keypoints (and map-frame keypoints when poses exist) to rerun."""
+    with known_errors():
+        from laser_corners.viz.viewer import ViewerUnavailableError, view_recording
+
+        choice = params_choice(preset, params_file, set_)
+        try:
+            summary = view_recording(
+                input_path, topic=topic, params=choice, save=save, connect=connect, every=every,
+                max_scans=max_scans,
+            )  # fmt: skip
+        except ViewerUnavailableError as exc:
+            hint = "" if save is not None else "; use --save FILE.rrd (no display needed)"
+            raise fail(f"{exc}{hint}") from None
+        where = f"wrote {save}" if save is not None else "sent to the viewer"
+        typer.echo(
+            f"{where}: {summary.n_scans} scans, {summary.n_keypoints} keypoints"
+            f" ({summary.n_with_pose} scans with a pose)"
+        )

@@ -1,0 +1,293 @@
+"""Open a recording and resolve its detector parameters (what every front end does first).
+
+``open_recording(path, topic, choice)`` opens the file (any kind :func:`laser_corners.io.open_scans`
+reads), reads its first scan (an :class:`~laser_corners.errors.InputError` "FILE: no readable
+scan" when there is none), resolves the :class:`ParamsChoice` against that scan (the ``auto``
+and ``robust`` presets adapt to it) and builds the detector. ``detect``, ``plot``, ``view`` and
+``batch`` all start here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from itertools import chain
+from pathlib import Path
+from typing import Any
+
+from laser_corners.detector import CornerDetector
+from laser_corners.errors import InputError, InvalidParamsError
+from laser_corners.io import ScanSource, detect_kind, open_scans
+from laser_corners.params import DetectorParams
+from laser_corners.presets import PRESETS, get_preset
+from laser_corners.scan import LaserScan
+
+__all__ = [
+    "ParamsChoice",
+    "Recording",
+    "as_choice",
+    "laser_topic_sources",
+    "laser_topics",
+    "no_scan_error",
+    "open_recording",
+    "scan_at",
+]
+
+
+@dataclass(frozen=True)
+class ParamsChoice:
+    """How a recording gets its :class:`~laser_corners.DetectorParams` (picklable).
+
+    Parameters
+    ----------
+    preset : str
+        A preset of :data:`laser_corners.presets.PRESETS` (``paper``, ``auto``, ``robust``);
+        presets that adapt to the sensor use each recording's first scan. Ignored when
+        ``base`` is given.
+    base : DetectorParams, optional
+        Fixed parameters (for instance loaded from a file) instead of a preset.
+    overrides : tuple of str
+        ``key=value`` overrides applied last.
+    source : str
+        Where ``base`` came from (a file name), for summaries; "" for a preset.
+
+    Examples
+    --------
+    >>> choice = ParamsChoice(preset="paper", overrides=("min_points=6",))
+    >>> choice.resolve(None).min_points
+    6
+    >>> print(choice.describe(), end="")
+    preset: paper
+    overrides:
+    - min_points=6
+    """
+
+    preset: str = "paper"
+    base: DetectorParams | None = None
+    overrides: tuple[str, ...] = ()
+    source: str = ""
+
+    @classmethod
+    def from_options(
+        cls,
+        preset: str | None = None,
+        params_file: str | Path | None = None,
+        overrides: list[str] | tuple[str, ...] | None = None,
+    ) -> ParamsChoice:
+        """The choice for a preset name *or* a parameter file, plus overrides, checked now.
+
+        Raises
+        ------
+        InvalidParamsError
+            Both a preset and a file, an unknown preset, or an override with an unknown key or
+            a bad value (checked against the paper's parameters, so it fails once, not per file).
+        InputError
+            The parameter file cannot be read.
+        """
+        if preset is not None and params_file is not None:
+            raise InvalidParamsError("give a preset or a parameter file, not both")
+        if preset is not None and preset not in PRESETS:
+            get_preset(preset)  # raises the error listing the presets
+        overrides = tuple(overrides or ())
+        if overrides:
+            DetectorParams().with_overrides(list(overrides))
+        if params_file is not None:
+            base = DetectorParams.from_file(Path(params_file))
+            return cls(base=base, overrides=overrides, source=Path(params_file).name)
+        return cls(preset=preset or "paper", overrides=overrides)
+
+    @property
+    def label(self) -> str:
+        """A short name: the preset, or the parameter file (``+ overrides`` when any)."""
+        name = self.source or ("parameters" if self.base is not None else self.preset)
+        return name + (" + overrides" if self.overrides else "")
+
+    def resolve(self, scan: LaserScan | None) -> DetectorParams:
+        """The parameters for a recording whose first scan is ``scan``."""
+        params = self.base if self.base is not None else get_preset(self.preset, scan)
+        return params.with_overrides(list(self.overrides)) if self.overrides else params
+
+    def describe(self) -> str:
+        """A YAML document naming the choice (what ``batch-params.yaml`` holds)."""
+        import yaml
+
+        data: dict[str, Any] = (
+            {"params": yaml.safe_load(self.base.to_yaml())}
+            if self.base is not None
+            else {"preset": self.preset}
+        )
+        data["overrides"] = list(self.overrides)
+        return yaml.safe_dump(data, sort_keys=False)
+
+
+def as_choice(params: ParamsChoice | DetectorParams | None) -> ParamsChoice:
+    """``params`` as a :class:`ParamsChoice` (fixed parameters become its ``base``)."""
+    if params is None:
+        return ParamsChoice()
+    return params if isinstance(params, ParamsChoice) else ParamsChoice(base=params)
+
+
+@dataclass
+class Recording:
+    """An opened recording with its resolved parameters (what :func:`open_recording` returns).
+
+    Attributes
+    ----------
+    source : ScanSource
+        The reader (iterate it for the scans, the first one included).
+    first : LaserScan
+        The first readable scan.
+    params : DetectorParams
+        The resolved parameters.
+    detector : CornerDetector
+        A detector with ``params``.
+    preset : str
+        What the parameters are: the preset name or the parameter file (:attr:`ParamsChoice.label`).
+    description : str
+        ``"fr079.bag (ros1 /scan)"``: file name, kind and topic, for titles.
+    """
+
+    source: ScanSource
+    first: LaserScan
+    params: DetectorParams
+    detector: CornerDetector
+    preset: str
+    description: str
+    _rest: Iterator[LaserScan] | None = field(default=None, repr=False)
+
+    def close(self) -> None:
+        """Close the reading started by :func:`open_recording` if :meth:`scans` never took it."""
+        rest, self._rest = self._rest, None
+        close = getattr(rest, "close", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> Recording:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def scans(self) -> Iterator[LaserScan]:
+        """The scans, first one included; the first call goes on from the read of ``first``."""
+        rest, self._rest = self._rest, None
+        return iter(self.source) if rest is None else chain((self.first,), rest)
+
+    @property
+    def path(self) -> Path:
+        """The recording's path."""
+        return Path(self.source.path)
+
+    @property
+    def has_poses(self) -> bool:
+        """Whether scans carry sensor poses (the first one does, or the bag has odometry)."""
+        return self.first.pose is not None or getattr(self.source, "odom_topic", None) is not None
+
+
+def no_scan_error(source: ScanSource) -> InputError:
+    """The error for a recording without a readable scan (with the first skips, if any)."""
+    detail = f" ({'; '.join(source.skip_examples)})" if source.skip_examples else ""
+    return InputError(f"{source.path}: no readable scan{detail}")
+
+
+def open_recording(
+    path: str | Path,
+    topic: str | None = None,
+    params: ParamsChoice | DetectorParams | None = None,
+) -> Recording:
+    """Open a recording, read its first scan and resolve the parameters against it.
+
+    Parameters
+    ----------
+    path : str or Path
+        Any recording :func:`laser_corners.io.open_scans` reads.
+    topic : str, optional
+        The LaserScan topic of a bag (default: the only one).
+    params : ParamsChoice or DetectorParams, optional
+        The parameter choice (default: the ``paper`` preset).
+
+    Returns
+    -------
+    Recording
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, or it holds no readable scan ("FILE: no readable scan").
+    InvalidParamsError
+        The parameters are invalid for this recording.
+    """
+    source = open_scans(path, topic)
+    scans = iter(source)
+    first = next(scans, None)
+    if first is None:
+        raise no_scan_error(source)
+    choice = as_choice(params)
+    resolved = choice.resolve(first)
+    topic_part = f" {source.topic}" if source.topic else ""
+    return Recording(
+        source=source,
+        first=first,
+        params=resolved,
+        detector=CornerDetector(resolved),
+        preset=choice.label,
+        description=f"{Path(path).name} ({source.kind}{topic_part})",
+        _rest=scans,
+    )
+
+
+def scan_at(source: ScanSource, index: int) -> LaserScan:
+    """The scan of index ``index`` (0-based, reading order) of ``source``.
+
+    Raises
+    ------
+    InputError
+        A negative index, or a recording with fewer scans (the message says how many it has).
+    """
+    if index < 0:
+        raise InputError(f"{source.path}: scan index must be >= 0, got {index}")
+    count = 0
+    for count, scan in enumerate(source, start=1):
+        if count - 1 == index:
+            return scan
+    if count == 0:
+        raise no_scan_error(source)
+    raise InputError(
+        f"{source.path}: no scan {index}; the recording has {count} scans (0 to {count - 1})"
+    )
+
+
+def _bag_listing(path: Path, kind: str) -> ScanSource:
+    """A bag source that picks the first of several LaserScan topics instead of failing."""
+    from laser_corners.io.rosbag import BagSource  # the one place that names the bag reader
+
+    return BagSource(path, kind, None, strict=False)  # type: ignore[arg-type]
+
+
+def laser_topics(path: str | Path) -> list[str]:
+    """The LaserScan topics of a bag (empty for recordings without topics).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read.
+    """
+    path = Path(path)
+    kind = detect_kind(path)
+    if kind not in ("ros1", "ros2", "mcap"):
+        return []
+    return list(getattr(_bag_listing(path, kind), "laser_topics", []))
+
+
+def laser_topic_sources(path: str | Path, topic: str | None = None) -> list[ScanSource]:
+    """One source per LaserScan topic of ``path`` (``topic`` only, when given), for listings.
+
+    A recording without topics gives its one source.
+    """
+    path = Path(path)
+    kind = detect_kind(path)
+    if kind not in ("ros1", "ros2", "mcap") or topic is not None:
+        return [open_scans(path, topic)]
+    listing = _bag_listing(path, kind)
+    topics = list(getattr(listing, "laser_topics", []))
+    return [listing] if len(topics) <= 1 else [open_scans(path, t) for t in topics]
