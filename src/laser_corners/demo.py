@@ -11,6 +11,7 @@ from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.params import DetectorParams
 from laser_corners.sim import UST_10LX, World
+from laser_corners.viz.plots import plot_scan
 
 __all__ = ["demo_world", "run_demo"]
 
@@ -59,8 +60,6 @@ def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005)
         import matplotlib
 
         Path(output).parent.mkdir(parents=True, exist_ok=True)
-
-        from laser_corners.viz.plots import plot_scan
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt

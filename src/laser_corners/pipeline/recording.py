@@ -17,7 +17,7 @@ from typing import Any
 
 from laser_corners.detector import CornerDetector
 from laser_corners.errors import InputError, InvalidParamsError
-from laser_corners.io import ScanSource, detect_kind, open_scans
+from laser_corners.io import BagSource, ScanSource, detect_kind, open_scans
 from laser_corners.params import DetectorParams
 from laser_corners.presets import PRESETS, get_preset
 from laser_corners.scan import LaserScan
@@ -259,8 +259,6 @@ def scan_at(source: ScanSource, index: int) -> LaserScan:
 
 def _bag_listing(path: Path, kind: str) -> ScanSource:
     """A bag source that picks the first of several LaserScan topics instead of failing."""
-    from laser_corners.io.rosbag import BagSource  # the one place that names the bag reader
-
     return BagSource(path, kind, None, strict=False)  # type: ignore[arg-type]
 
 

@@ -40,6 +40,7 @@ from laser_corners.errors import (
     first_line,
 )
 from laser_corners.io.messages import keypoints_to_marker_fields
+from laser_corners.keypoints import Keypoints
 from laser_corners.params import DetectorParams
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array, seconds_to_sec_nanosec
 from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
@@ -169,47 +170,14 @@ def _make_node_class() -> type:
 
         def on_set_parameters(self, parameters: list[Any]) -> Any:
             """Check a change against all current values; apply it only when valid."""
-            ours = parameter_names()  # use_sim_time and other ROS parameters pass through
-            if not any(p.name in ours for p in parameters):
-                return SetParametersResult(successful=True)
-            current = {p.name: p for p in self.get_parameters(ours)}
-            current.update({p.name: p for p in parameters if p.name in current})
-            try:
-                config = NodeConfig.from_mapping(
-                    parameter_values(list(current.values()), Parameter.Type.NOT_SET),
-                    source="ROS 2 parameter",
-                    prefix="",
-                )
-            except InvalidParamsError as exc:
-                return SetParametersResult(successful=False, reason=str(exc))
-            self.core.reconfigure(config)
-            self.get_logger().info(
-                f"parameters changed: preset {config.preset}, "
-                f"overrides {config.overrides or 'none'}"
-            )
-            return SetParametersResult(successful=True)
+            ok, reason = _set_parameters(self, parameters, Parameter.Type.NOT_SET)
+            return SetParametersResult(successful=ok, reason=reason)
 
         def on_scan(self, msg: Any) -> None:
             """Detect and publish; a malformed message is logged and skipped."""
-            try:
-                keypoints, seconds = self.core.process(msg)
-            except InvalidParamsError as exc:
-                self.n_skipped += 1
-                self.get_logger().error(
-                    f"parameters invalid for this scan: {exc}", throttle_duration_sec=5.0
-                )
+            keypoints = _process_scan(self, msg)
+            if keypoints is None:
                 return
-            except LaserCornersError as exc:
-                self.n_skipped += 1
-                self.get_logger().warning(
-                    f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
-                )
-                return
-            except Exception as exc:  # a bug: keep the node alive, show the error
-                self.n_skipped += 1
-                self.get_logger().error(f"scan processing failed: {exc!r}")
-                return
-            self.n_scans += 1
             out = fill_pose_array(PoseArray(), Pose, keypoints)
             out.header = msg.header
             self.corners_pub.publish(out)
@@ -222,7 +190,6 @@ def _make_node_class() -> type:
                     fill_marker_array(MarkerArray(), Marker, Point, duration, msg.header, markers)
                 )
                 self.n_markers += 1
-            self.get_logger().debug(f"{len(keypoints)} keypoints in {seconds * 1e3:.3f} ms")
 
         def summary(self) -> str:
             """Counts for the log line at shutdown."""
@@ -232,6 +199,51 @@ def _make_node_class() -> type:
             )
 
     return CornerNode2
+
+
+def _set_parameters(node: Any, parameters: list[Any], not_set: Any) -> tuple[bool, str]:
+    """A run-time parameter change: (applied, reason when rejected)."""
+    ours = parameter_names()  # use_sim_time and other ROS parameters pass through
+    if not any(p.name in ours for p in parameters):
+        return True, ""
+    current = {p.name: p for p in node.get_parameters(ours)}
+    current.update({p.name: p for p in parameters if p.name in current})
+    try:
+        config = NodeConfig.from_mapping(
+            parameter_values(list(current.values()), not_set),
+            source="ROS 2 parameter",
+            prefix="",
+        )
+    except InvalidParamsError as exc:
+        return False, str(exc)
+    node.core.reconfigure(config)
+    node.get_logger().info(
+        f"parameters changed: preset {config.preset}, overrides {config.overrides or 'none'}"
+    )
+    return True, ""
+
+
+def _process_scan(node: Any, msg: Any) -> Keypoints | None:
+    """Detect keypoints in a scan message; None (logged, counted) when it is skipped."""
+    try:
+        keypoints, seconds = node.core.process(msg)
+    except InvalidParamsError as exc:
+        node.n_skipped += 1
+        node.get_logger().error(
+            f"parameters invalid for this scan: {exc}", throttle_duration_sec=5.0
+        )
+        return None
+    except LaserCornersError as exc:
+        node.n_skipped += 1
+        node.get_logger().warning(f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0)
+        return None
+    except Exception as exc:  # a bug: keep the node alive, show the error
+        node.n_skipped += 1
+        node.get_logger().error(f"scan processing failed: {exc!r}")
+        return None
+    node.n_scans += 1
+    node.get_logger().debug(f"{len(keypoints)} keypoints in {seconds * 1e3:.3f} ms")
+    return keypoints
 
 
 def _rcl_message(exc: BaseException) -> str:
