@@ -47,8 +47,13 @@ def main() -> None:
         "| gross | ms/pair |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for name, kind in (("fr079.bag", "rel"), ("aces.bag", "rel"),
-                       ("fr079-corrected.clf.gz", "seq"), ("intel-corrected.clf.gz", "seq")):  # fmt: skip
+    datasets = (
+        ("fr079.bag", "rel"),
+        ("aces.bag", "rel"),
+        ("fr079-corrected.clf.gz", "seq"),
+        ("intel-corrected.clf.gz", "seq"),
+    )
+    for name, kind in datasets:
         path = root / name
         if not path.is_file():
             print(f"skip {path}: missing")
