@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from matching_world import corner_room
 
 from laser_corners import CornerDetector, InvalidScanError, Keypoints, LaserScan
 from laser_corners.errors import InvalidParamsError
@@ -18,6 +19,11 @@ from laser_corners.matching import (
     register_many,
 )
 from laser_corners.sim import World
+
+
+@pytest.fixture(scope="module")
+def room() -> World:
+    return corner_room()
 
 
 def _relative(pa: tuple[float, float, float], pb: tuple[float, float, float]) -> np.ndarray:
