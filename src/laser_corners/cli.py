@@ -206,9 +206,7 @@ def detect(
             console=err,
         )  # fmt: skip
         with bar:
-            task = bar.add_task(
-                input_path.name, total=source.n_scans, rate=0.0, keypoints=0
-            )
+            task = bar.add_task(input_path.name, total=source.n_scans, rate=0.0, keypoints=0)
 
             def update(run: RunSummary) -> None:
                 bar.update(
@@ -217,8 +215,12 @@ def detect(
                 )  # fmt: skip
 
             summary = detect_recording(source, CornerDetector(params), writer, progress=update)
-        table = Table(title=f"{input_path.name} ({source.kind}"
-                      + (f" {source.topic}" if source.topic else "") + ")", show_header=False)
+        table = Table(
+            title=f"{input_path.name} ({source.kind}"
+            + (f" {source.topic}" if source.topic else "")
+            + ")",
+            show_header=False,
+        )
         table.add_row("scans", str(summary.n_scans))
         table.add_row("keypoints", str(summary.n_keypoints))
         table.add_row("keypoints/scan", f"{summary.keypoints_per_scan:.2f}")
@@ -505,6 +507,74 @@ def evaluate_real_command(
     console.print(table)
     typer.echo(f"wrote {len(paths)} files to {output} ({paths['report.md']}) in "
                f"{time.perf_counter() - t0:.1f} s")  # fmt: skip
+
+
+@evaluate_app.command("loops")
+def evaluate_loops_command(
+    input_path: InputArg,
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="Folder for loops.json, loops.md and the plot.")
+    ] = Path("loops"),
+    max_scans: Annotated[
+        int | None, typer.Option("--max-scans", min=2, help="Use at most this many scans.")
+    ] = None,
+    methods: Annotated[
+        str,
+        typer.Option(
+            "--methods", help="Comma-separated: paper, auto, robust, split-and-merge, falko-like."
+        ),
+    ] = "paper,auto,split-and-merge,falko-like",
+    min_inliers: Annotated[
+        int, typer.Option("--min-inliers", min=2, help="Default detection threshold T.")
+    ] = 6,
+    window: Annotated[
+        float,
+        typer.Option(
+            "--window", help="Exclude candidates closer than this in travelled path, metres."
+        ),
+    ] = 5.0,
+) -> None:
+    """Place recognition with FLIRT's protocol on a log with corrected poses.
+
+    Each scan is registered against every scan outside its window; precision and recall over
+    the inlier threshold, per method, all through one descriptor and matcher
+    (docs/place-recognition.md).
+    """
+    import time
+
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from laser_corners.eval.loops import LoopsConfig, LoopsResult, evaluate_loops
+    from laser_corners.eval.loops_report import check_output_dir, loops_rows, write_loops_report
+    from laser_corners.eval.real import load_scans
+
+    console = Console(stderr=True)
+    t0 = time.perf_counter()
+    with _known_errors():
+        names = tuple(m.strip() for m in methods.split(",") if m.strip())
+        config = LoopsConfig(methods=names, min_inliers=min_inliers, window_travel=window,
+                             max_scans=max_scans)  # fmt: skip
+        check_output_dir(output)
+        scans, _ = load_scans(input_path, None, max_scans)
+        with Progress(console=console, transient=True) as bar:
+            task = bar.add_task("loops", total=1)
+
+            def progress(stage: str, done: int, total: int) -> None:
+                bar.update(task, description=stage, completed=done, total=total)
+
+            def save(partial: LoopsResult) -> None:
+                write_loops_report(partial, output)
+
+            result = evaluate_loops(scans, config, input_path.name, progress, on_method=save)
+    for row in loops_rows(result):
+        p = "n/a" if row["precision"] is None else f"{row['precision']:.3f}"
+        console.print(
+            f"{row['method']}: precision {p}, recall {row['recall']:.3f} at T="
+            f"{row['min_inliers']}, {row['ms_per_pair']:.4f} ms/pair",
+            highlight=False,
+        )
+    typer.echo(f"wrote {output / 'loops.json'} in {time.perf_counter() - t0:.1f} s")
 
 
 # ------------------------------------------------------ batch and view (docs/batch-and-viewer.md)
