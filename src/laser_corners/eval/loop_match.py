@@ -60,7 +60,7 @@ class MatchOptions:
     """
 
     k_best: int = 2
-    max_descriptor_distance: float = 1.0
+    max_descriptor_distance: float = 0.7
     max_opening_difference_deg: float = 20.0
     inlier_distance: float = 0.08
     max_orientation_difference_deg: float = 15.0
