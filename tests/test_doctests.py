@@ -14,6 +14,8 @@ MODULES = [
     "laser_corners.linefit",
     "laser_corners.detector",
     "laser_corners.keypoints",
+    "laser_corners.matching.descriptors",
+    "laser_corners.matching.registration",
 ]
 
 

@@ -42,6 +42,12 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.covariance import (
+    APEX_FACTOR,
+    COV_FLOOR,
+    SCALE_RUN_FACTOR,
+    keypoint_covariances,
+)
 from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
@@ -54,8 +60,8 @@ __all__ = ["CornerDetector", "ScaleTable"]
 _C_X, _C_Y, _C_NSC, _C_K0, _C_RMSE, _C_OPEN, _C_ORIENT = range(7)
 _NC = 7
 # indices into the merged keypoint table (float64, shape (N, _NM))
-_M_X, _M_Y, _M_BEAM, _M_OPEN, _M_ORIENT, _M_NSC, _M_RMSE, _M_NMERGED = range(8)
-_NM = 8
+_M_X, _M_Y, _M_BEAM, _M_OPEN, _M_ORIENT, _M_NSC, _M_RMSE, _M_NMERGED, _M_K0 = range(9)
+_NM = 9
 # largest move of a keypoint by the refinement when merging is off (merge_radius = 0), metres
 _REFINE_MAX_SHIFT = 0.05
 
@@ -453,6 +459,7 @@ def _merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.fl
         merged[c, _M_NSC] = cand[r, _C_NSC]
         merged[c, _M_RMSE] = worst[c]
         merged[c, _M_NMERGED] = count[c]
+        merged[c, _M_K0] = cand[r, _C_K0]
     return n_out
 
 
@@ -602,25 +609,52 @@ def _raw_rows(cand: NDArray[np.float64], out: NDArray[np.float64]) -> int:
             out[m, _M_NSC] = cand[j, _C_NSC]
             out[m, _M_RMSE] = cand[j, _C_RMSE]
             out[m, _M_NMERGED] = 1
+            out[m, _M_K0] = cand[j, _C_K0]
             m += 1
     return m
 
 
 def _keypoints_from_rows(
-    rows: NDArray[np.float64], stamp: float | None, frame_id: str
+    rows: NDArray[np.float64],
+    stamp: float | None,
+    frame_id: str,
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    params: DetectorParams,
+    scales: NDArray[np.float64],
+    angle_increment: float,
 ) -> Keypoints:
     columns = rows.T  # one row per field: contiguous copies below
+    xy = rows[:, _M_X : _M_Y + 1].copy()
+    beam = columns[_M_BEAM].astype(np.int64)
+    k0 = columns[_M_K0].astype(np.int64)
+    n_scales = columns[_M_NSC].astype(np.int64)
+    cov = keypoint_covariances(
+        x, y, xy, beam, k0, n_scales, scales, angle_increment, APEX_FACTOR, COV_FLOOR,
+        SCALE_RUN_FACTOR,
+        params.refine_radius, params.refine_exclude, params.min_points, params.max_fit_rmse,
+    )  # fmt: skip
     return Keypoints._from_valid_arrays(
         stamp,
         frame_id,
-        xy=rows[:, _M_X : _M_Y + 1].copy(),
-        beam_index=columns[_M_BEAM].astype(np.int64),
+        xy=xy,
+        beam_index=beam,
         opening_angle_deg=columns[_M_OPEN].copy(),
         orientation=columns[_M_ORIENT].copy(),
-        n_scales=columns[_M_NSC].astype(np.int64),
+        n_scales=n_scales,
         rmse=columns[_M_RMSE].copy(),
         n_merged=columns[_M_NMERGED].astype(np.int64),
+        scale_index=k0,
+        cov=cov,
     )
+
+
+def _beam_spacing(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
+    """Median angle between consecutive valid points seen from the origin (for covariances
+    of points given without a scan geometry)."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    ang = np.unwrap(np.arctan2(y[ok], x[ok]))
+    return float(np.median(np.abs(np.diff(ang)))) if ang.shape[0] > 1 else 0.0
 
 
 class ScaleTable:
@@ -715,6 +749,7 @@ class CornerDetector:
         stamp: float | None,
         frame_id: str,
         with_raw: bool,
+        angle_increment: float,
     ) -> Keypoints | tuple[Keypoints, Keypoints]:
         n = cand.shape[0]
         rows = np.empty((n, _NM))
@@ -728,12 +763,15 @@ class CornerDetector:
                 x, y, rows, n_out, p.refine_radius, p.refine_exclude, p.min_points,
                 p.max_fit_rmse, p.merge_radius if p.merge_radius > 0.0 else _REFINE_MAX_SHIFT,
             )  # fmt: skip
-        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id)
+        geo = (x, y, self.params, self._scales, angle_increment)
+        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id, *geo)
         if not with_raw:
             return keypoints
         raw = np.empty((n, _NM))
         n_raw = _raw_rows(cand, raw)
-        return keypoints, _keypoints_from_rows(raw[:n_raw], stamp, frame_id)
+        unrefined = p.model_copy(update={"refine_radius": 0.0})  # raw rows are not refined
+        geo = (x, y, unrefined, self._scales, angle_increment)
+        return keypoints, _keypoints_from_rows(raw[:n_raw], stamp, frame_id, *geo)
 
     # ----------------------------------------------------------------- public API
     @overload
@@ -768,7 +806,9 @@ class CornerDetector:
         """
         x, y = self._scan_xy(scan)
         cand = self._run_candidates(x, y, np.empty((0, 0, 3)))
-        return self._finish(cand, x, y, scan.stamp, scan.frame_id, return_candidates)
+        return self._finish(
+            cand, x, y, scan.stamp, scan.frame_id, return_candidates, scan.angle_increment
+        )
 
     def detect_points(
         self, xy: NDArray[np.float64], return_candidates: bool = False
@@ -792,7 +832,7 @@ class CornerDetector:
         x[bad] = np.nan
         y[bad] = np.nan
         cand = self._run_candidates(x, y, np.empty((0, 0, 3)))
-        return self._finish(cand, x, y, None, "", return_candidates)
+        return self._finish(cand, x, y, None, "", return_candidates, _beam_spacing(x, y))
 
     def scale_table(self, scan: LaserScan) -> ScaleTable:
         """Per-point, per-scale intersections and pass flags (for analysis and figures)."""
@@ -835,7 +875,12 @@ class CornerDetector:
             p.merge_radius, p.min_extent_ratio, p.refine_radius, p.refine_exclude,
             merged, counts,
         )  # fmt: skip
-        return [
-            _keypoints_from_rows(merged[s, : counts[s]], scan.stamp, scan.frame_id)
-            for s, scan in enumerate(scans)
-        ]
+        out = []
+        for s, scan in enumerate(scans):
+            x = np.empty(first.n_beams)
+            y = np.empty(first.n_beams)
+            _polar_to_xy(ranges[s], cos_a, sin_a, first.range_min, first.range_max, x, y)
+            geo = (x, y, p, self._scales, first.angle_increment)
+            rows = merged[s, : counts[s]]
+            out.append(_keypoints_from_rows(rows, scan.stamp, scan.frame_id, *geo))
+        return out

@@ -23,6 +23,10 @@ KEYPOINT_DTYPE = np.dtype(
         ("n_scales", np.int64),
         ("rmse", np.float64),
         ("n_merged", np.int64),
+        ("scale_index", np.int64),
+        ("cov_xx", np.float64),
+        ("cov_xy", np.float64),
+        ("cov_yy", np.float64),
     ]
 )
 """Record layout of :meth:`Keypoints.to_records` (one row per keypoint)."""
@@ -50,6 +54,10 @@ class Keypoints:
         Worst line-fit RMSE among the supporting fits, metres.
     n_merged : ndarray, shape (M,), int64
         Number of per-point candidates merged into the keypoint (1 for raw candidates).
+    scale_index : ndarray, shape (M,), int64
+        Index k0 of the first scale of the winning run of scales (-1: unknown).
+    cov : ndarray, shape (M, 2, 2)
+        Covariance of ``xy``, m² (:mod:`laser_corners.covariance`; NaN: unknown).
     stamp : float or None
         Stamp of the scan.
     frame_id : str
@@ -65,11 +73,20 @@ class Keypoints:
     n_merged: NDArray[np.int64]
     stamp: float | None = None
     frame_id: str = ""
+    scale_index: NDArray[np.int64] | None = None
+    cov: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         xy = np.asarray(self.xy, dtype=np.float64).reshape(-1, 2)
         object.__setattr__(self, "xy", xy)
         m = xy.shape[0]
+        if self.scale_index is None:
+            object.__setattr__(self, "scale_index", np.full(m, -1, dtype=np.int64))
+        cov = np.full((m, 2, 2), np.nan) if self.cov is None else self.cov
+        cov = np.asarray(cov, dtype=np.float64)
+        if cov.shape != (m, 2, 2):
+            raise ValueError(f"Keypoints.cov has shape {cov.shape}, expected ({m}, 2, 2)")
+        object.__setattr__(self, "cov", cov)
         for name, dtype in (
             ("beam_index", np.int64),
             ("opening_angle_deg", np.float64),
@@ -77,6 +94,7 @@ class Keypoints:
             ("n_scales", np.int64),
             ("rmse", np.float64),
             ("n_merged", np.int64),
+            ("scale_index", np.int64),
         ):
             arr = np.asarray(getattr(self, name), dtype=dtype).reshape(-1)
             if arr.shape[0] != m:
@@ -111,8 +129,11 @@ class Keypoints:
         out = np.empty(len(self), dtype=KEYPOINT_DTYPE)
         out["x"] = self.xy[:, 0]
         out["y"] = self.xy[:, 1]
-        for name in KEYPOINT_DTYPE.names[2:]:
+        for name in KEYPOINT_DTYPE.names[2:-3]:
             out[name] = getattr(self, name)
+        out["cov_xx"] = self.cov[:, 0, 0]
+        out["cov_xy"] = self.cov[:, 0, 1]
+        out["cov_yy"] = self.cov[:, 1, 1]
         return out.view(np.recarray)
 
     def to_dicts(self) -> list[dict[str, Any]]:
@@ -131,7 +152,8 @@ class Keypoints:
         xy = self.xy @ rot.T + np.array([px, py])
         orientation = np.angle(np.exp(1j * (self.orientation + theta)))
         values = {f.name: getattr(self, f.name) for f in fields(self)}
-        values.update(xy=xy, orientation=orientation, frame_id=frame_id)
+        cov = rot @ self.cov @ rot.T  # the covariance turns with the points
+        values.update(xy=xy, orientation=orientation, frame_id=frame_id, cov=cov)
         return Keypoints(**values)
 
     def __repr__(self) -> str:

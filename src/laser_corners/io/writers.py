@@ -7,7 +7,8 @@ written incrementally: CSV rows are flushed and Parquet row groups written every
 runs (use the writer as a context manager).
 
 Table columns, one row per keypoint: ``stamp, scan_index, beam_index, x, y,
-opening_angle_deg, orientation, n_scales, rmse, n_merged`` (sensor frame), plus ``map_x,
+opening_angle_deg, orientation, n_scales, rmse, n_merged, cov_xx, cov_xy, cov_yy`` (sensor
+frame; the keypoint covariance, m², see :mod:`laser_corners.covariance`), plus ``map_x,
 map_y`` (the keypoint in the frame of the scan poses) when the recording has poses; empty
 (CSV) or null (Parquet) for a scan without a pose.
 """
@@ -38,7 +39,7 @@ __all__ = [
 
 TABLE_COLUMNS: tuple[str, ...] = (
     "stamp", "scan_index", "beam_index", "x", "y", "opening_angle_deg", "orientation",
-    "n_scales", "rmse", "n_merged",
+    "n_scales", "rmse", "n_merged", "cov_xx", "cov_xy", "cov_yy",
 )  # fmt: skip
 """Columns of the CSV/Parquet keypoint tables (``map_x, map_y`` follow when poses are known)."""
 MAP_COLUMNS: tuple[str, ...] = ("map_x", "map_y")
@@ -123,6 +124,9 @@ class _TableWriter(KeypointWriter):
                 "n_scales": keypoints.n_scales,
                 "rmse": keypoints.rmse,
                 "n_merged": keypoints.n_merged,
+                "cov_xx": keypoints.cov[:, 0, 0],
+                "cov_xy": keypoints.cov[:, 0, 1],
+                "cov_yy": keypoints.cov[:, 1, 1],
             }
             if self.with_map:
                 if scan.pose is not None:
@@ -163,6 +167,10 @@ class _TableWriter(KeypointWriter):
             }
             for name in ("opening_angle_deg", "orientation", "n_scales", "rmse", "n_merged"):
                 block[name] = np.concatenate([getattr(k, name) for k in found])
+            cov = np.concatenate([k.cov for k in found])
+            block["cov_xx"], block["cov_xy"], block["cov_yy"] = (
+                cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+            )
             if self.with_map:
                 mapped = [
                     k.transformed(pose).xy

@@ -1,0 +1,409 @@
+"""Keypoint covariance: residual variance of the line fits propagated through the intersection.
+
+For a keypoint found at scan point p_j with the winning run of scales k0 .. k0+n-1 (see
+:mod:`laser_corners.detector`), every scale's arrival and departure neighbourhoods are
+re-fitted with the model the detector kept (eqs. 2-9) and intersected (eqs. 10-13):
+
+1. **Line parameters.** For the kept model u = c0 + c1·v (u = y, v = x for y|x, eqs. 2-4;
+   u = x, v = y for x|y, eqs. 5-7) with n points, centred spread S_vv = Σ(v - v̄)² and residual
+   variance s² = SSE / (n - 2) (SSE from eqs. 8-9), ordinary least squares gives
+   Var(c1) = s²/S_vv, Var(c0) = s²(1/n + v̄²/S_vv), Cov(c0, c1) = -s² v̄/S_vv.
+2. **Intersection.** The keypoint q solves f_a(q) = f_b(q) = 0 with f = u - c0 - c1·v. Its
+   Jacobian with respect to (c0, c1) of line l is the l-th column g_l of F⁻¹ (F = the 2x2
+   matrix of the gradients ∂f/∂q of both lines) times (1, v_l(q)); this is the derivative of
+   the closed forms of eqs. 10-13 for every combination of models. Since (1, v)·Cov(c0, c1)·
+   (1, v)ᵀ = s²(1/n + (v - v̄)²/S_vv) is the variance of the fitted line at v, the covariance
+   of one scale's intersection is Σ_l s_l²(1/n_l + (v_l(q) - v̄_l)²/S_vv,l) · g_l g_lᵀ (the
+   two fits share only p_j and are treated as independent).
+3. **Across scales.** The keypoint is the centroid of the run's intersections; they come from
+   nested neighbourhoods that share most of their points, so they are strongly correlated. We
+   take the *mean* of the per-scale covariances (the covariance of the centroid when the
+   intersections are fully correlated), not the mean divided by the count, times
+   :data:`SCALE_RUN_FACTOR`.
+4. **Apex sampling.** Range noise does not explain everything: the apex lies between two
+   beams, the point p_j sits on one wall or the other and the neighbourhoods next to it
+   straddle the corner, which moves the intersection by a fraction of the beam spacing even
+   without noise. We add an isotropic term ``apex_factor² · (ρ·Δθ)² / 12`` (ρ = the keypoint's
+   range, Δθ the angular increment, ρ·Δθ the beam spacing at the corner: the variance of a
+   uniform position over one spacing, scaled) plus ``floor²`` (default 1 mm), so that the
+   covariance is never singular, also at zero noise.
+5. **Refined keypoints** (option ``refine_radius``): the covariance of step 2 for the two wall
+   runs the refinement fits (same runs and radius halving as ``detector._refine``) replaces
+   steps 1-3; keypoints whose runs are too short fall back to the run of scales.
+
+Range noise lower bound: the RMSE gates (eqs. 8-9) keep fits whose residuals are small, so
+each fit's residual variance is floored at what the scan's range noise alone gives on that
+line (:func:`scan_range_noise`, projected on the line's normal by the incidence angle).
+
+The constants were calibrated by the Monte Carlo study ``benchmarks/covariance_study.py``
+(simulated corners, noise 0-0.03 m, ranges 0.5-8 m; results in ``docs/matching.md``).
+
+Cost: O(M·K·n) per scan for M keypoints, K scales of a run and n points per neighbourhood (the
+sums are taken directly around the keypoint, which keeps them well conditioned); a few µs
+per keypoint.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "APEX_FACTOR",
+    "COV_FLOOR",
+    "SCALE_RUN_FACTOR",
+    "keypoint_covariances",
+    "line_fit_covariance",
+    "scan_range_noise",
+]
+
+APEX_FACTOR = 0.25
+"""Scale of the apex-sampling standard deviation ρ·Δθ/√12 (step 4, calibrated)."""
+COV_FLOOR = 0.001
+"""Isotropic floor, standard deviation in metres, added to every keypoint covariance (step 4)."""
+SCALE_RUN_FACTOR = 2.0
+"""Inflation of the run-of-scales covariance (step 3; not for refined keypoints), calibrated:
+the merge keeps the candidate with the lowest RMSE and the gates keep fits whose residuals
+happen to be small, so the fits' own residual variance under-states the keypoint's error."""
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _fit_terms(
+    n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
+) -> tuple[bool, float, float, float, float, float, float]:
+    """Kept model of a neighbourhood (as ``select_from_sums``) with its variance terms.
+
+    Returns ``(y_on_x, c0, c1, s2, v_mean, s_vv, n)``: intercept and slope of the kept
+    model u = c0 + c1·v, residual variance s² = SSE/(n-2) (eqs. 8-9), mean and centred
+    spread of the independent variable v.
+    """
+    inv = 1.0 / n
+    dxx = sxx - sx * sx * inv
+    dyy = syy - sy * sy * inv
+    dxy = sxy - sx * sy * inv
+    det = max(dxx * dyy - dxy * dxy, 0.0)
+    y_on_x = dxx >= dyy
+    spread = dxx if y_on_x else dyy
+    slope = dxy / spread  # eq. 3 / eq. 6
+    if y_on_x:
+        c0 = (sy - slope * sx) * inv  # eq. 4
+        v_mean = sx * inv
+    else:
+        c0 = (sx - slope * sy) * inv  # eq. 7
+        v_mean = sy * inv
+    sse = det / spread  # eq. 8 / eq. 9 times n
+    s2 = sse / (n - 2.0) if n > 2.0 else 0.0
+    return y_on_x, c0, slope, s2, v_mean, spread, n
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def line_fit_covariance(
+    n: float, v_mean: float, s_vv: float, s2: float
+) -> tuple[float, float, float]:
+    """Covariance of (c0, c1) of a least-squares line u = c0 + c1·v.
+
+    Returns ``(var_c0, cov_c0_c1, var_c1)`` for ``n`` points with mean ``v_mean`` and centred
+    spread ``s_vv`` of v and residual variance ``s2``.
+    """
+    return s2 * (1.0 / n + v_mean * v_mean / s_vv), -s2 * v_mean / s_vv, s2 / s_vv
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _sums(
+    x: NDArray[np.float64], y: NDArray[np.float64], lo: int, hi: int, cx: float, cy: float
+) -> tuple[float, float, float, float, float, float]:
+    """n, Σx, Σy, Σx², Σy², Σxy of points lo..hi (inclusive) relative to (cx, cy)."""
+    n = 0.0
+    sx = sy = sxx = syy = sxy = 0.0
+    for i in range(lo, hi + 1):
+        dx = x[i] - cx
+        dy = y[i] - cy
+        n += 1.0
+        sx += dx
+        sy += dy
+        sxx += dx * dx
+        syy += dy * dy
+        sxy += dx * dy
+    return n, sx, sy, sxx, syy, sxy
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _scale_covariance(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    s: int,
+    j: int,
+    e: int,
+    cx: float,
+    cy: float,
+    sigma2: float,
+    out: NDArray[np.float64],
+) -> bool:
+    """Covariance of the intersection of the fits of [s, j] and [j, e] (step 2); adds to out."""
+    sa = _sums(x, y, s, j, cx, cy)
+    sd = _sums(x, y, j, e, cx, cy)
+    return _pair_covariance(sa, sd, x[s], y[s], x[e], y[e], sigma2, out)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _pair_covariance(
+    sa: tuple[float, float, float, float, float, float],
+    sd: tuple[float, float, float, float, float, float],
+    pax: float,
+    pay: float,
+    pdx: float,
+    pdy: float,
+    sigma2: float,
+    out: NDArray[np.float64],
+) -> bool:
+    """Step 2 for two neighbourhoods given by their sums (relative to the keypoint) and one
+    point of each (for the incidence angle of the noise floor); adds to ``out``."""
+    ya, a0, a1, s2a, va, sva, na = _fit_terms(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
+    yd, d0, d1, s2d, vd, svd, nd = _fit_terms(sd[0], sd[1], sd[2], sd[3], sd[4], sd[5])
+    if not (sva > 0.0 and svd > 0.0):
+        return False
+    s2a = max(s2a, _noise_floor(pax, pay, ya, a1, sigma2))
+    s2d = max(s2d, _noise_floor(pdx, pdy, yd, d1, sigma2))
+    # gradients of f = u - c0 - c1 v with respect to q = (x, y)
+    fa_x, fa_y = (-a1, 1.0) if ya else (1.0, -a1)
+    fd_x, fd_y = (-d1, 1.0) if yd else (1.0, -d1)
+    det = fa_x * fd_y - fa_y * fd_x
+    if det == 0.0:
+        return False
+    # intersection (eqs. 10-13, in the frame centred on the keypoint)
+    ra = a0  # f_a(q) = 0  <=>  fa · q = c0 (up to sign conventions below)
+    rd = d0
+    qx = (fd_y * ra - fa_y * rd) / det
+    qy = (-fd_x * ra + fa_x * rd) / det
+    # columns of F^-1
+    g_ax, g_ay = fd_y / det, -fd_x / det
+    g_dx, g_dy = -fa_y / det, fa_x / det
+    v_a = qx if ya else qy
+    v_d = qx if yd else qy
+    var_a = s2a * (1.0 / na + (v_a - va) ** 2 / sva)
+    var_d = s2d * (1.0 / nd + (v_d - vd) ** 2 / svd)
+    out[0] += var_a * g_ax * g_ax + var_d * g_dx * g_dx
+    out[1] += var_a * g_ax * g_ay + var_d * g_dx * g_dy
+    out[2] += var_a * g_ay * g_ay + var_d * g_dy * g_dy
+    return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _noise_floor(px: float, py: float, y_on_x: bool, c1: float, sigma2: float) -> float:
+    """Residual variance (in u) that range noise sigma2 alone causes on this line.
+
+    Range noise moves a point along its beam; its component along the line's normal is
+    σ·cos ψ (ψ = incidence angle), which is σ·cos ψ·√(1 + c1²) along u.
+    """
+    nx, ny = (-c1, 1.0) if y_on_x else (1.0, -c1)
+    norm2 = nx * nx + ny * ny
+    b2 = px * px + py * py
+    if b2 == 0.0:
+        return 0.0
+    cos2 = (nx * px + ny * py) ** 2 / (norm2 * b2)
+    return sigma2 * cos2 * norm2
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def scan_range_noise(x: NDArray[np.float64], y: NDArray[np.float64], max_jump: float) -> float:
+    """Range-noise sigma of a scan from the median absolute second difference of its ranges.
+
+    Same estimator as :func:`laser_corners.eval.noise.estimate_range_noise` (MAD·1.4826/√6
+    over triples without gaps or jumps above ``max_jump``), on Cartesian points.
+    """
+    n = x.shape[0]
+    r = np.sqrt(x * x + y * y)
+    vals = np.empty(max(n - 2, 0))
+    m = 0
+    for i in range(1, n - 1):
+        a = r[i - 1]
+        b = r[i]
+        c = r[i + 1]
+        if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
+            if abs(b - a) < max_jump and abs(c - b) < max_jump:
+                vals[m] = abs(a - 2.0 * b + c)
+                m += 1
+    if m < 10:
+        return 0.0
+    return 1.482602218505602 * np.median(vals[:m]) / math.sqrt(6.0)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _bound(x: NDArray[np.float64], y: NDArray[np.float64], j: int, step: int, r2: float) -> int:
+    """Last index of the run of valid points from p_j within sqrt(r2) of it (detector rule)."""
+    n = x.shape[0]
+    i = j + step
+    m = 0.0
+    while 0 <= i < n and math.isfinite(x[i]):
+        d2 = (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2
+        m = max(m, d2)
+        if m > r2:
+            break
+        i += step
+    return i - step
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _wall_sums(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    apex: int,
+    step: int,
+    cx: float,
+    cy: float,
+    r2: float,
+    e2: float,
+) -> tuple[tuple[float, float, float, float, float, float], int]:
+    """Sums of one wall's run for the refinement (as ``detector._refine``) and its far end."""
+    n = x.shape[0]
+    cnt = sx = sy = sxx = syy = sxy = 0.0
+    far = apex
+    i = apex + step
+    while 0 <= i < n and math.isfinite(x[i]):
+        dx = x[i] - cx
+        dy = y[i] - cy
+        d2 = dx * dx + dy * dy
+        if d2 > r2:
+            break
+        if d2 >= e2:
+            cnt += 1.0
+            sx += dx
+            sy += dy
+            sxx += dx * dx
+            syy += dy * dy
+            sxy += dx * dy
+            far = i
+        i += step
+    return (cnt, sx, sy, sxx, syy, sxy), far
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _refined_covariance(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    cx: float,
+    cy: float,
+    beam: int,
+    radius: float,
+    exclude: float,
+    min_points: int,
+    max_rmse: float,
+    sigma2: float,
+    out: NDArray[np.float64],
+) -> bool:
+    """Step 2 for a keypoint refined from longer wall runs (option ``refine_radius``): the
+    runs of ``detector._refine`` around the keypoint, with its radius halving."""
+    n = x.shape[0]
+    apex = beam
+    best = (x[beam] - cx) ** 2 + (y[beam] - cy) ** 2
+    for step in (-1, 1):
+        i = beam + step
+        while 0 <= i < n and math.isfinite(x[i]):
+            d2 = (x[i] - cx) ** 2 + (y[i] - cy) ** 2
+            if d2 > radius * radius:
+                break
+            if d2 < best:
+                best = d2
+                apex = i
+            i += step
+    rad = radius
+    e2 = exclude * exclude
+    while rad >= 4.0 * exclude:
+        sa, end_a = _wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2)
+        sd, end_d = _wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2)
+        if sa[0] < max(min_points, 3) or sd[0] < max(min_points, 3):
+            return False
+        fa = _fit_terms(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
+        fd = _fit_terms(sd[0], sd[1], sd[2], sd[3], sd[4], sd[5])
+        mse_a = fa[3] * (fa[6] - 2.0) / fa[6]  # eqs. 8-9: SSE / n
+        mse_d = fd[3] * (fd[6] - 2.0) / fd[6]
+        if mse_a > max_rmse * max_rmse or mse_d > max_rmse * max_rmse:
+            rad *= 0.5
+            continue
+        return _pair_covariance(sa, sd, x[end_a], y[end_a], x[end_d], y[end_d], sigma2, out)
+    return False
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def keypoint_covariances(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    xy: NDArray[np.float64],
+    beam_index: NDArray[np.int64],
+    scale_index: NDArray[np.int64],
+    n_scales: NDArray[np.int64],
+    scales: NDArray[np.float64],
+    angle_increment: float,
+    apex_factor: float,
+    floor: float,
+    run_factor: float,
+    refine_radius: float = 0.0,
+    refine_exclude: float = 0.0,
+    min_points: int = 3,
+    max_rmse: float = math.inf,
+) -> NDArray[np.float64]:
+    """Covariance (M, 2, 2) of every keypoint (module docstring, steps 1-4).
+
+    Parameters
+    ----------
+    x, y : ndarray, shape (N,)
+        Scan points in beam order, NaN for gaps (sensor frame).
+    xy : ndarray, shape (M, 2)
+        Keypoints.
+    beam_index, scale_index, n_scales : ndarray, shape (M,)
+        Supporting point p_j, first scale k0 and length of the winning run of each keypoint.
+    scales : ndarray, shape (K,)
+        The radii R_k.
+    angle_increment : float
+        Beam spacing, radians.
+    apex_factor, floor, run_factor : float
+        Apex-sampling scale, isotropic floor (metres) and run-of-scales inflation, see
+        :data:`APEX_FACTOR`, :data:`COV_FLOOR`, :data:`SCALE_RUN_FACTOR`.
+    refine_radius, refine_exclude, min_points, max_rmse : float
+        The detector's refinement options: when ``refine_radius > 0`` a keypoint's
+        covariance comes from the two wall runs the refinement fits (the keypoint is their
+        intersection), falling back to the run of scales when those runs are too short.
+    """
+    m = xy.shape[0]
+    cov = np.zeros((m, 2, 2))
+    acc = np.zeros(3)
+    dth = abs(angle_increment)
+    sigma = scan_range_noise(x, y, 0.2) if m > 0 else 0.0
+    sigma2 = sigma * sigma
+    for t in range(m):
+        cx = xy[t, 0]
+        cy = xy[t, 1]
+        j = beam_index[t]
+        acc[:] = 0.0
+        used = 0
+        scale_factor = 1.0
+        if refine_radius > 0.0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
+            used = int(
+                _refined_covariance(
+                    x, y, cx, cy, j, refine_radius, refine_exclude, min_points, max_rmse,
+                    sigma2, acc,
+                )
+            )  # fmt: skip
+        if used == 0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
+            scale_factor = run_factor
+            k0 = max(scale_index[t], 0)
+            for k in range(k0, min(k0 + max(n_scales[t], 1), scales.shape[0])):
+                r2 = scales[k] * scales[k]
+                s = _bound(x, y, j, -1, r2)
+                e = _bound(x, y, j, 1, r2)
+                if j - s + 1 >= 3 and e - j + 1 >= 3:
+                    if _scale_covariance(x, y, s, j, e, cx, cy, sigma2, acc):
+                        used += 1
+        if used > 0:
+            for c in range(3):
+                acc[c] *= scale_factor / used  # step 3: mean, not divided again by the count
+        rho = math.sqrt(cx * cx + cy * cy)
+        iso = (apex_factor * rho * dth) ** 2 / 12.0 + floor * floor  # step 4
+        cov[t, 0, 0] = acc[0] + iso
+        cov[t, 0, 1] = acc[1]
+        cov[t, 1, 0] = acc[1]
+        cov[t, 1, 1] = acc[2] + iso
+    return cov

@@ -1,0 +1,39 @@
+"""Keypoint matching: descriptors, nearest-neighbour matching, verification, SE(2) registration.
+
+>>> from laser_corners.matching import register
+>>> # reg = register(scan_a, scan_b); reg.accepted, reg.n_inliers, reg.pose, reg.cov, reg.inliers
+
+See :mod:`laser_corners.matching.registration` for the pipeline and ``docs/matching.md``.
+"""
+
+from laser_corners.matching.descriptors import (
+    DESCRIPTORS,
+    DescriptorParams,
+    Descriptors,
+    describe,
+    describe_points,
+)
+from laser_corners.matching.registration import (
+    BatchResult,
+    KeypointBank,
+    MatchOptions,
+    Registration,
+    register,
+    register_keypoints,
+    register_many,
+)
+
+__all__ = [
+    "DESCRIPTORS",
+    "BatchResult",
+    "DescriptorParams",
+    "Descriptors",
+    "KeypointBank",
+    "MatchOptions",
+    "Registration",
+    "describe",
+    "describe_points",
+    "register",
+    "register_keypoints",
+    "register_many",
+]
