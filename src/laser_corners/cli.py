@@ -533,6 +533,13 @@ def evaluate_loops_command(
             "--window", help="Exclude candidates closer than this in travelled path, metres."
         ),
     ] = 5.0,
+    matcher: Annotated[
+        str,
+        typer.Option(
+            "--matcher",
+            help="Pair scorer: local (eval.loop_match) or matching (laser_corners.matching).",
+        ),
+    ] = "local",
 ) -> None:
     """Place recognition with FLIRT's protocol on a log with corrected poses.
 
@@ -554,7 +561,7 @@ def evaluate_loops_command(
     with _known_errors():
         names = tuple(m.strip() for m in methods.split(",") if m.strip())
         config = LoopsConfig(methods=names, min_inliers=min_inliers, window_travel=window,
-                             max_scans=max_scans)  # fmt: skip
+                             max_scans=max_scans, matcher=matcher)  # fmt: skip
         check_output_dir(output)
         scans, _ = load_scans(input_path, None, max_scans)
         with Progress(console=console, transient=True) as bar:

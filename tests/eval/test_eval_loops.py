@@ -182,3 +182,14 @@ def test_cli_evaluate_loops(loop_scans: list[LaserScan], tmp_path) -> None:
     result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(out),
                                       "--methods", "nope"])  # fmt: skip
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output
+
+
+def test_matching_backend_finds_the_known_revisit(loop_scans: list[LaserScan]) -> None:
+    config = LoopsConfig(methods=("paper",), min_inliers=4, matcher="matching")
+    result = evaluate_loops(loop_scans, config, "sim")
+    last = len(loop_scans) - 1
+    paper = result.methods["paper"]
+    assert paper.best_inliers[last] >= 4 and paper.correct[last]
+    assert paper.position_error[last] < 0.05 and paper.angle_error[last] < math.radians(1)
+    with pytest.raises(InvalidParamsError, match="unknown matcher"):
+        LoopsConfig(matcher="flirt")

@@ -37,8 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.errors import InputError, InvalidParamsError
-from laser_corners.eval.loop_descriptors import build_bank
-from laser_corners.eval.loop_match import MatchOptions, score_query
+from laser_corners.eval.loop_match import MatchOptions
+from laser_corners.eval.loop_scorers import MATCHERS, make_scorer
 from laser_corners.eval.revisits import candidates, revisits, travel_distance
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
@@ -80,8 +80,10 @@ class LoopsConfig:
         Range agreement of a seen point, metres.
     max_scans : int or None
         Use at most this many scans (the first ones).
+    matcher : str
+        Pair scorer, ``local`` or ``matching`` (:mod:`~laser_corners.eval.loop_scorers`).
     match : MatchOptions
-        Matcher settings, shared by all methods.
+        Settings of the ``local`` matcher, shared by all methods.
     """
 
     methods: tuple[str, ...] = DEFAULT_METHODS
@@ -93,15 +95,21 @@ class LoopsConfig:
     revisit_overlap: float = 0.5
     overlap_tolerance: float = 0.3
     max_scans: int | None = None
+    matcher: str = "local"
     match: MatchOptions = field(default_factory=MatchOptions)
 
     def __post_init__(self) -> None:
         if self.min_inliers < 2:
             raise InvalidParamsError(f"min_inliers must be >= 2, got {self.min_inliers}")
+        if not self.thresholds or min(self.thresholds) < 2:
+            raise InvalidParamsError("thresholds must be integers >= 2")
         if not self.methods:
             raise InvalidParamsError("no method given")
         if not self.window_travel >= 0.0:
             raise InvalidParamsError(f"window_travel must be >= 0, got {self.window_travel}")
+        if self.matcher not in MATCHERS:
+            raise InvalidParamsError(f"unknown matcher {self.matcher!r}; known: "
+                                     f"{', '.join(MATCHERS)}")  # fmt: skip
         if not 0.0 < self.revisit_overlap <= 1.0:
             raise InvalidParamsError(f"revisit_overlap must be in (0, 1], got "
                                      f"{self.revisit_overlap}")  # fmt: skip
@@ -293,7 +301,7 @@ def _evaluate_method(
     keypoints = detect(scans)
     seconds["detect"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    bank = build_bank(scans, keypoints)
+    score = make_scorer(config.matcher, scans, keypoints, config.match, min(config.thresholds))
     seconds["describe"] = time.perf_counter() - t0
     poses = np.array([s.pose for s in scans], dtype=np.float64)
     travel = travel_distance(poses)
@@ -308,7 +316,7 @@ def _evaluate_method(
     for q in range(n):
         cand = candidates(travel, q, config.window_travel)
         n_pairs += cand.shape[0]
-        inliers, rel, rms = score_query(bank, q, cand, config.match)
+        inliers, rel, rms = score(q, cand)
         if cand.shape[0] and inliers.max() >= 2:
             k = int(np.lexsort((rms, -inliers))[0])
             c = int(cand[k])
@@ -321,7 +329,7 @@ def _evaluate_method(
     correct = (err_xy <= config.max_position_error) & (err_th <= config.max_angle_error)
     return MethodLoops(
         name=name,
-        keypoints_per_scan=float(np.mean(bank.counts())) if n else 0.0,
+        keypoints_per_scan=float(np.mean([len(k) for k in keypoints])) if n else 0.0,
         best_candidate=best_c,
         best_inliers=best_n,
         position_error=err_xy,
@@ -383,8 +391,8 @@ def evaluate_loops(
     result = LoopsResult(source, cfg, len(posed), rev >= 0, rev, notes=notes,
                          seconds={"revisits": time.perf_counter() - t0})  # fmt: skip
     # compile or load the kernels once, so the first method's time is matching only
-    warm_bank = build_bank(posed[:2], [Keypoints.empty(), Keypoints.empty()])
-    score_query(warm_bank, 0, np.array([1], dtype=np.int64), cfg.match)
+    empty = [Keypoints.empty(), Keypoints.empty()]
+    make_scorer(cfg.matcher, posed[:2], empty, cfg.match)(0, np.array([1], dtype=np.int64))
     for name, detect in detectors.items():
         result.methods[name] = _evaluate_method(name, detect, posed, cfg, say)
         if on_method is not None:

@@ -78,7 +78,8 @@ def _markdown(result: LoopsResult, rows: list[dict[str, Any]]) -> str:
         "",
         f"{result.n_scans} queries, {n_rev} with a revisit; window {cfg.window_travel:g} m of "
         f"travel; revisit: another scan sees >= {100 * cfg.revisit_overlap:g} % of the query's "
-        f"points; correct within {cfg.max_position_error:g} m and {cfg.max_angle_error:g} rad.",
+        f"points; correct within {cfg.max_position_error:g} m and {cfg.max_angle_error:g} rad; "
+        f"matcher `{cfg.matcher}`.",
         "",
         "| method | kp/scan | T | precision | recall | T at P>=0.98 | recall at P>=0.98 "
         "| pairs | ms/pair | s |",
