@@ -54,6 +54,8 @@ def loops_rows(result: LoopsResult) -> list[dict[str, Any]]:
     for name, m in result.methods.items():
         s = summary[name]
         t98, r98 = _at_precision(result.curve(name), 0.98)
+        detected = m.best_inliers >= result.config.min_inliers
+        outside = int((detected & m.correct & ~result.has_revisit).sum())
         rows.append({
             "method": name,
             "keypoints_per_scan": m.keypoints_per_scan,
@@ -63,6 +65,7 @@ def loops_rows(result: LoopsResult) -> list[dict[str, Any]]:
             "min_inliers_p98": t98,
             "recall_p98": r98,
             "queries": s["queries"],
+            "correct_without_revisit": outside,
             "pairs": m.n_pairs,
             "ms_per_pair": s["ms_per_pair"],
             "seconds": sum(m.seconds.values()),
@@ -82,15 +85,16 @@ def _markdown(result: LoopsResult, rows: list[dict[str, Any]]) -> str:
         f"matcher `{cfg.matcher}`.",
         "",
         "| method | kp/scan | T | precision | recall | T at P>=0.98 | recall at P>=0.98 "
-        "| pairs | ms/pair | s |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| correct w/o revisit | pairs | ms/pair | s |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         p = "n/a" if r["precision"] is None else f"{r['precision']:.3f}"
         t98 = "-" if r["min_inliers_p98"] is None else str(r["min_inliers_p98"])
         lines.append(
             f"| {r['method']} | {r['keypoints_per_scan']:.2f} | {r['min_inliers']} | {p} | "
-            f"{r['recall']:.3f} | {t98} | {r['recall_p98']:.3f} | {r['pairs']} | "
+            f"{r['recall']:.3f} | {t98} | {r['recall_p98']:.3f} | "
+            f"{r['correct_without_revisit']} | {r['pairs']} | "
             f"{r['ms_per_pair']:.4f} | {r['seconds']:.1f} |"
         )
     lines += ["", *(f"- {note}" for note in result.notes)]
