@@ -686,7 +686,7 @@ class CornerDetector:
 
     References
     ----------
-    .. [1] Sousa, R. B., Sobreira, H. M., Petry, M. R., Moreira, A. P., "Line Fitting-Based
+    .. [1] Sousa, R. B., Sobreira, H. M., Silva, M. F., Moreira, A. P., "Line Fitting-Based
        Corner-Like Detector for 2D Laser Scanners Data", ICARA 2024.
 
     Examples

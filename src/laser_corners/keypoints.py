@@ -110,6 +110,11 @@ class Keypoints:
         keypoints = object.__new__(cls)
         for name, value in arrays.items():
             object.__setattr__(keypoints, name, value)
+        m = arrays["xy"].shape[0]
+        if "scale_index" not in arrays:
+            object.__setattr__(keypoints, "scale_index", np.full(m, -1, dtype=np.int64))
+        if "cov" not in arrays:
+            object.__setattr__(keypoints, "cov", np.full((m, 2, 2), np.nan))
         object.__setattr__(keypoints, "stamp", stamp)
         object.__setattr__(keypoints, "frame_id", frame_id)
         return keypoints

@@ -146,14 +146,14 @@ def _pose_two(
 def _count_inliers(
     xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
     tx: float, ty: float, th: float, tol2: float,
-    oa: NDArray[np.float64], ob: NDArray[np.float64], angle_tol: float,
+    rot: NDArray[np.float64], cos_tol: float,
 ) -> tuple[int, float]:  # fmt: skip
     c = math.cos(th)
     s = math.sin(th)
     cnt = 0
     cost = 0.0
     for q in range(n):
-        if abs(_wrap(oa[m[q, 0]] - ob[m[q, 1]] - th)) > angle_tol:
+        if rot[q, 0] * c + rot[q, 1] * s < cos_tol:  # the match's own rotation disagrees
             continue
         bx = xb[m[q, 1], 0]
         by = xb[m[q, 1], 1]
@@ -172,22 +172,49 @@ def _wrap(a: float) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def _pair_ok(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64],
-    p: int, q: int, tol: float, min_sep: float,
-    oa: NDArray[np.float64], ob: NDArray[np.float64], angle_tol: float,
+def _prepare(
+    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
+    oa: NDArray[np.float64], ob: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:  # fmt: skip
+    """Inter-keypoint distances of A and of B, and each match's implied rotation as a unit
+    vector (cos, sin), so that the pairwise tests need no square root or angle wrapping."""
+    na = xa.shape[0]
+    nb_ = xb.shape[0]
+    da = np.empty((na, na))
+    for i in range(na):
+        for j in range(na):
+            da[i, j] = math.hypot(xa[i, 0] - xa[j, 0], xa[i, 1] - xa[j, 1])
+    db = np.empty((nb_, nb_))
+    for i in range(nb_):
+        for j in range(nb_):
+            db[i, j] = math.hypot(xb[i, 0] - xb[j, 0], xb[i, 1] - xb[j, 1])
+    rot = np.empty((n, 2))
+    for q in range(n):
+        r = oa[m[q, 0]] - ob[m[q, 1]]
+        rot[q, 0] = math.cos(r)
+        rot[q, 1] = math.sin(r)
+    return da, db, rot
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _pair_fast(
+    da: NDArray[np.float64], db: NDArray[np.float64], rot: NDArray[np.float64],
+    m: NDArray[np.int64], p: int, q: int, tol: float, min_sep: float, cos_tol: float,
 ) -> bool:  # fmt: skip
-    """Pairwise consistency of matches p and q (CCDA): distinct keypoints, equal distances,
-    and (ours) the same rotation implied by both matches' keypoint orientations."""
-    if m[p, 0] == m[q, 0] or m[p, 1] == m[q, 1]:
+    """Pairwise consistency of matches p and q (FALKO's CCDA): distinct keypoints, equal
+    inter-keypoint distances in A and B within ``tol`` (and at least ``min_sep``), and (ours)
+    the same rotation implied by both matches' keypoint orientations, within the angle whose
+    cosine is ``cos_tol``."""
+    ia = m[p, 0]
+    ja = m[q, 0]
+    ib = m[p, 1]
+    jb = m[q, 1]
+    if ia == ja or ib == jb:
         return False
-    rot_p = oa[m[p, 0]] - ob[m[p, 1]]
-    rot_q = oa[m[q, 0]] - ob[m[q, 1]]
-    if abs(_wrap(rot_p - rot_q)) > angle_tol:
+    if rot[p, 0] * rot[q, 0] + rot[p, 1] * rot[q, 1] < cos_tol:
         return False
-    da = math.hypot(xa[m[p, 0], 0] - xa[m[q, 0], 0], xa[m[p, 0], 1] - xa[m[q, 0], 1])
-    db = math.hypot(xb[m[p, 1], 0] - xb[m[q, 1], 0], xb[m[p, 1], 1] - xb[m[q, 1], 1])
-    return abs(da - db) <= tol and da >= min_sep
+    d = da[ia, ja]
+    return abs(d - db[ib, jb]) <= tol and d >= min_sep
 
 
 @nb.njit(cache=True, nogil=True)
@@ -206,6 +233,8 @@ def ransac(
     best_n = 0
     best_cost = math.inf
     tol2 = tol * tol
+    da, db, rot = _prepare(xa, xb, m, n, oa, ob)
+    cos_tol = math.cos(angle_tol) if angle_tol < math.pi else -2.0
     n_pairs = n * (n - 1) // 2
     exhaustive = n_pairs <= iterations
     state = np.uint64(88172645463325252) ^ (np.uint64(seed) * np.uint64(2654435761))
@@ -230,13 +259,13 @@ def ransac(
             q = np.int64(state % np.uint64(n))
             if p == q:
                 continue
-        if not _pair_ok(xa, xb, m, p, q, tol, min_sep, oa, ob, angle_tol):
+        if not _pair_fast(da, db, rot, m, p, q, tol, min_sep, cos_tol):
             continue
         tx, ty, th = _pose_two(
             xa[m[p, 0], 0], xa[m[p, 0], 1], xa[m[q, 0], 0], xa[m[q, 0], 1],
             xb[m[p, 1], 0], xb[m[p, 1], 1], xb[m[q, 1], 0], xb[m[q, 1], 1],
         )  # fmt: skip
-        cnt, cost = _count_inliers(xa, xb, m, n, tx, ty, th, tol2, oa, ob, angle_tol)
+        cnt, cost = _count_inliers(xa, xb, m, n, tx, ty, th, tol2, rot, cos_tol)
         if cnt > best_n or (cnt == best_n and cost < best_cost):
             best_n = cnt
             best_cost = cost
@@ -258,12 +287,14 @@ def max_clique(
     """
     if n == 0:
         return 0
+    da, db, rot = _prepare(xa, xb, m, n, oa, ob)
+    cos_tol = math.cos(angle_tol) if angle_tol < math.pi else -2.0
     if n > CLIQUE_EXACT_MAX:
         adj_ok = np.zeros((n, n), dtype=np.bool_)
         deg = np.zeros(n, dtype=np.int64)
         for p in range(n):
             for q in range(p + 1, n):
-                if _pair_ok(xa, xb, m, p, q, tol, 0.0, oa, ob, angle_tol):
+                if _pair_fast(da, db, rot, m, p, q, tol, 0.0, cos_tol):
                     adj_ok[p, q] = adj_ok[q, p] = True
                     deg[p] += 1
                     deg[q] += 1
@@ -283,7 +314,7 @@ def max_clique(
     one = np.uint64(1)
     for p in range(n):
         for q in range(p + 1, n):
-            if _pair_ok(xa, xb, m, p, q, tol, 0.0, oa, ob, angle_tol):
+            if _pair_fast(da, db, rot, m, p, q, tol, 0.0, cos_tol):
                 adj[p] |= one << np.uint64(q)
                 adj[q] |= one << np.uint64(p)
     full = np.uint64(0xFFFFFFFFFFFFFFFF) if n == 64 else (one << np.uint64(n)) - one

@@ -49,6 +49,9 @@ __all__ = [
     "register_many",
 ]
 
+DEFAULT_MAX_DISTANCE = {"csc": 0.75, "bsc": 0.3}
+"""Default ``MatchOptions.max_distance`` per descriptor kind."""
+
 _REASONS = {
     1: "too few keypoints",
     2: "too few candidate matches",
@@ -74,8 +77,10 @@ class MatchOptions:
         applies), below 1 only the nearest is kept [1.0].
     mutual : bool
         Keep a match only when it is also the nearest from B's side [False].
-    max_distance : float
-        Largest normalised descriptor distance of a candidate match [0.75].
+    max_distance : float or None
+        Largest normalised descriptor distance of a candidate match [None: 0.75 for csc,
+        0.3 for bsc]. The main speed/recall knob: on fr079.bag's relations, csc at 0.5
+        halves the time per pair and accepts 21 % instead of 26 % of the pairs.
     verification : {"ransac", "clique"}
         Geometric verification ["ransac"].
     iterations : int
@@ -97,7 +102,7 @@ class MatchOptions:
     k_nearest: int = 3
     ratio: float = 1.0
     mutual: bool = False
-    max_distance: float = 0.75
+    max_distance: float | None = None
     verification: Literal["ransac", "clique"] = "ransac"
     iterations: int = 200
     min_separation: float = 0.3
@@ -113,10 +118,13 @@ class MatchOptions:
         if self.k_nearest < 1 or self.iterations < 1 or self.tolerance <= 0:
             raise InvalidParamsError(f"invalid match options: {self}")
 
-    def _args(self) -> tuple:
+    def _args(self, kind: str) -> tuple:
         verify = VERIFY_CLIQUE if self.verification == "clique" else VERIFY_RANSAC
+        max_distance = self.max_distance
+        if max_distance is None:
+            max_distance = DEFAULT_MAX_DISTANCE[kind]
         return (
-            self.k_nearest, float(self.ratio), bool(self.mutual), float(self.max_distance),
+            self.k_nearest, float(self.ratio), bool(self.mutual), float(max_distance),
             verify, float(self.tolerance), float(self.min_separation), int(self.iterations),
             int(self.seed), int(self.min_inliers), float(self.default_sigma) ** 2,
             float(self.angle_tolerance),
@@ -214,7 +222,7 @@ def register_keypoints(
     status, n_inl, n_cand = register_pair(
         desc_a.kind_code, inv_bits,
         *_kp_args(kp_a), *_desc_args(desc_a), *_kp_args(kp_b), *_desc_args(desc_b),
-        *opt._args(), pose, pose_cov, inl,
+        *opt._args(desc_a.kind), pose, pose_cov, inl,
     )  # fmt: skip
     if status != 0:
         return Registration(
@@ -384,7 +392,7 @@ def register_many(
         1 if bank.kind == "csc" else 0, inv_bits,
         *_kp_args(kp_a), *_desc_args(desc_a),
         bank.xy, bank.cov, bank.orientation, bank.bits, bank.values, bank.offsets, which,
-        *opt._args(), status, n_inl, poses, covs,
+        *opt._args(bank.kind), status, n_inl, poses, covs,
     )  # fmt: skip
     accepted = status == 0
     poses[~accepted] = 0.0

@@ -142,6 +142,25 @@ def _final_inliers(
 
 
 @nb.njit(cache=True, nogil=True)
+def _rotation_support(
+    oa: NDArray[np.float64], ob: NDArray[np.float64], m: NDArray[np.int64], n: int,
+    angle_tol: float,
+) -> int:  # fmt: skip
+    """Largest number of matches whose implied rotations lie within ``angle_tol`` of one's."""
+    rot = np.empty(n)
+    for q in range(n):
+        rot[q] = oa[m[q, 0]] - ob[m[q, 1]]
+    best = 0
+    for p in range(n):
+        cnt = 0
+        for q in range(n):
+            if abs(_wrap(rot[p] - rot[q])) <= angle_tol:
+                cnt += 1
+        best = max(best, cnt)
+    return best
+
+
+@nb.njit(cache=True, nogil=True)
 def register_pair(
     kind: int, inv_bits: float,
     xa: NDArray[np.float64], cov_a: NDArray[np.float64], oa: NDArray[np.float64],
@@ -172,6 +191,10 @@ def register_pair(
     )  # fmt: skip
     if n < need:
         return 2, 0, n
+    # cheap reject: inliers imply one rotation, so at least `need` matches must agree on the
+    # rotation given by their keypoint orientations (bisectors) within angle_tol
+    if angle_tol < math.pi and _rotation_support(oa, ob, m, n, angle_tol) < need:
+        return 3, 0, n
     sel = np.empty(n, dtype=np.int64)
     if verify == VERIFY_CLIQUE:
         n_sel = max_clique(xa, xb, m, n, tol, min_sep, sel, oa, ob, angle_tol)
