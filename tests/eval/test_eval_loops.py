@@ -104,6 +104,28 @@ def test_revisits_found_only_after_the_loop(loop_scans: list[LaserScan]) -> None
     assert np.all(revisits(loop_scans, window_travel=travel[-1] + 1.0) < 0)
 
 
+def test_revisit_overlap_any_scan_direction() -> None:
+    # a wall 3 m ahead (x = 3); scan B 6 m further back, with a mirrored beam order
+    # (negative increment), and C like B with angles wrapped by 2 pi, see all of A's points;
+    # A sees only the middle 41 % of B's longer stretch of wall (the rest is outside its view)
+    n = 181
+    angles = np.radians(np.linspace(-45.0, 45.0, n))
+    ranges_a = 3.0 / np.cos(angles)
+    a = LaserScan(ranges_a, math.radians(-45.0), math.radians(0.5), 0.0, 50.0, pose=(0, 0, 0))
+    ranges_b = (9.0 / np.cos(angles))[::-1]
+    b = LaserScan(ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 50.0,
+                  pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    c = LaserScan(ranges_b, math.radians(45.0) + math.tau, -math.radians(0.5), 0.0, 50.0,
+                  pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    assert revisits([a, b], window_travel=1.0).tolist() == [1, -1]
+    assert revisits([a, c], window_travel=1.0).tolist() == [1, -1]
+    assert revisits([a, b], window_travel=1.0, overlap=0.4).tolist() == [1, 0]
+    # a scan whose range ends before the wall sees none of it
+    far = LaserScan(ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 5.0,
+                    pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    assert revisits([a, far], window_travel=1.0)[0] == -1
+
+
 # ------------------------------------------------------------------ matcher
 def test_score_query_recovers_the_relative_pose(loop_scans: list[LaserScan]) -> None:
     detect = loop_detectors(["paper"], loop_scans[0])["paper"]
