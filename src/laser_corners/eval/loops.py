@@ -12,18 +12,8 @@ The protocol of flirtlib's ``RansacLoopClosureTest`` on a log with corrected pos
 * precision(T) = correct / detections, recall(T) = correct detections of queries that have a
   revisit / queries that have a revisit.
 
-Definitions (``docs/place-recognition.md``):
-
-* **window**: candidate ``j`` of query ``q`` is excluded when the robot travelled less than
-  ``window_travel`` metres between the two scans (path length along the corrected poses), so
-  scans taken while standing still or turning on the spot, and the last metres of travel, are
-  never candidates.
-* **revisit**: query ``q`` has a revisit when some candidate (outside the window) *sees* at
-  least ``revisit_overlap`` of the query's scan points: a query point moved into the
-  candidate's sensor frame by the true poses lies inside its field of view and range, and the
-  candidate measured a return within ``overlap_tolerance`` of that point's range along that
-  beam (same surface, not occluded). It depends on the scans and poses only, not on the
-  detector, so all methods share one denominator.
+The window and the revisits are defined in :mod:`laser_corners.eval.revisits`; the pair
+scorers in :mod:`laser_corners.eval.loop_scorers` (``docs/place-recognition.md``).
 """
 
 from __future__ import annotations
