@@ -51,3 +51,23 @@ def test_monte_carlo_consistency_robust_and_paper() -> None:
         assert 0.92 <= res.inside_95 <= 0.98, res.inside_95
         assert 0.7 <= res.median_nees <= 2.0, res.median_nees
         assert CHI2_2_95 > 5.99
+
+
+def test_covariance_columns_in_csv_and_parquet(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import csv
+
+    import pyarrow.parquet as pq
+
+    from laser_corners.io.writers import CsvKeypointWriter, ParquetKeypointWriter
+
+    scan = corner_scan(corner=(2.0, 1.0), noise_sigma=0.005, rng=np.random.default_rng(0))
+    kps = CornerDetector().detect(scan)
+    with CsvKeypointWriter(tmp_path / "k.csv", with_map=False) as w:
+        w.write(0, scan, kps)
+    with ParquetKeypointWriter(tmp_path / "k.parquet", with_map=False) as w:
+        w.write_many(0, [scan, scan], [kps, kps])
+    rows = list(csv.DictReader((tmp_path / "k.csv").open()))
+    assert float(rows[0]["cov_xx"]) == kps.cov[0, 0, 0]
+    assert float(rows[0]["cov_xy"]) == kps.cov[0, 0, 1]
+    table = pq.read_table(tmp_path / "k.parquet").to_pydict()
+    assert table["cov_yy"][:1] == [kps.cov[0, 1, 1]] and len(table["cov_yy"]) == 2 * len(kps)

@@ -35,12 +35,9 @@ Range noise lower bound: the RMSE gates (eqs. 8-9) keep fits whose residuals are
 each fit's residual variance is floored at what the scan's range noise alone gives on that
 line (:func:`scan_range_noise`, projected on the line's normal by the incidence angle).
 
-The constants were calibrated by the Monte Carlo study ``benchmarks/covariance_study.py``
-(simulated corners, noise 0-0.03 m, ranges 0.5-8 m; results in ``docs/matching.md``).
-
-Cost: O(M·K·n) per scan for M keypoints, K scales of a run and n points per neighbourhood (the
-sums are taken directly around the keypoint, which keeps them well conditioned); a few µs
-per keypoint.
+Constants calibrated by ``benchmarks/covariance_study.py`` (Monte Carlo, ``docs/matching.md``).
+Cost: O(M·K·n) for M keypoints, K scales and n points per neighbourhood (sums taken around the
+keypoint, well conditioned); about 4 µs per keypoint.
 """
 
 from __future__ import annotations

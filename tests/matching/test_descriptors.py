@@ -6,12 +6,18 @@ import math
 
 import numpy as np
 import pytest
+from matching_world import corner_room
 
 from laser_corners import CornerDetector, LaserScan
 from laser_corners.errors import InvalidParamsError
 from laser_corners.matching import DescriptorParams, describe
 from laser_corners.matching.core import _distance
 from laser_corners.sim import World
+
+
+@pytest.fixture(scope="module")
+def room() -> World:
+    return corner_room()
 
 
 def _rotated(scan: LaserScan, delta: float) -> LaserScan:

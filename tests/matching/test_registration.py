@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from matching_world import corner_room
 
 from laser_corners import CornerDetector, InvalidScanError, Keypoints, LaserScan
 from laser_corners.errors import InvalidParamsError
@@ -18,6 +19,11 @@ from laser_corners.matching import (
     register_many,
 )
 from laser_corners.sim import World
+
+
+@pytest.fixture(scope="module")
+def room() -> World:
+    return corner_room()
 
 
 def _relative(pa: tuple[float, float, float], pb: tuple[float, float, float]) -> np.ndarray:
@@ -125,3 +131,33 @@ def test_register_many_matches_pairwise_results(room: World) -> None:
         assert np.allclose(out.poses[c], _relative(poses[0], poses[c]), atol=0.01)
     sub = register_many(kps[0], descs[0], bank, candidates=[2])
     assert sub.n_inliers[0] == out.n_inliers[2]
+
+
+def test_keypoints_without_covariance_or_orientation(room: World) -> None:
+    """Keypoints of other detectors (no covariance, maybe no orientation) still register."""
+    rng = np.random.default_rng(3)
+    a = room.scan((0.0, 0.0, 0.0), noise_sigma=0.01, rng=rng)
+    b = room.scan((0.5, -0.3, 0.4), noise_sigma=0.01, rng=rng)
+    det = CornerDetector()
+
+    def bare(k: Keypoints, orientation: np.ndarray) -> Keypoints:
+        return Keypoints(k.xy, k.beam_index, k.opening_angle_deg, orientation, k.n_scales,
+                         k.rmse, k.n_merged)  # fmt: skip
+
+    ka, kb = det.detect(a), det.detect(b)
+    na, nb = bare(ka, ka.orientation), bare(kb, kb.orientation)
+    assert np.isnan(na.cov).all()
+    reg = register_keypoints(na, describe(a, na), nb, describe(b, nb))
+    assert reg.accepted
+    assert np.allclose(reg.pose, _relative((0, 0, 0), (0.5, -0.3, 0.4)), atol=0.02)
+    # NaN orientations: empty descriptors, no crash, and no match through the angle test
+    nan_o = np.full(len(kb), np.nan)
+    nb2 = bare(kb, nan_o)
+    for kind in ("csc", "bsc"):
+        reg = register_keypoints(na, describe(a, na, kind), nb2, describe(b, nb2, kind))
+        assert isinstance(reg.accepted, bool)
+        reg = register_keypoints(
+            na, describe(a, na, kind), nb2, describe(b, nb2, kind),
+            MatchOptions(angle_tolerance=4.0),
+        )  # fmt: skip
+        assert isinstance(reg.accepted, bool)

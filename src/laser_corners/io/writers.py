@@ -168,9 +168,9 @@ class _TableWriter(KeypointWriter):
             for name in ("opening_angle_deg", "orientation", "n_scales", "rmse", "n_merged"):
                 block[name] = np.concatenate([getattr(k, name) for k in found])
             cov = np.concatenate([k.cov for k in found])
-            block["cov_xx"], block["cov_xy"], block["cov_yy"] = (
-                cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-            )
+            block["cov_xx"] = cov[:, 0, 0]
+            block["cov_xy"] = cov[:, 0, 1]
+            block["cov_yy"] = cov[:, 1, 1]
             if self.with_map:
                 mapped = [
                     k.transformed(pose).xy

@@ -41,16 +41,28 @@ def _distance(
     vals_b: NDArray[np.float64],
     j: int,
     inv_bits: float,
+    bound: float = math.inf,
 ) -> float:
-    """Normalised descriptor distance: Hamming / n_bits (bsc) or L1 (csc)."""
+    """Normalised descriptor distance: Hamming / n_bits (bsc) or L1 (csc).
+
+    csc stops early once the partial sum exceeds ``bound`` and returns that partial sum
+    (a value above ``bound``, below the true distance).
+    """
     if kind == 0:
         h = 0
         for w in range(bits_a.shape[1]):
             h += _popcount(bits_a[i, w] ^ bits_b[j, w])
         return h * inv_bits
     s = 0.0
-    for c in range(vals_a.shape[1]):
-        s += abs(vals_a[i, c] - vals_b[j, c])
+    d = vals_a.shape[1]
+    c = 0
+    while c < d:
+        top = min(c + 8, d)
+        for cc in range(c, top):
+            s += abs(vals_a[i, cc] - vals_b[j, cc])
+        if s > bound:
+            return s
+        c = top
     return s
 
 
@@ -79,10 +91,14 @@ def candidate_matches(
     nb_ = max(bits_b.shape[0], vals_b.shape[0])
     if na == 0 or nb_ == 0:
         return 0
+    # distances above `bound` are never kept, never decide a ratio test (the second nearest
+    # is then beyond d1/ratio) and never win a column of the mutual check against a kept
+    # match, so their computation may stop early: the result is that of exact distances
+    bound = max_distance / min(ratio, 1.0) if ratio > 0.0 else math.inf
     dist = np.empty((na, nb_))
     for i in range(na):
         for j in range(nb_):
-            dist[i, j] = _distance(kind, bits_a, vals_a, i, bits_b, vals_b, j, inv_bits)
+            dist[i, j] = _distance(kind, bits_a, vals_a, i, bits_b, vals_b, j, inv_bits, bound)
     best_a = np.empty(nb_, dtype=np.int64)  # nearest keypoint of A for each of B
     if mutual:
         for j in range(nb_):

@@ -148,6 +148,8 @@ def _bsc(
         cx = kxy[m, 0]
         cy = kxy[m, 1]
         th = orient[m]
+        if not (math.isfinite(cx) and math.isfinite(cy) and math.isfinite(th)):
+            continue  # no position or orientation: an empty descriptor
         for i in range(x.shape[0]):
             dx = x[i] - cx
             dy = y[i] - cy
@@ -155,7 +157,7 @@ def _bsc(
             if not d2 < r2:  # also skips gaps (NaN)
                 continue
             a = (math.atan2(dy, dx) - th) % two_pi
-            sector = min(int(a / two_pi * n_sectors), n_sectors - 1)
+            sector = max(0, min(int(a / two_pi * n_sectors), n_sectors - 1))
             ring = min(int(math.sqrt(d2) / radius * n_rings), n_rings - 1)
             cell = ring * n_sectors + sector
             out[m, cell >> 6] |= np.uint64(1) << np.uint64(cell & 63)
@@ -199,6 +201,9 @@ def _csc(
         cy = kxy[m, 1]
         th = orient[m]
         total = 0.0
+        out[m, n_hist] = opening_weight * opening[m] / 180.0 if math.isfinite(opening[m]) else 0.0
+        if not (math.isfinite(cx) and math.isfinite(cy) and math.isfinite(th)):
+            continue  # no position or orientation: an empty histogram
         for i in range(n):
             dx = x[i] - cx
             dy = y[i] - cy
@@ -206,7 +211,7 @@ def _csc(
             if not d2 < r2:
                 continue
             a = (math.atan2(dy, dx) - th) % two_pi
-            sector = min(int(a / two_pi * n_sectors), n_sectors - 1)
+            sector = max(0, min(int(a / two_pi * n_sectors), n_sectors - 1))
             d = math.sqrt(d2)
             ring = (
                 0 if d <= inner else min(int(math.log(d / inner) / log_span * n_rings), n_rings - 1)
@@ -216,7 +221,6 @@ def _csc(
         if total > 0.0:
             for c in range(n_hist):
                 out[m, c] *= 0.5 / total
-        out[m, n_hist] = opening_weight * opening[m] / 180.0
 
 
 def describe_points(

@@ -130,7 +130,7 @@ def _final_inliers(
     used_b = np.zeros(xb.shape[0], dtype=np.bool_)
     k = 0
     for q in order:
-        if res[q] > tol:
+        if not res[q] <= tol:  # NaN too (keypoints without a position)
             break
         if used_a[m[q, 0]] or used_b[m[q, 1]]:
             continue

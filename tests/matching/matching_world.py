@@ -1,8 +1,10 @@
-"""Fixtures of the matching tests: a room with many corners, scans from known poses."""
+"""The simulated world of the matching tests: a room with many corners.
+
+(Not a conftest.py: test modules import it, and a second conftest would shadow
+``tests/conftest.py`` in pytest's default import mode.)
+"""
 
 from __future__ import annotations
-
-import pytest
 
 from laser_corners.sim import World
 
@@ -19,8 +21,3 @@ def corner_room() -> World:
     w.add_polygon([[2.2, 1.5], [2.8, 1.5], [2.8, 2.0], [2.2, 2.0]])
     w.add_polygon([[-3.2, 0.6], [-2.7, 0.9], [-2.9, 1.3]])
     return w
-
-
-@pytest.fixture(scope="session")
-def room() -> World:
-    return corner_room()
