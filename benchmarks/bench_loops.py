@@ -5,10 +5,10 @@ Usage::
     PYTHONPATH=src python benchmarks/bench_loops.py [LOG] [--method paper] [--queries 200]
 
 For one method, describes every scan once with each scorer of
-:mod:`laser_corners.eval.loop_scorers`, then registers the first ``--queries`` scans (evenly
-spread) against every scan outside their 5 m window, and prints wall-clock and CPU time per
-pair for each scorer and their ratio (both measured in this process, so the machine's load
-affects both alike), single-threaded and on all cores numba may use.
+:mod:`laser_corners.eval.loop_scorers`, then registers ``--queries`` scans (evenly spread)
+against every scan outside their 5 m window, one query per call and ``QUERY_BLOCK`` queries
+per call, and prints wall-clock and CPU time per pair (all measured in this process, so the
+machine's load affects all alike), single-threaded and on all cores numba may use.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 
 from laser_corners.eval.loop_match import MatchOptions
 from laser_corners.eval.loop_scorers import MATCHERS, Scorer, make_scorer
-from laser_corners.eval.loops import loop_detectors
+from laser_corners.eval.loops import QUERY_BLOCK, loop_detectors
 from laser_corners.eval.real import load_scans
 from laser_corners.eval.revisits import candidates, travel_distance
 
@@ -30,14 +30,17 @@ DEFAULT_LOG = Path(__file__).parents[1] / "../shared/data/real/fr079-corrected.c
 
 
 def _time_scorer(
-    score: Scorer, queries: np.ndarray, travel: np.ndarray
+    score: Scorer, queries: np.ndarray, travel: np.ndarray, block: int
 ) -> tuple[float, float, int]:
-    score(int(queries[0]), candidates(travel, int(queries[0]), 5.0))  # warm up (JIT, cache)
+    """Wall and CPU seconds and pairs for ``queries``, ``block`` queries per call."""
+    warm = candidates(travel, int(queries[0]), 5.0)
+    score(np.full(warm.shape[0], int(queries[0])), warm)  # JIT / cache load
     wall, cpu, pairs = time.perf_counter(), time.process_time(), 0
-    for q in queries:
-        cand = candidates(travel, int(q), 5.0)
-        score(int(q), cand)
-        pairs += cand.shape[0]
+    for lo in range(0, len(queries), block):
+        cands = [candidates(travel, int(q), 5.0) for q in queries[lo : lo + block]]
+        counts = [c.shape[0] for c in cands]
+        score(np.repeat(queries[lo : lo + block], counts), np.concatenate(cands))
+        pairs += sum(counts)
     return time.perf_counter() - wall, time.process_time() - cpu, pairs
 
 
@@ -61,11 +64,12 @@ def main() -> None:
             t0 = time.perf_counter()
             score = make_scorer(matcher, scans, keypoints, MatchOptions())
             describe_s = time.perf_counter() - t0
-            wall, cpu, pairs = _time_scorer(score, queries, travel)
-            per_pair[matcher] = wall / pairs
-            print(f"  {threads} thread(s) {matcher:9s}: describe {describe_s:.2f} s, {pairs} "
-                  f"pairs, {1e3 * wall / pairs:.4f} ms/pair wall, "
-                  f"{1e3 * cpu / pairs:.4f} ms/pair CPU")  # fmt: skip
+            for block in (1, QUERY_BLOCK):
+                wall, cpu, pairs = _time_scorer(score, queries, travel, block)
+                per_pair[matcher] = wall / pairs
+                print(f"  {threads} thread(s) {matcher:9s} {block:2d} queries/call: describe "
+                      f"{describe_s:.2f} s, {pairs} pairs, {1e3 * wall / pairs:.4f} ms/pair "
+                      f"wall, {1e3 * cpu / pairs:.4f} ms/pair CPU")  # fmt: skip
         print(
             f"  matching / local wall time per pair: {per_pair['matching'] / per_pair['local']:.2f}"
         )

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from laser_corners.eval.loop_descriptors import KeypointBank
 
-__all__ = ["MatchOptions", "score_query"]
+__all__ = ["MatchOptions", "score_pairs", "score_query"]
 
 
 @dataclass(frozen=True)
@@ -251,16 +251,59 @@ def _register_pair(
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
-def _score_query(
-    q: int, candidates: NDArray[np.int64], offsets: NDArray[np.int64],
+def _score_pairs(
+    queries: NDArray[np.int64], candidates: NDArray[np.int64], offsets: NDArray[np.int64],
     xy: NDArray[np.float64], ori: NDArray[np.float64], opening: NDArray[np.float64],
     desc: NDArray[np.float64], opt: NDArray[np.float64],
     inliers: NDArray[np.int64], poses: NDArray[np.float64], rms: NDArray[np.float64],
 ) -> None:  # fmt: skip
     for k in nb.prange(candidates.shape[0]):
-        n, e = _register_pair(q, candidates[k], offsets, xy, ori, opening, desc, opt, poses[k])
+        n, e = _register_pair(queries[k], candidates[k], offsets, xy, ori, opening, desc, opt,
+                              poses[k])  # fmt: skip
         inliers[k] = n
         rms[k] = e
+
+
+def score_pairs(
+    bank: KeypointBank,
+    queries: NDArray[np.int64],
+    candidates: NDArray[np.int64],
+    options: MatchOptions | None = None,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Register scan ``queries[k]`` against scan ``candidates[k]`` for every k, in one numba
+    call over all cores (several queries per call amortise the threads' start-up).
+
+    Parameters
+    ----------
+    bank : KeypointBank
+        Keypoints and descriptors of all scans
+        (:func:`~laser_corners.eval.loop_descriptors.build_bank`).
+    queries, candidates : ndarray of int, shape (P,)
+        Scan indices of each pair.
+    options : MatchOptions, optional
+        Matcher settings.
+
+    Returns
+    -------
+    inliers : ndarray of int, shape (P,)
+        Inliers of the best hypothesis per pair (0: no hypothesis).
+    poses : ndarray, shape (P, 3)
+        The query's sensor pose ``(x, y, theta)`` in the candidate's sensor frame (zeros
+        where ``inliers`` is 0).
+    rms : ndarray, shape (P,)
+        RMS distance of the inliers, metres.
+    """
+    opt = (options or MatchOptions()).as_array()
+    q = np.ascontiguousarray(queries, dtype=np.int64)
+    c = np.ascontiguousarray(candidates, dtype=np.int64)
+    if q.shape != c.shape:
+        raise ValueError(f"{q.shape[0]} queries but {c.shape[0]} candidates")
+    inliers = np.zeros(c.shape[0], dtype=np.int64)
+    poses = np.zeros((c.shape[0], 3))
+    rms = np.zeros(c.shape[0])
+    _score_pairs(q, c, bank.offsets, bank.xy, bank.orientation, bank.opening_deg,
+                 bank.descriptors, opt, inliers, poses, rms)  # fmt: skip
+    return inliers, poses, rms
 
 
 def score_query(
@@ -269,34 +312,6 @@ def score_query(
     candidates: NDArray[np.int64],
     options: MatchOptions | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-    """Register scan ``query`` against each of ``candidates`` (one numba call, all cores).
-
-    Parameters
-    ----------
-    bank : KeypointBank
-        Keypoints and descriptors of all scans (:func:`build_bank`).
-    query : int
-        Index of the query scan.
-    candidates : ndarray of int
-        Indices of the candidate scans.
-    options : MatchOptions, optional
-        Matcher settings.
-
-    Returns
-    -------
-    inliers : ndarray of int, shape (C,)
-        Inliers of the best hypothesis per candidate (0: no hypothesis).
-    poses : ndarray, shape (C, 3)
-        The query's sensor pose ``(x, y, theta)`` in each candidate's sensor frame (zeros
-        where ``inliers`` is 0).
-    rms : ndarray, shape (C,)
-        RMS distance of the inliers, metres.
-    """
-    opt = (options or MatchOptions()).as_array()
+    """Register scan ``query`` against each of ``candidates`` (:func:`score_pairs`)."""
     cand = np.ascontiguousarray(candidates, dtype=np.int64)
-    inliers = np.zeros(cand.shape[0], dtype=np.int64)
-    poses = np.zeros((cand.shape[0], 3))
-    rms = np.zeros(cand.shape[0])
-    _score_query(int(query), cand, bank.offsets, bank.xy, bank.orientation, bank.opening_deg,
-                 bank.descriptors, opt, inliers, poses, rms)  # fmt: skip
-    return inliers, poses, rms
+    return score_pairs(bank, np.full(cand.shape[0], int(query), dtype=np.int64), cand, options)

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidParamsError
 from laser_corners.eval.loop_descriptors import build_bank
-from laser_corners.eval.loop_match import MatchOptions, score_query
+from laser_corners.eval.loop_match import MatchOptions, score_pairs
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 
@@ -30,10 +30,12 @@ MATCHERS: tuple[str, ...] = ("local", "matching")
 """Names of the pair scorers."""
 
 Scorer = Callable[
-    [int, NDArray[np.int64]], tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]
+    [NDArray[np.int64], NDArray[np.int64]],
+    tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]],
 ]
-"""``score(query, candidates) -> (inliers, poses, rms)``; ``poses[k]`` is the query's sensor
-pose in candidate ``k``'s sensor frame, ``rms`` breaks ties between equal inlier counts."""
+"""``score(queries, candidates) -> (inliers, poses, rms)`` over pairs ``k`` (the pairs of one
+query contiguous); ``poses[k]`` is the query's sensor pose in the candidate's sensor frame,
+``rms`` breaks ties between equal inlier counts."""
 
 
 def make_scorer(
@@ -53,8 +55,8 @@ def make_scorer(
     if matcher == "local":
         bank = build_bank(scans, keypoints)
 
-        def local(q: int, cand: NDArray[np.int64]) -> tuple[NDArray[np.int64], ...]:
-            return score_query(bank, q, cand, options)
+        def local(q: NDArray[np.int64], cand: NDArray[np.int64]) -> tuple[NDArray[np.int64], ...]:
+            return score_pairs(bank, q, cand, options)
 
         return local  # type: ignore[return-value]
     if matcher == "matching":
@@ -72,11 +74,16 @@ def _matching_scorer(
     bank = KeypointBank.from_lists(keypoints, desc)
     opt = RegistrationOptions(min_inliers=max(2, int(min_inliers)))
 
-    def score(q: int, cand: NDArray[np.int64]) -> tuple[NDArray[np.int64], ...]:
-        r = register_many(keypoints[q], desc[q], bank, cand, opt)
-        inliers = np.where(r.accepted, r.n_inliers, 0)
+    def score(q: NDArray[np.int64], cand: NDArray[np.int64]) -> tuple[NDArray[np.int64], ...]:
+        inliers = np.zeros(len(cand), dtype=np.int64)
+        rel = np.zeros((len(cand), 3))
+        starts = np.flatnonzero(np.r_[True, q[1:] != q[:-1]]) if len(q) else np.zeros(0, int)
+        for lo, hi in zip(starts, [*starts[1:], len(q)], strict=True):
+            r = register_many(keypoints[q[lo]], desc[q[lo]], bank, cand[lo:hi], opt)
+            inliers[lo:hi] = np.where(r.accepted, r.n_inliers, 0)
+            rel[lo:hi] = r.poses
         # r.poses: the candidate in the query's frame; invert to the query in the candidate's
-        x, y, th = r.poses[:, 0], r.poses[:, 1], r.poses[:, 2]
+        x, y, th = rel[:, 0], rel[:, 1], rel[:, 2]
         c, s = np.cos(th), np.sin(th)
         poses = np.stack([-c * x - s * y, s * x - c * y, -th], axis=1)
         return inliers, poses, np.zeros(len(cand))

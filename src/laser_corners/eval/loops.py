@@ -111,10 +111,8 @@ class MethodLoops:
 
     Attributes
     ----------
-    name : str
-        Method name.
-    keypoints_per_scan : float
-        Mean keypoints per scan.
+    name, keypoints_per_scan : str, float
+        Method name; mean keypoints per scan.
     best_candidate : ndarray of int
         Candidate with the most inliers (-1: no candidate had a hypothesis).
     best_inliers : ndarray of int
@@ -272,6 +270,9 @@ def _per_geometry(detector: object) -> Callable[[list[LaserScan]], list[Keypoint
     return run
 
 
+QUERY_BLOCK = 32
+"""Queries registered per numba call (amortises the start-up of the threads)."""
+
 Progress = Callable[[str, int, int], None]
 """``progress(stage, done, total)``: called as the evaluation advances."""
 
@@ -303,18 +304,24 @@ def _evaluate_method(
     n_pairs = 0
     stage = f"{name}: matching"
     t0 = time.perf_counter()
-    for q in range(n):
-        cand = candidates(travel, q, config.window_travel)
-        n_pairs += cand.shape[0]
-        inliers, rel, rms = score(q, cand)
-        if cand.shape[0] and inliers.max() >= 2:
-            k = int(np.lexsort((rms, -inliers))[0])
-            c = int(cand[k])
-            est = compose(scans[c].pose, tuple(rel[k]))  # type: ignore[arg-type]
-            best_c[q], best_n[q] = c, inliers[k]
-            err_xy[q] = math.hypot(est[0] - poses[q, 0], est[1] - poses[q, 1])
-            err_th[q] = abs(math.remainder(est[2] - poses[q, 2], math.tau))
-        progress(stage, q + 1, n)
+    for lo in range(0, n, QUERY_BLOCK):
+        block = range(lo, min(n, lo + QUERY_BLOCK))
+        cands = [candidates(travel, q, config.window_travel) for q in block]
+        counts = [c.shape[0] for c in cands]
+        n_pairs += sum(counts)
+        q_arr = np.repeat(np.arange(block.start, block.stop, dtype=np.int64), counts)
+        all_inliers, all_rel, all_rms = score(q_arr, np.concatenate(cands))
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        for q, cand, b0, b1 in zip(block, cands, bounds[:-1], bounds[1:], strict=True):
+            inliers, rel, rms = all_inliers[b0:b1], all_rel[b0:b1], all_rms[b0:b1]
+            if cand.shape[0] and inliers.max() >= 2:
+                k = int(np.lexsort((rms, -inliers))[0])
+                c = int(cand[k])
+                est = compose(scans[c].pose, tuple(rel[k]))  # type: ignore[arg-type]
+                best_c[q], best_n[q] = c, inliers[k]
+                err_xy[q] = math.hypot(est[0] - poses[q, 0], est[1] - poses[q, 1])
+                err_th[q] = abs(math.remainder(est[2] - poses[q, 2], math.tau))
+        progress(stage, block.stop, n)
     seconds["match"] = time.perf_counter() - t0
     correct = (err_xy <= config.max_position_error) & (err_th <= config.max_angle_error)
     return MethodLoops(
@@ -382,7 +389,8 @@ def evaluate_loops(
                          seconds={"revisits": time.perf_counter() - t0})  # fmt: skip
     # compile or load the kernels once, so the first method's time is matching only
     empty = [Keypoints.empty(), Keypoints.empty()]
-    make_scorer(cfg.matcher, posed[:2], empty, cfg.match)(0, np.array([1], dtype=np.int64))
+    one = np.array([1], dtype=np.int64)
+    make_scorer(cfg.matcher, posed[:2], empty, cfg.match)(one - 1, one)
     for name, detect in detectors.items():
         result.methods[name] = _evaluate_method(name, detect, posed, cfg, say)
         if on_method is not None:
