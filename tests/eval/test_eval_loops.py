@@ -1,0 +1,217 @@
+"""Place recognition (FLIRT's protocol): metric, window, revisits, end to end and CLI."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from laser_corners.cli import app
+from laser_corners.errors import InputError, InvalidParamsError, OutputError
+from laser_corners.eval.loop_descriptors import build_bank
+from laser_corners.eval.loop_match import score_query
+from laser_corners.eval.loops import LoopsConfig, evaluate_loops, loop_detectors, precision_recall
+from laser_corners.eval.loops_report import check_output_dir, write_loops_report
+from laser_corners.eval.poses import compose
+from laser_corners.eval.revisits import candidates, revisits, travel_distance
+from laser_corners.io.arrays import write_scans_npz
+from laser_corners.scan import LaserScan
+from laser_corners.sim import UST_10LX, World
+
+JSON_KEYS = {"precision", "recall", "min_inliers", "queries", "ms_per_pair"}
+
+
+def _world() -> World:
+    """A 14 x 10 m hall with notched walls and square pillars: many distinct corners."""
+    world = World(name="loop hall")
+    world.add_polygon([[0, 0], [6, 0], [6, -0.8], [7.5, -0.8], [7.5, 0], [14, 0], [14, 4],
+                       [14.7, 4], [14.7, 5.5], [14, 5.5], [14, 10], [8, 10], [8, 10.6],
+                       [6.5, 10.6], [6.5, 10], [0, 10], [0, 6], [-0.6, 6], [-0.6, 3.5],
+                       [0, 3.5]])  # fmt: skip
+    for cx, cy, h in ((3.5, 5.2, 0.4), (10.5, 5.0, 0.5), (7.0, 3.0, 0.3), (7.2, 7.0, 0.35)):
+        world.add_polygon([[cx - h, cy - h], [cx + h, cy - h], [cx + h, cy + h], [cx - h, cy + h]])
+    return world
+
+
+def _loop_poses(step: float = 0.35) -> np.ndarray:
+    """A rectangular loop (2, 2) -> (12, 2) -> (12, 8) -> (2, 8) -> back, then 1.5 m more."""
+    corners = np.array([[2.0, 2.0], [12.0, 2.0], [12.0, 8.0], [2.0, 8.0], [2.0, 2.0],
+                        [3.5, 2.0]])  # fmt: skip
+    poses = []
+    for a, b in itertools.pairwise(corners):
+        n = max(1, round(float(np.hypot(*(b - a))) / step))
+        heading = math.atan2(b[1] - a[1], b[0] - a[0])
+        for t in np.arange(n) / n:
+            p = a + t * (b - a)
+            poses.append((p[0], p[1], heading))
+    poses.append((3.5, 2.0, 0.0))
+    return np.array(poses)
+
+
+@pytest.fixture(scope="module")
+def loop_scans() -> list[LaserScan]:
+    world = _world()
+    rng = np.random.default_rng(3)
+    return [world.scan(tuple(p), UST_10LX, noise_sigma=0.005, rng=rng, stamp=0.1 * i)
+            for i, p in enumerate(_loop_poses())]  # fmt: skip
+
+
+# ------------------------------------------------------------------ metric
+def test_precision_recall_hand_made_case() -> None:
+    inliers = np.array([9, 7, 7, 5, 3, 0])
+    correct = np.array([True, True, False, True, True, False])
+    revisit = np.array([True, True, True, False, True, False])
+    pr = precision_recall(inliers, correct, revisit, [3, 6, 8, 10])
+    assert pr["detections"].tolist() == [5, 3, 1, 0]
+    assert pr["correct"].tolist() == [4, 2, 1, 0]
+    # precision = correct / detections; no detection at T=10: NaN
+    assert pr["precision"][:3] == pytest.approx([4 / 5, 2 / 3, 1.0])
+    assert math.isnan(pr["precision"][3])
+    # recall = correct detections of revisit queries / 4 revisit queries (query 3 has none)
+    assert pr["recall"] == pytest.approx([3 / 4, 2 / 4, 1 / 4, 0.0])
+
+
+def test_precision_recall_without_revisits_and_bad_shapes() -> None:
+    pr = precision_recall(np.array([5]), np.array([True]), np.array([False]), [2])
+    assert pr["precision"][0] == 1.0 and pr["recall"][0] == 0.0
+    with pytest.raises(ValueError, match="one entry per query"):
+        precision_recall(np.array([5, 1]), np.array([True]), np.array([False]), [2])
+
+
+def test_window_excludes_the_last_metres_of_travel() -> None:
+    poses = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1.0], [3, 0, 0], [6, 0, 0], [10, 0, 0.0]])
+    travel = travel_distance(poses)
+    assert travel.tolist() == [0, 1, 1, 3, 6, 10]
+    # standing still / turning on the spot (scans 1, 2) never leaves the window
+    assert candidates(travel, 1, 3.0).tolist() == [4, 5]
+    assert candidates(travel, 5, 5.0).tolist() == [0, 1, 2, 3]
+    assert candidates(travel, 3, 0.5).tolist() == [0, 1, 2, 4, 5]
+
+
+# ------------------------------------------------------------------ revisits
+def test_revisits_found_only_after_the_loop(loop_scans: list[LaserScan]) -> None:
+    rev = revisits(loop_scans, window_travel=5.0, overlap=0.5)
+    travel = travel_distance(np.array([s.pose for s in loop_scans]))
+    last = len(loop_scans) - 1
+    # the last scans are back at the start: their revisit is one of the first scans
+    assert rev[last] >= 0 and travel[rev[last]] < 2.0
+    assert np.all((rev < 0) | (np.abs(travel[np.maximum(rev, 0)] - travel) >= 5.0))
+    # a window longer than the whole loop leaves no revisit at all
+    assert np.all(revisits(loop_scans, window_travel=travel[-1] + 1.0) < 0)
+
+
+def test_revisit_overlap_any_scan_direction() -> None:
+    # a wall 3 m ahead (x = 3); scan B 6 m further back, with a mirrored beam order
+    # (negative increment), and C like B with angles wrapped by 2 pi, see all of A's points;
+    # A sees only the middle 41 % of B's longer stretch of wall (the rest is outside its view)
+    n = 181
+    angles = np.radians(np.linspace(-45.0, 45.0, n))
+    ranges_a = 3.0 / np.cos(angles)
+    a = LaserScan(ranges_a, math.radians(-45.0), math.radians(0.5), 0.0, 50.0, pose=(0, 0, 0))
+    ranges_b = (9.0 / np.cos(angles))[::-1]
+    b = LaserScan(ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 50.0,
+                  pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    c = LaserScan(ranges_b, math.radians(45.0) + math.tau, -math.radians(0.5), 0.0, 50.0,
+                  pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    assert revisits([a, b], window_travel=1.0).tolist() == [1, -1]
+    assert revisits([a, c], window_travel=1.0).tolist() == [1, -1]
+    assert revisits([a, b], window_travel=1.0, overlap=0.4).tolist() == [1, 0]
+    # a scan whose range ends before the wall sees none of it
+    far = LaserScan(ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 5.0,
+                    pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    assert revisits([a, far], window_travel=1.0)[0] == -1
+
+
+# ------------------------------------------------------------------ matcher
+def test_score_query_recovers_the_relative_pose(loop_scans: list[LaserScan]) -> None:
+    detect = loop_detectors(["paper"], loop_scans[0])["paper"]
+    kps = detect(loop_scans)
+    bank = build_bank(loop_scans, kps)
+    q, c = len(loop_scans) - 1, 4  # (3.5, 2, 0) against the scan at (3.4, 2, 0)
+    inliers, rel, _ = score_query(bank, q, np.array([c, 20]))
+    assert inliers[0] >= 4
+    est = compose(loop_scans[c].pose, tuple(rel[0]))  # type: ignore[arg-type]
+    truth = loop_scans[q].pose
+    assert truth is not None
+    assert math.hypot(est[0] - truth[0], est[1] - truth[1]) < 0.05
+    assert abs(math.remainder(est[2] - truth[2], math.tau)) < math.radians(1.0)
+
+
+# ------------------------------------------------------------------ end to end
+def test_evaluate_loops_finds_the_known_revisit(loop_scans: list[LaserScan], tmp_path) -> None:
+    config = LoopsConfig(methods=("paper", "falko-like"), min_inliers=4)
+    seen: list[str] = []
+    written: list[list[str]] = []
+    result = evaluate_loops(
+        loop_scans, config, "sim", progress=lambda stage, done, total: seen.append(stage),
+        on_method=lambda partial: written.append(list(partial.methods)),
+    )  # fmt: skip
+    assert written == [["paper"], ["paper", "falko-like"]]
+    assert "paper: matching" in seen
+    last = len(loop_scans) - 1
+    assert result.has_revisit[last]
+    paper = result.methods["paper"]
+    assert paper.best_inliers[last] >= 4 and paper.correct[last]
+    assert paper.position_error[last] < 0.05
+    assert travel_distance(np.array([s.pose for s in loop_scans]))[paper.best_candidate[last]] < 2
+    summary = result.summary()
+    assert set(summary) == {"methods"} and set(summary["methods"]) == {"paper", "falko-like"}
+    row = summary["methods"]["paper"]
+    assert set(row) == JSON_KEYS and row["queries"] == len(loop_scans) and row["min_inliers"] == 4
+    assert row["recall"] > 0 and row["precision"] is not None and row["precision"] > 0.5
+    paths = write_loops_report(result, tmp_path / "out")
+    assert json.loads(paths["loops.json"].read_text()) == json.loads(json.dumps(summary))
+    assert paths["precision_recall.png"].stat().st_size > 1000
+    assert "| paper |" in paths["loops.md"].read_text()
+
+
+def test_bad_input_and_options(loop_scans: list[LaserScan], tmp_path) -> None:
+    with pytest.raises(InvalidParamsError, match="unknown method 'foo'"):
+        evaluate_loops(loop_scans[:5], LoopsConfig(methods=("foo",)))
+    with pytest.raises(InvalidParamsError, match="min_inliers"):
+        LoopsConfig(min_inliers=1)
+    no_pose = [LaserScan(s.ranges, s.angle_min, s.angle_increment, s.range_min, s.range_max)
+               for s in loop_scans[:3]]  # fmt: skip
+    with pytest.raises(InputError, match="fewer than two scans with a pose"):
+        evaluate_loops(no_pose, LoopsConfig(methods=("paper",)), "x.npz")
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(OutputError, match="exists and is not a folder"):
+        check_output_dir(blocker)
+
+
+def test_cli_evaluate_loops(loop_scans: list[LaserScan], tmp_path) -> None:
+    log = tmp_path / "loop.npz"
+    write_scans_npz(log, loop_scans)
+    out = tmp_path / "report"
+    args = ["evaluate", "loops", str(log), "-o", str(out), "--methods", "paper,split-and-merge"]
+    result = CliRunner().invoke(app, [*args, "--min-inliers", "4"])
+    assert result.exit_code == 0, result.output
+    data = json.loads((out / "loops.json").read_text())
+    assert set(data["methods"]) == {"paper", "split-and-merge"}
+    assert all(set(v) == JSON_KEYS for v in data["methods"].values())
+    assert data["methods"]["paper"]["queries"] == len(loop_scans)
+    assert data["methods"]["paper"]["recall"] > 0
+    assert (out / "precision_recall.png").is_file() and (out / "loops.md").is_file()
+    # an output path that is a file: one line, exit 2
+    result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(log)])
+    assert result.exit_code == 2
+    assert "exists and is not a folder" in result.output
+    result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(out),
+                                      "--methods", "nope"])  # fmt: skip
+    assert result.exit_code == 2 and "unknown method 'nope'" in result.output
+
+
+def test_matching_backend_finds_the_known_revisit(loop_scans: list[LaserScan]) -> None:
+    config = LoopsConfig(methods=("paper",), min_inliers=4, matcher="matching")
+    result = evaluate_loops(loop_scans, config, "sim")
+    last = len(loop_scans) - 1
+    paper = result.methods["paper"]
+    assert paper.best_inliers[last] >= 4 and paper.correct[last]
+    assert paper.position_error[last] < 0.05 and paper.angle_error[last] < math.radians(1)
+    with pytest.raises(InvalidParamsError, match="unknown matcher"):
+        LoopsConfig(matcher="flirt")
