@@ -23,6 +23,7 @@ KEYPOINT_DTYPE = np.dtype(
         ("n_scales", np.int64),
         ("rmse", np.float64),
         ("n_merged", np.int64),
+        ("scale_index", np.int64),
     ]
 )
 """Record layout of :meth:`Keypoints.to_records` (one row per keypoint)."""
@@ -50,6 +51,10 @@ class Keypoints:
         Worst line-fit RMSE among the supporting fits, metres.
     n_merged : ndarray, shape (M,), int64
         Number of per-point candidates merged into the keypoint (1 for raw candidates).
+    scale_index : ndarray, shape (M,), int64
+        Index k0 of the first scale of the winning run of consecutive scales (of the
+        representative candidate for merged keypoints); the run is scales k0 ..
+        k0 + n_scales - 1. -1 when unknown (keypoints not made by the detector).
     stamp : float or None
         Stamp of the scan.
     frame_id : str
@@ -65,11 +70,14 @@ class Keypoints:
     n_merged: NDArray[np.int64]
     stamp: float | None = None
     frame_id: str = ""
+    scale_index: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         xy = np.asarray(self.xy, dtype=np.float64).reshape(-1, 2)
         object.__setattr__(self, "xy", xy)
         m = xy.shape[0]
+        if self.scale_index is None:
+            object.__setattr__(self, "scale_index", np.full(m, -1, dtype=np.int64))
         for name, dtype in (
             ("beam_index", np.int64),
             ("opening_angle_deg", np.float64),
@@ -77,6 +85,7 @@ class Keypoints:
             ("n_scales", np.int64),
             ("rmse", np.float64),
             ("n_merged", np.int64),
+            ("scale_index", np.int64),
         ):
             arr = np.asarray(getattr(self, name), dtype=dtype).reshape(-1)
             if arr.shape[0] != m:
@@ -90,6 +99,8 @@ class Keypoints:
         """Wrap arrays that already have the right dtypes and lengths, skipping the checks
         (the detector's per-scan fast path, where the checks cost more than the wrapping)."""
         keypoints = object.__new__(cls)
+        if "scale_index" not in arrays:
+            arrays["scale_index"] = np.full(arrays["xy"].shape[0], -1, dtype=np.int64)
         for name, value in arrays.items():
             object.__setattr__(keypoints, name, value)
         object.__setattr__(keypoints, "stamp", stamp)
@@ -101,7 +112,8 @@ class Keypoints:
         """No keypoints."""
         z = np.zeros(0)
         zi = np.zeros(0, dtype=np.int64)
-        return cls(np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id)
+        return cls(np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id,
+                   scale_index=zi)  # fmt: skip
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])

@@ -62,6 +62,11 @@ class DetectorParams(BaseModel):
         off) of the old one. 0 (default, the paper) disables it.
     refine_exclude : float
         Radius around the keypoint whose points the refinement leaves out, metres.
+    max_gap_beams : int
+        Runs of at most this many invalid beams (dropouts) inside a neighbourhood are
+        stepped over instead of ending it; the next valid point must still lie within R_k.
+        0 (default, the paper) ends a neighbourhood at every gap. Not in the paper: see
+        ``docs/method.md``.
 
     Examples
     --------
@@ -85,6 +90,7 @@ class DetectorParams(BaseModel):
     min_extent_ratio: float = 0.0
     refine_radius: float = 0.0
     refine_exclude: float = 0.03
+    max_gap_beams: int = 0
 
     def __init__(self, **data: Any) -> None:
         try:
@@ -129,6 +135,13 @@ class DetectorParams(BaseModel):
     def _check_non_negative(cls, value: float) -> float:
         if not (value >= 0.0) or value == float("inf"):
             raise ValueError(f"must be a finite number >= 0, got {value}")
+        return value
+
+    @field_validator("max_gap_beams")
+    @classmethod
+    def _check_max_gap(cls, value: int) -> int:
+        if value < 0:
+            raise ValueError(f"max_gap_beams must be >= 0, got {value}")
         return value
 
     @field_validator("min_extent_ratio")
