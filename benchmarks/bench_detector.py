@@ -45,6 +45,7 @@ def frozen_detector_class() -> type:
     path = HERE / "frozen_kernel_91ca792.py"
     spec = importlib.util.spec_from_file_location("frozen_kernel_91ca792", path)
     module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    sys.modules[spec.name] = module  # numba's cache re-imports the module by name
     spec.loader.exec_module(module)  # type: ignore[union-attr]
     return module.CornerDetector
 

@@ -74,16 +74,16 @@ __all__ = ["CornerDetector", "ScaleTable"]
 def _keypoints_from_rows(
     rows: NDArray[np.float64], stamp: float | None, frame_id: str
 ) -> Keypoints:
-    columns = rows.T  # one row per field: contiguous copies below
+    columns = rows.T.copy()  # one row per field, each contiguous: views below
     return Keypoints._from_valid_arrays(
         stamp,
         frame_id,
         xy=rows[:, M_X : M_Y + 1].copy(),
         beam_index=columns[M_BEAM].astype(np.int64),
-        opening_angle_deg=columns[M_OPEN].copy(),
-        orientation=columns[M_ORIENT].copy(),
+        opening_angle_deg=columns[M_OPEN],
+        orientation=columns[M_ORIENT],
         n_scales=columns[M_NSC].astype(np.int64),
-        rmse=columns[M_RMSE].copy(),
+        rmse=columns[M_RMSE],
         n_merged=columns[M_NMERGED].astype(np.int64),
         scale_index=columns[M_K0].astype(np.int64),
     )
@@ -150,7 +150,7 @@ class CornerDetector:
             )
         self.params = params
         self._config = kernel_config(params)
-        self._scales = self._config.scales
+        self._scales = np.asarray(params.scales, dtype=np.float64)
         self._geometry: tuple[int, float, float] | None = None
         self._cos = np.empty(0)
         self._sin = np.empty(0)

@@ -16,8 +16,9 @@ Phases (each a small ``@njit`` function; numba inlines them into :func:`candidat
 5. :func:`best_run`: the runs of consecutive passing scales, the centroid test, the winner.
 
 A point needs ``min_consecutive_scales`` consecutive passing scales, so every run contains a
-scale of index ``m-1, 2m-1, ...`` (m = ``min_consecutive_scales``): those are screened first
-and a point where all of them fail is done (most points of a room lie on straight walls).
+scale of index ``0, m, 2m, ...`` (m = ``min_consecutive_scales``): those *sentinels* are
+screened first (the walk going only as far as the largest of them) and a point where all of
+them fail is done (most points of a room lie on straight walls).
 
 The parameters reach the kernel as one :class:`KernelConfig` made by :func:`kernel_config`.
 """
@@ -34,17 +35,18 @@ from numpy.typing import NDArray
 from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
 from laser_corners.params import DetectorParams
 
-__all__ = ["KernelConfig", "candidates", "kernel_config", "polar_to_xy"]
+__all__ = ["KernelConfig", "candidates", "kernel_config", "polar_to_xy", "unpack"]
 
 # columns of the per-point candidate table (float64, shape (N, NC))
 C_X, C_Y, C_NSC, C_K0, C_RMSE, C_OPEN, C_ORIENT = range(7)
 NC = 7
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
+PAD = 4  # +inf entries before and after the padded coordinates of :func:`reach`
 
 
 class KernelConfig(NamedTuple):
-    """The detector parameters as the kernel's scalar arguments (see :func:`kernel_config`)."""
+    """The detector parameters as the kernel sees them (built by :func:`unpack`)."""
 
     scales: NDArray[np.float64]
     min_points: int
@@ -61,22 +63,50 @@ class KernelConfig(NamedTuple):
     refine_exclude: float
 
 
-def kernel_config(params: DetectorParams) -> KernelConfig:
-    """The one conversion of :class:`~laser_corners.DetectorParams` into kernel arguments."""
+_N_SCALARS = 12  # scalars before the scales in the packed configuration
+
+
+def kernel_config(params: DetectorParams) -> NDArray[np.float64]:
+    """The one conversion of :class:`~laser_corners.DetectorParams` into kernel arguments.
+
+    A packed float64 array (the 12 scalars of :class:`KernelConfig` in order, then the
+    scales): one array argument is the cheapest for numba's dispatcher to type, a tuple costs
+    microseconds per call. Kernels read it with :func:`unpack`.
+    """
+    scalars = [
+        params.min_points,
+        params.min_angle_deg,
+        params.max_angle_deg,
+        params.max_fit_rmse,
+        params.max_point_distance,
+        params.max_centroid_distance,
+        params.min_consecutive_scales,
+        params.min_extent_ratio,
+        params.max_gap_beams,
+        params.merge_radius,
+        params.refine_radius,
+        params.refine_exclude,
+    ]
+    return np.array(scalars + list(params.scales), dtype=np.float64)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def unpack(packed: NDArray[np.float64]) -> KernelConfig:
+    """The :class:`KernelConfig` of a packed configuration from :func:`kernel_config`."""
     return KernelConfig(
-        np.asarray(params.scales, dtype=np.float64),
-        int(params.min_points),
-        float(params.min_angle_deg),
-        float(params.max_angle_deg),
-        float(params.max_fit_rmse),
-        float(params.max_point_distance),
-        float(params.max_centroid_distance),
-        int(params.min_consecutive_scales),
-        float(params.min_extent_ratio),
-        int(params.max_gap_beams),
-        float(params.merge_radius),
-        float(params.refine_radius),
-        float(params.refine_exclude),
+        packed[_N_SCALARS:],
+        int(packed[0]),
+        packed[1],
+        packed[2],
+        packed[3],
+        packed[4],
+        packed[5],
+        int(packed[6]),
+        packed[7],
+        int(packed[8]),
+        packed[9],
+        packed[10],
+        packed[11],
     )
 
 
@@ -281,21 +311,22 @@ def _sums(ps: NDArray[np.float64], a: int, b: int) -> tuple:
     )
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def screen(ps: NDArray[np.float64], j: int, s: int, e: int, min_points: int,
-           loose_mse: float, max_cos2: float) -> bool:  # fmt: skip
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e: int,
+           min_points: int, loose_mse: float, max_cos2: float) -> bool:  # fmt: skip
     """Necessary condition for a scale to pass, without divisions (a hair permissive).
 
     The RMSE tests of eqs. 8-9 as D <= max_rmse² · n · spread (D = Sxx·Syy - Sxy², spread =
     the kept model's Sxx or Syy) and |cos| of the angle between the undirected lines, whose
     directions are (Sxx, Sxy) for y|x and (Sxy, Syy) for x|y, at most ``max_cos2``.
+    ``inv[c]`` is 1/c (a table: no division per call).
     """
     na, sx, sy, sxx, syy, sxy = _sums(ps, s, j)
     nd, tx, ty, txx, tyy, txy = _sums(ps, j, e)
     if na < min_points or nd < min_points:
         return False
-    axx, ayy, axy = centred_moments(1.0 / na, sx, sy, sxx, syy, sxy)
-    dxx, dyy, dxy = centred_moments(1.0 / nd, tx, ty, txx, tyy, txy)
+    axx, ayy, axy = centred_moments(inv[int(na)], sx, sy, sxx, syy, sxy)
+    dxx, dyy, dxy = centred_moments(inv[int(nd)], tx, ty, txx, tyy, txy)
     a_yx = axx >= ayy
     d_yx = dxx >= dyy
     a_spread = axx if a_yx else ayy
@@ -415,27 +446,73 @@ def best_run(passed: NDArray[np.bool_], q: NDArray[np.float64], min_consecutive:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _screen_all(ps, j, start, stop, cfg, loose_mse, max_cos2, want_all, screened) -> bool:
-    """Screen the scales of p_j; False when no run of ``min_consecutive`` scales can pass.
+def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """``x`` with gaps and :data:`PAD` entries before and after set to +inf (far from all)."""
+    n = x.shape[0]
+    out = np.full(n + 2 * PAD, math.inf)
+    for i in range(n):
+        if valid[i]:
+            out[i + PAD] = x[i]
+    return out
 
-    Unless ``want_all``, the sentinel scales m-1, 2m-1, ... go first (every run of m
-    consecutive scales holds one) and the others only if a sentinel passes.
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
+          r2_max: float, running_max: NDArray[np.float64]) -> int:  # fmt: skip
+    """Walk from p_j towards ``step`` up to the largest scale, point by point.
+
+    Stores the running maximum of the squared distance to p_j per step (a gap, or the scan's
+    end, is infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``
+    and returns the number of steps within. Four steps per iteration, whose running maxima
+    are all computed from the previous one (a short dependency chain, no branch per point).
+    For dense scans :func:`walk` (block skipping) is used instead.
     """
+    c = j + PAD
+    xj = px[c]
+    yj = py[c]
+    i = c + step
+    m = 0.0
+    steps = 0
+    while True:
+        d0 = (px[i] - xj) ** 2 + (py[i] - yj) ** 2
+        d1 = (px[i + step] - xj) ** 2 + (py[i + step] - yj) ** 2
+        d2 = (px[i + 2 * step] - xj) ** 2 + (py[i + 2 * step] - yj) ** 2
+        d3 = (px[i + 3 * step] - xj) ** 2 + (py[i + 3 * step] - yj) ** 2
+        d01 = max(d0, d1)
+        d012 = max(d01, d2)
+        m0 = max(m, d0)
+        m1 = max(m, d01)
+        m2 = max(m, d012)
+        m3 = max(m, max(d012, d3))
+        running_max[steps] = m0
+        running_max[steps + 1] = m1
+        running_max[steps + 2] = m2
+        running_max[steps + 3] = m3
+        if m3 > r2_max:
+            return steps + int(m0 <= r2_max) + int(m1 <= r2_max) + int(m2 <= r2_max)
+        m = m3
+        steps += 4
+        i += 4 * step
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def within(running_max: NDArray[np.float64], steps: int, r2: float) -> int:
+    """Number of leading steps of a :func:`reach` walk within sqrt(``r2``): a branch-free
+    binary search (the running maximum is non-decreasing)."""
+    lo = 0
+    size = steps
+    while size > 0:
+        half = size >> 1
+        ok = int(running_max[lo + half] <= r2)  # arithmetic, not a branch
+        lo += (half + 1) * ok
+        size = half - (2 * half + 1 - size) * ok
+    return lo
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def keep_runs(screened: NDArray[np.bool_], m: int) -> bool:
+    """Clear screened scales outside a screened run of at least ``m``; True if any is left."""
     n_scales = screened.shape[0]
-    m = cfg.min_consecutive
-    if not want_all:
-        hit = False
-        for k in range(m - 1, n_scales, m):
-            if screen(ps, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2):
-                hit = True
-                break
-        if not hit:
-            return False
-    for k in range(n_scales):
-        screened[k] = screen(ps, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
-    if want_all:
-        return True
-    # keep only screened scales inside a screened run of at least m scales
     k = 0
     any_run = False
     while k < n_scales:
@@ -447,6 +524,18 @@ def _screen_all(ps, j, start, stop, cfg, loose_mse, max_cos2, want_all, screened
         any_run |= k - k0 >= m
         k += 1
     return any_run
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _points_within(x, y, valid, radius: float) -> float:
+    """Estimated number of points within ``radius`` along the scan: radius / mean step."""
+    total = 0.0
+    count = 0
+    for i in range(x.shape[0] - 1):
+        if valid[i] and valid[i + 1]:
+            total += abs(x[i + 1] - x[i]) + abs(y[i + 1] - y[i])  # L1: a rough estimate
+            count += 1
+    return radius * count / total if total > 0.0 else 0.0
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -470,7 +559,7 @@ def _limits(cfg: KernelConfig) -> tuple:
 def candidates(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
-    cfg: KernelConfig,
+    packed: NDArray[np.float64],
     cand: NDArray[np.float64],
     table: NDArray[np.float64],
 ) -> None:
@@ -480,19 +569,33 @@ def candidates(
     (N, K, 3) it also receives, per point and scale, the intersection x, y and 1.0/0.0 for
     pass/fail (NaN where no intersection was computed).
     """
+    cfg = unpack(packed)
     n = x.shape[0]
     scales = cfg.scales
     n_scales = scales.shape[0]
     want_table = table.shape[0] == n
     valid, ox, oy, ps, next_valid, prev_valid = prepare(x, y)
-    box = block_boxes(x, y, valid)
     r2 = scales * scales
+    # dense scans (many points within the largest scale) and gap bridging: block-skipping
+    # walk; otherwise the short branch-free walk, counted per scale on demand
+    dense = cfg.max_gap > 0 or _points_within(x, y, valid, scales[n_scales - 1]) > 48.0
+    box = block_boxes(x, y, valid) if dense else np.empty((_LEVELS, 1, 4))
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
     start = np.empty(n_scales, dtype=np.int64)
     stop = np.empty(n_scales, dtype=np.int64)
+    inv = np.empty(n + 2)
+    inv[0] = 0.0
+    for c in range(1, n + 2):
+        inv[c] = 1.0 / c
+    px = padded(x, valid)
+    py = padded(y, valid)
+    rm_a = np.empty(n + PAD)
+    rm_d = np.empty(n + PAD)
     screened = np.zeros(n_scales, dtype=np.bool_)
     passed = np.zeros(n_scales, dtype=np.bool_)
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
+    m = cfg.min_consecutive
+    last_sentinel = ((n_scales - 1) // m) * m
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -500,9 +603,32 @@ def candidates(
             table[j, :, 2] = 0.0
         if not valid[j]:
             continue
-        walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
-        walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
-        if not _screen_all(ps, j, start, stop, cfg, loose_mse, max_cos2, want_table, screened):
+        if dense:
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
+        else:  # only as far as the largest sentinel scale for now
+            steps_a = reach(j, -1, px, py, r2[last_sentinel], rm_a)
+            steps_d = reach(j, 1, px, py, r2[last_sentinel], rm_d)
+        # every run of m consecutive scales holds one of the sentinels 0, m, 2m, ...
+        hit = want_table
+        for k in range(0, n_scales, m):
+            if hit:
+                break
+            if not dense:
+                start[k] = j - within(rm_a, steps_a, r2[k])
+                stop[k] = j + within(rm_d, steps_d, r2[k])
+            hit = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+        if not hit:
+            continue
+        if not dense:
+            steps_a = reach(j, -1, px, py, r2[n_scales - 1], rm_a)
+            steps_d = reach(j, 1, px, py, r2[n_scales - 1], rm_d)
+        for k in range(n_scales):
+            if not dense:
+                start[k] = j - within(rm_a, steps_a, r2[k])
+                stop[k] = j + within(rm_d, steps_d, r2[k])
+            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+        if not want_table and not keep_runs(screened, m):
             continue
         for k in range(n_scales):
             passed[k] = False

@@ -27,6 +27,7 @@ from laser_corners.kernel import (
     KernelConfig,
     candidates,
     polar_to_xy,
+    unpack,
 )
 from laser_corners.linefit import intersect, select_from_sums
 
@@ -247,8 +248,12 @@ def refine(x: NDArray[np.float64], y: NDArray[np.float64], rows: NDArray[np.floa
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def finish(x: NDArray[np.float64], y: NDArray[np.float64], cand: NDArray[np.float64],
-           cfg: KernelConfig, rows: NDArray[np.float64]) -> int:  # fmt: skip
-    """Candidates -> keypoint rows (merged, refined as configured); returns their count."""
+           packed: NDArray[np.float64], rows: NDArray[np.float64]) -> int:  # fmt: skip
+    """Candidates -> keypoint rows (merged, refined as configured); returns their count.
+
+    ``packed`` is the configuration from :func:`~laser_corners.kernel.kernel_config`.
+    """
+    cfg = unpack(packed)
     if cfg.merge_radius > 0.0:
         n_out = merge(cand, cfg.merge_radius, rows)
     else:
@@ -260,21 +265,22 @@ def finish(x: NDArray[np.float64], y: NDArray[np.float64], cand: NDArray[np.floa
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def detect_one(ranges, cos_a, sin_a, range_min: float, range_max: float, cfg: KernelConfig,
-               rows: NDArray[np.float64]) -> int:  # fmt: skip
+def detect_one(ranges, cos_a, sin_a, range_min: float, range_max: float,
+               packed: NDArray[np.float64], rows: NDArray[np.float64]) -> int:  # fmt: skip
     """One scan's ranges -> keypoint rows; returns their count."""
     n = ranges.shape[0]
     x = np.empty(n)
     y = np.empty(n)
     polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
     cand = np.empty((n, NC))
-    candidates(x, y, cfg, cand, np.empty((0, 0, 3)))
-    return finish(x, y, cand, cfg, rows)
+    candidates(x, y, packed, cand, np.empty((0, 0, 3)))
+    return finish(x, y, cand, packed, rows)
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def detect_batch(ranges, cos_a, sin_a, range_min: float, range_max: float, cfg: KernelConfig,
-                 rows: NDArray[np.float64], counts: NDArray[np.int64]) -> None:  # fmt: skip
+def detect_batch(ranges, cos_a, sin_a, range_min: float, range_max: float,
+                 packed: NDArray[np.float64], rows: NDArray[np.float64],
+                 counts: NDArray[np.int64]) -> None:  # fmt: skip
     """Detect keypoints in every row of ``ranges`` (S, N), in parallel over scans."""
     for s in nb.prange(ranges.shape[0]):
-        counts[s] = detect_one(ranges[s], cos_a, sin_a, range_min, range_max, cfg, rows[s])
+        counts[s] = detect_one(ranges[s], cos_a, sin_a, range_min, range_max, packed, rows[s])
