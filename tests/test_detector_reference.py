@@ -98,3 +98,38 @@ def test_kernel_matches_reference_without_merging() -> None:
     expected = ref.candidates(scan, params)
     assert kps.beam_index.tolist() == sorted(expected)
     assert (kps.n_merged == 1).all()
+
+
+@pytest.mark.parametrize("max_gap", [1, 2, 4])
+def test_kernel_matches_reference_when_bridging_dropouts(max_gap: int) -> None:
+    """Option max_gap_beams: random dropouts (single beams and runs) bridged alike."""
+    rng = np.random.default_rng(10 + max_gap)
+    scan = rectangular_room().scan((0.2, 0.1, 0.3), UST_10LX, 0.003, rng)
+    ranges = scan.ranges.copy()
+    ranges[rng.random(ranges.size) < 0.05] = np.nan
+    ranges[300:303] = np.nan
+    ranges[::20] = np.inf
+    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                      scan.range_max)  # fmt: skip
+    params = DetectorParams(max_gap_beams=max_gap)
+    assert assert_same(gappy, params) >= 3
+    assert assert_same(gappy, params.with_overrides({"min_extent_ratio": 0.6})) >= 1
+
+
+def test_kernel_matches_reference_on_a_dense_scan() -> None:
+    """A scan dense enough for the block-skipping walk (many points within each scale)."""
+    world = World().add_polygon([[0.3, -0.4], [0.9, -0.4], [0.9, 0.5], [0.3, 0.5]])
+    n = 1500
+    inc = np.radians(60.0) / n
+    angles = -np.radians(30.0) + inc * np.arange(n)
+    ranges = world.cast((0.0, 0.0, 0.0), angles)
+    ranges += np.random.default_rng(5).normal(0.0, 0.0005, n)
+    ranges[700:702] = np.nan
+    scan = LaserScan(ranges, -np.radians(30.0), inc, 0.02, 10.0)
+    params = DetectorParams(scales=(0.05, 0.08, 0.11), min_consecutive_scales=2,
+                            max_point_distance=0.03, max_fit_rmse=0.01)  # fmt: skip
+    from laser_corners.kernel import _points_within
+
+    x, y = CornerDetector()._scan_xy(scan)
+    assert _points_within(x, y, np.isfinite(x), params.scales[-1]) > 48  # the dense path
+    assert assert_same(scan, params) >= 1

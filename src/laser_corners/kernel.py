@@ -596,6 +596,7 @@ def candidates(
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
     m = cfg.min_consecutive
     last_sentinel = ((n_scales - 1) // m) * m
+    r2_s = r2[: last_sentinel + 1]
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -603,10 +604,10 @@ def candidates(
             table[j, :, 2] = 0.0
         if not valid[j]:
             continue
-        if dense:
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
-        else:  # only as far as the largest sentinel scale for now
+        if dense:  # only as far as the largest sentinel scale for now
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_s, cfg.max_gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_s, cfg.max_gap, stop)
+        else:
             steps_a = reach(j, -1, px, py, r2[last_sentinel], rm_a)
             steps_d = reach(j, 1, px, py, r2[last_sentinel], rm_d)
         # every run of m consecutive scales holds one of the sentinels 0, m, 2m, ...
@@ -620,6 +621,9 @@ def candidates(
             hit = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
         if not hit:
             continue
+        if dense and last_sentinel < n_scales - 1:
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
         if not dense:
             steps_a = reach(j, -1, px, py, r2[n_scales - 1], rm_a)
             steps_d = reach(j, 1, px, py, r2[n_scales - 1], rm_d)
