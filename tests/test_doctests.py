@@ -14,6 +14,10 @@ MODULES = [
     "laser_corners.linefit",
     "laser_corners.detector",
     "laser_corners.keypoints",
+    "laser_corners.kernel",
+    "laser_corners.merge",
+    "laser_corners.noise",
+    "laser_corners.presets",
 ]
 
 

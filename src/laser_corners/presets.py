@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 
 from laser_corners.errors import InvalidParamsError
+from laser_corners.noise import estimate_range_noise
 from laser_corners.params import PAPER_SCALES, DetectorParams
 from laser_corners.scan import LaserScan
 
@@ -102,7 +103,10 @@ def auto(scan: LaserScan | None = None) -> DetectorParams:
     See :func:`auto_params`; the target range is :data:`AUTO_TARGET_RANGE`.
     """
     if scan is None:
-        raise InvalidParamsError("preset 'auto' needs a scan of the recording (its resolution)")
+        raise InvalidParamsError(
+            "preset 'auto' needs a scan of the recording (its angular resolution): "
+            "pass one, e.g. CornerDetector.from_preset('auto', scan)"
+        )
     return auto_params(scan.angle_increment)
 
 
@@ -131,7 +135,7 @@ def robust_params(noise_sigma: float) -> DetectorParams:
     ----------
     noise_sigma : float
         Range noise standard deviation, metres (e.g. from
-        :func:`~laser_corners.eval.noise.estimate_range_noise`).
+        :func:`~laser_corners.noise.estimate_range_noise`).
 
     Examples
     --------
@@ -159,12 +163,13 @@ def robust(scan: LaserScan | None = None) -> DetectorParams:
     """Noise-adapted thresholds, neighbourhood extent test and keypoint refinement.
 
     The range noise is estimated from ``scan`` itself
-    (:func:`~laser_corners.eval.noise.estimate_range_noise`); see :func:`robust_params`.
+    (:func:`~laser_corners.noise.estimate_range_noise`); see :func:`robust_params`.
     """
-    from laser_corners.eval.noise import estimate_range_noise
-
     if scan is None:
-        raise InvalidParamsError("preset 'robust' needs a scan of the recording (its noise)")
+        raise InvalidParamsError(
+            "preset 'robust' needs a scan of the recording (its range noise): "
+            "pass one, e.g. CornerDetector.from_preset('robust', scan)"
+        )
     return robust_params(estimate_range_noise(scan))
 
 
