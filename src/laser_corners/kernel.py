@@ -15,10 +15,11 @@ Phases (each a small ``@njit`` function; numba inlines them into :func:`candidat
 4. :func:`full_test`: the exact per-scale test (eqs. 2-13, distance to p_j, opening angle);
 5. :func:`best_run`: the runs of consecutive passing scales, the centroid test, the winner.
 
-A point needs ``min_consecutive_scales`` consecutive passing scales, so every run contains a
-scale of index ``0, m, 2m, ...`` (m = ``min_consecutive_scales``): those *sentinels* are
-screened first (the walk going only as far as the largest of them) and a point where all of
-them fail is done (most points of a room lie on straight walls).
+A point needs ``min_consecutive_scales`` consecutive passing scales (m), so every such run
+contains one of the *sentinel* scales K-1, K-1-m, K-1-2m, ... (the larger scales: their
+fits are the least noisy, so the screen rejects most wall points there). The sentinels are
+screened first, and a point where all of them fail is done (most points of a room lie on
+straight walls); only the others get every scale screened.
 
 The parameters reach the kernel as one :class:`KernelConfig` made by :func:`kernel_config`.
 """
@@ -456,16 +457,19 @@ def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float
     return out
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
-          r2_max: float, running_max: NDArray[np.float64]) -> int:  # fmt: skip
+          r2_max: float, running_max: NDArray[np.float64], r2_a: float, r2_b: float,
+          r2_c: float) -> tuple:  # fmt: skip
     """Walk from p_j towards ``step`` up to the largest scale, point by point.
 
     Stores the running maximum of the squared distance to p_j per step (a gap, or the scan's
     end, is infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``
-    and returns the number of steps within. Four steps per iteration, whose running maxima
-    are all computed from the previous one (a short dependency chain, no branch per point).
-    For dense scans :func:`walk` (block skipping) is used instead.
+    and returns the number of steps within, and the numbers of leading steps within
+    sqrt(``r2_a``), sqrt(``r2_b``), sqrt(``r2_c``) (three sentinel scales, counted on the way).
+    Four steps per iteration, whose running maxima are all computed from the previous one (a
+    short dependency chain, no branch per point). For dense scans :func:`walk` (block
+    skipping) is used instead.
     """
     c = j + PAD
     xj = px[c]
@@ -473,6 +477,9 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
     i = c + step
     m = 0.0
     steps = 0
+    ca = 0
+    cb = 0
+    cc = 0
     while True:
         d0 = (px[i] - xj) ** 2 + (py[i] - yj) ** 2
         d1 = (px[i + step] - xj) ** 2 + (py[i + step] - yj) ** 2
@@ -488,8 +495,12 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
         running_max[steps + 1] = m1
         running_max[steps + 2] = m2
         running_max[steps + 3] = m3
+        ca += int(m0 <= r2_a) + int(m1 <= r2_a) + int(m2 <= r2_a) + int(m3 <= r2_a)
+        cb += int(m0 <= r2_b) + int(m1 <= r2_b) + int(m2 <= r2_b) + int(m3 <= r2_b)
+        cc += int(m0 <= r2_c) + int(m1 <= r2_c) + int(m2 <= r2_c) + int(m3 <= r2_c)
         if m3 > r2_max:
-            return steps + int(m0 <= r2_max) + int(m1 <= r2_max) + int(m2 <= r2_max)
+            last = int(m0 <= r2_max) + int(m1 <= r2_max) + int(m2 <= r2_max)
+            return steps + last, ca, cb, cc
         m = m3
         steps += 4
         i += 4 * step
@@ -595,8 +606,10 @@ def candidates(
     passed = np.zeros(n_scales, dtype=np.bool_)
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
     m = cfg.min_consecutive
-    last_sentinel = ((n_scales - 1) // m) * m
-    r2_s = r2[: last_sentinel + 1]
+    first = (n_scales - 1) % m  # sentinels: first, first + m, ..., n_scales - 1
+    sa = r2[first]  # the first three sentinels' squared radii (-1: no such scale, count 0)
+    sb = r2[first + m] if first + m < n_scales else -1.0
+    sc = r2[first + 2 * m] if first + 2 * m < n_scales else -1.0
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -604,29 +617,31 @@ def candidates(
             table[j, :, 2] = 0.0
         if not valid[j]:
             continue
-        if dense:  # only as far as the largest sentinel scale for now
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_s, cfg.max_gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_s, cfg.max_gap, stop)
-        else:
-            steps_a = reach(j, -1, px, py, r2[last_sentinel], rm_a)
-            steps_d = reach(j, 1, px, py, r2[last_sentinel], rm_d)
-        # every run of m consecutive scales holds one of the sentinels 0, m, 2m, ...
+        if dense:
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
+        else:  # counting the first three sentinels on the way
+            steps_a, a0, a1, a2 = reach(j, -1, px, py, r2[n_scales - 1], rm_a, sa, sb, sc)
+            steps_d, d0, d1, d2 = reach(j, 1, px, py, r2[n_scales - 1], rm_d, sa, sb, sc)
+            start[first] = j - a0
+            stop[first] = j + d0
+            if first + m < n_scales:
+                start[first + m] = j - a1
+                stop[first + m] = j + d1
+            if first + 2 * m < n_scales:
+                start[first + 2 * m] = j - a2
+                stop[first + 2 * m] = j + d2
+        # every run of m consecutive scales holds one of the sentinels
         hit = want_table
-        for k in range(0, n_scales, m):
+        for k in range(first, n_scales, m):
             if hit:
                 break
-            if not dense:
+            if not dense and k > first + 2 * m:
                 start[k] = j - within(rm_a, steps_a, r2[k])
                 stop[k] = j + within(rm_d, steps_d, r2[k])
             hit = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
         if not hit:
             continue
-        if dense and last_sentinel < n_scales - 1:
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
-        if not dense:
-            steps_a = reach(j, -1, px, py, r2[n_scales - 1], rm_a)
-            steps_d = reach(j, 1, px, py, r2[n_scales - 1], rm_d)
         for k in range(n_scales):
             if not dense:
                 start[k] = j - within(rm_a, steps_a, r2[k])

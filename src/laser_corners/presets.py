@@ -24,6 +24,7 @@ __all__ = [
     "AUTO_N_SCALES",
     "AUTO_TARGET_RANGE",
     "PRESETS",
+    "PRESET_MAX_GAP_BEAMS",
     "ROBUST_NOISE_FLOOR",
     "auto_params",
     "get_preset",
@@ -34,6 +35,9 @@ AUTO_TARGET_RANGE = 3.0
 """Range (m) at which the ``auto`` preset's smallest adapted scale holds ``min_points`` points."""
 AUTO_N_SCALES = 17
 """Number of scales of the ``auto`` preset."""
+PRESET_MAX_GAP_BEAMS = 2
+"""``max_gap_beams`` of the ``auto`` and ``robust`` presets: neighbourhoods step over runs of
+up to 2 dropped beams (measured with ``benchmarks/dropout_study.py``, see ``docs/method.md``)."""
 
 
 def paper(scan: LaserScan | None = None) -> DetectorParams:
@@ -100,14 +104,17 @@ def auto_params(
 def auto(scan: LaserScan | None = None) -> DetectorParams:
     """Scales and spacing-dependent lengths adapted to ``scan``'s angular resolution.
 
-    See :func:`auto_params`; the target range is :data:`AUTO_TARGET_RANGE`.
+    See :func:`auto_params`; the target range is :data:`AUTO_TARGET_RANGE`; neighbourhoods
+    bridge runs of up to :data:`PRESET_MAX_GAP_BEAMS` dropped beams.
     """
     if scan is None:
         raise InvalidParamsError(
             "preset 'auto' needs a scan of the recording (its angular resolution): "
             "pass one, e.g. CornerDetector.from_preset('auto', scan)"
         )
-    return auto_params(scan.angle_increment)
+    return auto_params(scan.angle_increment).with_overrides(
+        {"max_gap_beams": PRESET_MAX_GAP_BEAMS}
+    )
 
 
 ROBUST_NOISE_FLOOR = 0.01
@@ -129,7 +136,9 @@ def robust_params(noise_sigma: float) -> DetectorParams:
     * ``max_fit_rmse = max(0.025, 1.75 sigma)``, ``max_point_distance = 0.05 + 2 sigma``,
       ``max_centroid_distance = 0.025 + 2 sigma``: tolerances that follow the noise;
     * ``refine_radius = 0.5``, ``refine_exclude = 0.03``: each merged keypoint is re-estimated
-      from lines fitted to each wall's points within 0.5 m of it (those within 3 cm left out).
+      from lines fitted to each wall's points within 0.5 m of it (those within 3 cm left out);
+    * ``max_gap_beams = 2`` (:data:`PRESET_MAX_GAP_BEAMS`): runs of up to two dropped beams
+      inside a neighbourhood (or a refinement run) are stepped over.
 
     Parameters
     ----------
@@ -156,6 +165,7 @@ def robust_params(noise_sigma: float) -> DetectorParams:
         min_extent_ratio=0.6,
         refine_radius=0.5,
         refine_exclude=0.03,
+        max_gap_beams=PRESET_MAX_GAP_BEAMS,
     )
 
 
