@@ -128,7 +128,7 @@ def test_kernel_matches_reference_on_a_dense_scan() -> None:
     scan = LaserScan(ranges, -np.radians(30.0), inc, 0.02, 10.0)
     params = DetectorParams(scales=(0.05, 0.08, 0.11), min_consecutive_scales=2,
                             max_point_distance=0.03, max_fit_rmse=0.01)  # fmt: skip
-    from laser_corners.kernel import _points_within
+    from laser_corners.neighbourhood import points_within as _points_within
 
     x, y = CornerDetector()._scan_xy(scan)
     assert _points_within(x, y, np.isfinite(x), params.scales[-1]) > 48  # the dense path

@@ -137,12 +137,16 @@ def test_line_fit_models_and_degenerate_cases() -> None:
 
 def test_params_ergonomics_one_line_messages() -> None:
     p = DetectorParams()
-    with pytest.raises(InvalidParamsError, match=r"frozen: cannot set 'min_points'.*with_overrides"):
+    with pytest.raises(
+        InvalidParamsError, match=r"frozen: cannot set 'min_points'.*with_overrides"
+    ):
         p.min_points = 3  # type: ignore[misc]
     assert p.with_overrides(["scales=0.1,0.2,0.3"]).scales == (0.1, 0.2, 0.3)
     assert p.with_overrides(["scales=0.3", "min_consecutive_scales=1"]).scales == (0.3,)
     for bad in ("scales=0.1,a", "scales=[a, b]"):
-        with pytest.raises(InvalidParamsError, match="expected comma-separated metres like") as info:
+        with pytest.raises(
+            InvalidParamsError, match="expected comma-separated metres like"
+        ) as info:
             p.with_overrides([bad])
         assert "\n" not in str(info.value)
     with pytest.raises(InvalidParamsError, match="strictly increasing"):

@@ -1,8 +1,8 @@
 """laser-corners: corner-like keypoints in 2D laser scans.
 
-Implements the line fitting-based corner-like detector of Sousa, Sobreira, Silva and Moreira (ICARA 2024,
-doi:10.1109/ICARA60736.2024.10553006) with a
-numba kernel, plus readers, a simulator and evaluation tools.
+Implements the line fitting-based corner-like detector of Sousa, Sobreira, Silva and Moreira
+(ICARA 2024, doi:10.1109/ICARA60736.2024.10553006) with a numba kernel, plus readers, a
+simulator and evaluation tools.
 
 Examples
 --------

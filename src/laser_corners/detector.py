@@ -145,8 +145,7 @@ class CornerDetector:
             params = DetectorParams()
         elif not isinstance(params, DetectorParams):
             raise InvalidParamsError(
-                f"CornerDetector takes DetectorParams or a preset name, got "
-                f"{type(params).__name__}"
+                f"CornerDetector takes DetectorParams or a preset name, got {type(params).__name__}"
             )
         self.params = params
         self._config = kernel_config(params)
@@ -209,9 +208,7 @@ class CornerDetector:
 
     # ----------------------------------------------------------------- public API
     @overload
-    def detect(
-        self, scan: LaserScan, return_candidates: Literal[False] = ...
-    ) -> Keypoints: ...
+    def detect(self, scan: LaserScan, return_candidates: Literal[False] = ...) -> Keypoints: ...
 
     @overload
     def detect(

@@ -269,9 +269,7 @@ def _as_tuple(key: str, value: Any) -> Any:
     try:
         return tuple(float(part) for part in value.strip("[]() ").split(","))
     except ValueError:
-        raise InvalidParamsError(
-            f"{key}: expected {_TUPLE_FIELDS[key]}, got {value!r}"
-        ) from None
+        raise InvalidParamsError(f"{key}: expected {_TUPLE_FIELDS[key]}, got {value!r}") from None
 
 
 def _one_line(exc: ValidationError) -> str:

@@ -112,9 +112,7 @@ def auto(scan: LaserScan | None = None) -> DetectorParams:
             "preset 'auto' needs a scan of the recording (its angular resolution): "
             "pass one, e.g. CornerDetector.from_preset('auto', scan)"
         )
-    return auto_params(scan.angle_increment).with_overrides(
-        {"max_gap_beams": PRESET_MAX_GAP_BEAMS}
-    )
+    return auto_params(scan.angle_increment).with_overrides({"max_gap_beams": PRESET_MAX_GAP_BEAMS})
 
 
 ROBUST_NOISE_FLOOR = 0.01

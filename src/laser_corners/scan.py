@@ -36,9 +36,9 @@ class LaserScan:
 
     Beam ``i`` points at ``angle_min + i * angle_increment`` (radians, counter-clockwise in
     the sensor frame). A negative ``angle_increment`` is allowed (legal in ROS: beams in
-    clockwise order); the detector works in beam order, so keypoints are the same either way
-    up to the order of their neighbourhoods. The beams may span at most one full turn. A beam is a *gap* (no valid return) when its range is NaN, infinite,
-    ``<= range_min`` or ``>= range_max``; gaps are counted, never an error.
+    clockwise order); the detector gives the same keypoints for either beam order. The beams
+    may span at most one full turn. A beam is a *gap* (no valid return) when its range is
+    NaN, infinite, ``<= range_min`` or ``>= range_max``; gaps are counted, never an error.
 
     Parameters
     ----------
@@ -144,8 +144,10 @@ class LaserScan:
     def valid(self) -> NDArray[np.bool_]:
         """Mask of beams with a valid return (finite, strictly inside the range interval)."""
         with np.errstate(invalid="ignore"):
-            return np.isfinite(self.ranges) & (self.ranges > self.range_min) & (
-                self.ranges < self.range_max
+            return (
+                np.isfinite(self.ranges)
+                & (self.ranges > self.range_min)
+                & (self.ranges < self.range_max)
             )
 
     @property
