@@ -1,4 +1,7 @@
-"""The corner-like keypoint detector of Sousa et al. (ICARA 2024), section III.
+"""FROZEN copy of ``src/laser_corners/detector.py`` at main 91ca792, used only by
+``benchmarks/bench_detector.py`` to time today's kernel against it; do not edit the code.
+
+The corner-like keypoint detector of Sousa et al. (ICARA 2024), section III.
 
 For every valid scan point p_j and every scale R_k the arrival neighbourhood (the run of
 consecutive valid points before p_j, up to the first point farther than R_k from p_j or a gap)
@@ -652,8 +655,9 @@ class CornerDetector:
 
     References
     ----------
-    .. [1] Sousa, R. B., Sobreira, H. M., Petry, M. R., Moreira, A. P., "Line Fitting-Based
-       Corner-Like Detector for 2D Laser Scanners Data", ICARA 2024.
+    .. [1] Sousa, R. B., Sobreira, H. M., Silva, M. F., Moreira, A. P., "Line Fitting-Based
+       Corner-Like Detector for 2D Laser Scanners Data", ICARA 2024,
+       doi:10.1109/ICARA60736.2024.10553006.
 
     Examples
     --------
