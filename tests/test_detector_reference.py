@@ -133,3 +133,12 @@ def test_kernel_matches_reference_on_a_dense_scan() -> None:
     x, y = CornerDetector()._scan_xy(scan)
     assert _points_within(x, y, np.isfinite(x), params.scales[-1]) > 48  # the dense path
     assert assert_same(scan, params) >= 1
+
+
+def test_kernel_matches_reference_with_many_sentinel_scales() -> None:
+    """More than three sentinel scales (here 12 scales, runs of 2): the walk stores its
+    running maxima and the other sentinels are counted from them."""
+    scan = rectangular_room().scan((-0.3, 0.2, 1.0), UST_10LX, 0.005, np.random.default_rng(7))
+    params = DetectorParams(scales=tuple(0.04 + 0.02 * k for k in range(12)),
+                            min_consecutive_scales=2)  # fmt: skip
+    assert assert_same(scan, params) >= 3

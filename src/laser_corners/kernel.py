@@ -255,10 +255,11 @@ def candidates(
     passed = np.zeros(n_scales, dtype=np.bool_)
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
     m = cfg.min_consecutive
-    first = (n_scales - 1) % m  # sentinels: first, first + m, ..., n_scales - 1
-    sa = r2[first]  # the first three sentinels' squared radii (-1: no such scale, count 0)
-    sb = r2[first + m] if first + m < n_scales else -1.0
-    sc = r2[first + 2 * m] if first + 2 * m < n_scales else -1.0
+    top = n_scales - 1  # sentinels: top, top - m, top - 2m, ... >= 0
+    # the walk counts the top three sentinels; with more it stores the running maxima
+    r2_a = r2[top - 2 * m] if top - 2 * m >= 0 else -1.0
+    r2_b = r2[top - m] if top - m >= 0 else -1.0
+    many = top - 3 * m >= 0
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -269,29 +270,31 @@ def candidates(
         if dense:
             walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
             walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
-        else:  # counting the first three sentinels on the way
-            steps_a, a0, a1, a2 = reach(j, -1, px, py, r2[n_scales - 1], rm_a, sa, sb, sc)
-            steps_d, d0, d1, d2 = reach(j, 1, px, py, r2[n_scales - 1], rm_d, sa, sb, sc)
-            for i, (ca, cd) in enumerate(((a0, d0), (a1, d1), (a2, d2))):
-                k = first + i * m
-                if k < n_scales:
+        else:
+            na, na_a, na_b = reach(j, -1, px, py, r2[top], r2_a, r2_b, rm_a, many)
+            nd, nd_a, nd_b = reach(j, 1, px, py, r2[top], r2_a, r2_b, rm_d, many)
+            for k, ca, cd in ((top, na, nd), (top - m, na_b, nd_b), (top - 2 * m, na_a, nd_a)):
+                if k >= 0:
                     start[k] = j - ca
                     stop[k] = j + cd
         # every run of m consecutive scales holds one of the sentinels
         hit = want_table
-        for k in range(first, n_scales, m):
+        for k in range(top, -1, -m):
             if hit:
                 break
-            if not dense and k > first + 2 * m:
-                start[k] = j - within(rm_a, steps_a, r2[k])
-                stop[k] = j + within(rm_d, steps_d, r2[k])
+            if not dense and k < top - 2 * m:
+                start[k] = j - within(rm_a, na, r2[k])
+                stop[k] = j + within(rm_d, nd, r2[k])
             hit = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
         if not hit:
             continue
+        if not dense and not many:  # again, storing the running maxima
+            reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)
+            reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)
         for k in range(n_scales):
             if not dense:
-                start[k] = j - within(rm_a, steps_a, r2[k])
-                stop[k] = j + within(rm_d, steps_d, r2[k])
+                start[k] = j - within(rm_a, na, r2[k])
+                stop[k] = j + within(rm_d, nd, r2[k])
             screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
         if not want_table and not keep_runs(screened, m):
             continue

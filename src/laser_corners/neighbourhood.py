@@ -210,17 +210,17 @@ def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
-          r2_max: float, running_max: NDArray[np.float64], r2_a: float, r2_b: float,
-          r2_c: float) -> tuple:  # fmt: skip
+          r2_max: float, r2_a: float, r2_b: float, running_max: NDArray[np.float64],
+          store: bool) -> tuple:  # fmt: skip
     """Walk from p_j towards ``step`` up to the largest scale, point by point.
 
-    Stores the running maximum of the squared distance to p_j per step (a gap, or the scan's
-    end, is infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``
-    and returns the number of steps within, and the numbers of leading steps within
-    sqrt(``r2_a``), sqrt(``r2_b``), sqrt(``r2_c``) (three sentinel scales, counted on the way).
-    Four steps per iteration, whose running maxima are all computed from the previous one (a
-    short dependency chain, no branch per point). For dense scans :func:`walk` (block
-    skipping) is used instead.
+    Follows the running maximum of the squared distance to p_j (a gap, or the scan's end, is
+    infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``; returns
+    the number of steps within and the numbers of leading steps within sqrt(``r2_a``) and
+    sqrt(``r2_b``) (two more sentinel scales, counted on the way). With ``store`` the running
+    maximum of every step goes to ``running_max`` (for :func:`within`). Four steps per
+    iteration, whose running maxima are all computed from the previous one (a short
+    dependency chain, no branch per point). For dense scans :func:`walk` is used instead.
     """
     c = j + PAD
     xj = px[c]
@@ -230,7 +230,6 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
     steps = 0
     ca = 0
     cb = 0
-    cc = 0
     while True:
         d0 = (px[i] - xj) ** 2 + (py[i] - yj) ** 2
         d1 = (px[i + step] - xj) ** 2 + (py[i + step] - yj) ** 2
@@ -242,16 +241,16 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
         m1 = max(m, d01)
         m2 = max(m, d012)
         m3 = max(m, max(d012, d3))
-        running_max[steps] = m0
-        running_max[steps + 1] = m1
-        running_max[steps + 2] = m2
-        running_max[steps + 3] = m3
+        if store:
+            running_max[steps] = m0
+            running_max[steps + 1] = m1
+            running_max[steps + 2] = m2
+            running_max[steps + 3] = m3
         ca += int(m0 <= r2_a) + int(m1 <= r2_a) + int(m2 <= r2_a) + int(m3 <= r2_a)
         cb += int(m0 <= r2_b) + int(m1 <= r2_b) + int(m2 <= r2_b) + int(m3 <= r2_b)
-        cc += int(m0 <= r2_c) + int(m1 <= r2_c) + int(m2 <= r2_c) + int(m3 <= r2_c)
         if m3 > r2_max:
             last = int(m0 <= r2_max) + int(m1 <= r2_max) + int(m2 <= r2_max)
-            return steps + last, ca, cb, cc
+            return steps + last, ca, cb
         m = m3
         steps += 4
         i += 4 * step
