@@ -32,9 +32,10 @@ passes only if both neighbourhoods reach at least that fraction of R_k from p_j)
 ``refine_radius`` (each keypoint re-estimated from lines fitted to longer runs of each wall)
 and ``max_gap_beams`` (neighbourhoods step over short runs of dropouts).
 
-The numba kernel lives in :mod:`laser_corners.kernel` (points -> per-point candidates) and
-:mod:`laser_corners.merge` (merging, refinement, the batch driver); this module is the
-public API around it.
+The numba kernel lives in :mod:`laser_corners.kernel` (points -> per-point candidates, with
+:mod:`laser_corners.neighbourhood` and :mod:`laser_corners.scale_tests`) and
+:mod:`laser_corners.merge` (merging, refinement, the per-scan and batch drivers); this
+module is the public API around it.
 """
 
 from __future__ import annotations

@@ -1,18 +1,18 @@
-"""The detector's numba kernel, phase by phase: points -> per-point candidate keypoints.
+"""The detector's numba kernel: points -> per-point candidate keypoints (:func:`candidates`).
 
-Phases (each a small ``@njit`` function; numba inlines them into :func:`candidates`):
+Phases, each a small ``@njit`` function composed here:
 
-1. :func:`polar_to_xy` and :func:`prepare`: gaps become NaN, coordinates are shifted by the
-   scan's centroid (smaller sums, less cancellation), prefix sums of x, y, x², y², xy and of
-   the valid-point count (so every fit costs O(1)), next/previous valid index, and bounding
-   boxes of aligned blocks of 8, 64, 512 and 4096 beams;
-2. :func:`walk`: the neighbourhood bounds of one point for every scale in one outward walk
-   per side. A block whose bounding box lies inside the current radius is skipped whole (the
-   farthest box corner bounds every point's distance, in floating point too: rounding is
-   monotone), so the walk costs O(blocks + points near the radii), not O(points within R);
-3. :func:`screen`: a division-free necessary condition of the RMSE tests (eqs. 8-9) and of
-   the angle test on the undirected lines; scales that fail it fail the full test;
-4. :func:`full_test`: the exact per-scale test (eqs. 2-13, distance to p_j, opening angle);
+1. :func:`polar_to_xy`, then :func:`~laser_corners.neighbourhood.prepare`: gaps become NaN,
+   coordinates are shifted by the scan's centroid, prefix sums of x, y, x², y², xy and of the
+   valid-point count (every fit costs O(1));
+2. :mod:`~laser_corners.neighbourhood`: the neighbourhood bounds of a point for every scale,
+   one outward walk per side (:func:`~laser_corners.neighbourhood.reach`, or the
+   block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans and gap
+   bridging);
+3. :func:`~laser_corners.scale_tests.screen`: a division-free necessary condition of the
+   RMSE tests (eqs. 8-9) and of the angle test; scales that fail it fail the full test;
+4. :func:`~laser_corners.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
+   distance to p_j, opening angle);
 5. :func:`best_run`: the runs of consecutive passing scales, the centroid test, the winner.
 
 A point needs ``min_consecutive_scales`` consecutive passing scales (m), so every such run
@@ -21,7 +21,8 @@ fits are the least noisy, so the screen rejects most wall points there). The sen
 screened first, and a point where all of them fail is done (most points of a room lie on
 straight walls); only the others get every scale screened.
 
-The parameters reach the kernel as one :class:`KernelConfig` made by :func:`kernel_config`.
+The parameters reach the kernel through one conversion, :func:`kernel_config` (a packed
+array), read inside the kernel as a :class:`KernelConfig` by :func:`unpack`.
 """
 
 from __future__ import annotations
