@@ -278,21 +278,29 @@ def candidates(
                 if k >= 0:
                     start[k] = j - ca
                     stop[k] = j + cd
-        # every run of m consecutive scales holds one of the sentinels
+        # every run of m consecutive scales holds one of the sentinels; a run lies between
+        # two failing sentinels, so only scales within m-1 of a passing one can be in one
         hit = want_table
         for k in range(top, -1, -m):
-            if hit:
-                break
             if not dense and k < top - 2 * m:
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])
-            hit = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+            hit |= screened[k]
         if not hit:
             continue
         if not dense and not many:  # again, storing the running maxima
             reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)
             reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)
         for k in range(n_scales):
+            if (top - k) % m == 0:
+                continue  # a sentinel: screened above
+            above = k + (top - k) % m  # the nearest sentinels above and below k
+            below = above - m
+            near = want_table or screened[above] or (below >= 0 and screened[below])
+            screened[k] = False
+            if not near:
+                continue
             if not dense:
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])

@@ -208,7 +208,7 @@ def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float
     return out
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
           r2_max: float, r2_a: float, r2_b: float, running_max: NDArray[np.float64],
           store: bool) -> tuple:  # fmt: skip
