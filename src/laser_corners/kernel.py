@@ -261,6 +261,10 @@ def candidates(
     r2_a = r2[top - 2 * m] if top - 2 * m >= 0 else -1.0
     r2_b = r2[top - m] if top - m >= 0 else -1.0
     many = top - 3 * m >= 0
+    n_sent = top // m + 1
+    r2_sent = r2[top - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
+    s_start = np.empty(n_sent, dtype=np.int64)
+    s_stop = np.empty(n_sent, dtype=np.int64)
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -268,9 +272,12 @@ def candidates(
             table[j, :, 2] = 0.0
         if not valid[j]:
             continue
-        if dense:
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
+        if dense:  # the sentinel scales only, for now
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, cfg.max_gap, s_start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, cfg.max_gap, s_stop)
+            for i in range(n_sent):
+                start[top - (n_sent - 1 - i) * m] = s_start[i]
+                stop[top - (n_sent - 1 - i) * m] = s_stop[i]
         else:
             na, na_a, na_b = reach(j, -1, px, py, r2[top], r2_a, r2_b, rm_a, many)
             nd, nd_a, nd_b = reach(j, 1, px, py, r2[top], r2_a, r2_b, rm_d, many)
@@ -289,7 +296,10 @@ def candidates(
             hit |= screened[k]
         if not hit:
             continue
-        if not dense and not many:  # again, storing the running maxima
+        if dense:  # again, every scale
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
+        elif not many:  # again, storing the running maxima
             reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)
             reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)
         for k in range(n_scales):
