@@ -142,3 +142,31 @@ def test_kernel_matches_reference_with_many_sentinel_scales() -> None:
     params = DetectorParams(scales=tuple(0.04 + 0.02 * k for k in range(12)),
                             min_consecutive_scales=2)  # fmt: skip
     assert assert_same(scan, params) >= 3
+
+
+@pytest.mark.parametrize("radius", [0.05, 0.2, 1e-15])
+def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
+    """The kernel's grid-based merge against the reference's all-pairs single linkage."""
+    from laser_corners.kernel import C_K0, C_NSC, C_OPEN, C_ORIENT, C_RMSE, C_X, C_Y, NC
+    from laser_corners.merge import M_BEAM, M_NMERGED, M_X, M_Y, NM, merge
+
+    rng = np.random.default_rng(3)
+    n = 400
+    centres = rng.uniform(-3, 3, (12, 2))
+    xy = centres[rng.integers(0, 12, n)] + rng.normal(0, 0.05, (n, 2))
+    xy[::7] = rng.uniform(-3, 3, (len(xy[::7]), 2))
+    cand = np.zeros((n, NC))
+    has = rng.random(n) < 0.8
+    cand[:, C_X], cand[:, C_Y] = xy[:, 0], xy[:, 1]
+    cand[:, C_NSC] = np.where(has, rng.integers(3, 6, n), 0)
+    cand[:, C_RMSE] = rng.choice([0.001, 0.002, 0.003], n)
+    cand[:, C_K0], cand[:, C_OPEN], cand[:, C_ORIENT] = 0, 90.0, 0.0
+    rows = np.empty((n, NM))
+    count = merge(cand, radius, rows)
+    cands = {j: {"xy": (xy[j, 0], xy[j, 1]), "rmse": cand[j, C_RMSE],
+                 "n_scales": int(cand[j, C_NSC])} for j in np.flatnonzero(has)}  # fmt: skip
+    expected = ref.merge(cands, radius)
+    assert count == len(expected)
+    for row, e in zip(rows[:count], expected, strict=True):
+        assert row[M_BEAM] == e["beam"] and row[M_NMERGED] == e["n_merged"]
+        assert (row[M_X], row[M_Y]) == e["xy"]

@@ -73,33 +73,80 @@ def _find(parent: NDArray[np.int64], a: int) -> int:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _link_cells(cand, idx, order, parent, a0: int, a1: int, b0: int, b1: int, r2: float) -> None:
+    """Link the clusters of two grid cells (members ``order[a0:a1]``, ``order[b0:b1]``) if
+    any pair of their candidates lies within sqrt(``r2``); stops at the first such pair."""
+    if _find(parent, order[a0]) == _find(parent, order[b0]):
+        return
+    for p in range(a0, a1):
+        ja = idx[order[p]]
+        for q in range(b0, b1):
+            jb = idx[order[q]]
+            d2 = (cand[ja, C_X] - cand[jb, C_X]) ** 2 + (cand[ja, C_Y] - cand[jb, C_Y]) ** 2
+            if d2 <= r2:
+                ra = _find(parent, order[a0])
+                rb = _find(parent, order[b0])
+                parent[max(ra, rb)] = min(ra, rb)
+                return
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _link(cand: NDArray[np.float64], idx: NDArray[np.int64], r2: float) -> NDArray[np.int64]:
     """Union-find parents of the single-linkage clusters of the candidates ``idx``.
 
-    Pairs are visited in order of x (a sweep over the candidates sorted by x stops at the
-    first one more than the radius away), so the cost is O(M log M + pairs in x-strips)."""
+    A grid of cells of side r/sqrt(2) (a hair less): candidates in one cell are within r of
+    each other and are linked directly; two cells at most 2 apart are linked at their first
+    pair within r. O(M log M) for M candidates, however densely they crowd one corner.
+    """
     m = idx.shape[0]
     parent = np.arange(m)
+    if m == 0:
+        return parent
+    side = math.sqrt(r2) / math.sqrt(2.0) * (1.0 - 1e-6)
     xs = np.empty(m)
+    ys = np.empty(m)
     for a in range(m):
         xs[a] = cand[idx[a], C_X]
-    order = np.argsort(xs, kind="mergesort")
-    r = math.sqrt(r2) * (1.0 + 1e-9)  # margin: never skip a pair within the radius
-    for p in range(m):
-        a = order[p]
-        ja = idx[a]
-        for q in range(p + 1, m):
-            b = order[q]
-            jb = idx[b]
-            if xs[b] - xs[a] > r:
-                break
-            ra = _find(parent, a)
-            rb = _find(parent, b)
-            if ra == rb:
-                continue
-            d2 = (cand[ja, C_X] - cand[jb, C_X]) ** 2 + (cand[ja, C_Y] - cand[jb, C_Y]) ** 2
-            if d2 <= r2:
-                parent[max(ra, rb)] = min(ra, rb)
+        ys[a] = cand[idx[a], C_Y]
+    cells = ((xs.max() - xs.min()) / side + 5.0) * ((ys.max() - ys.min()) / side + 5.0)
+    if not cells < 1e15:  # a radius far below the coordinates' spread: all pairs
+        identity = np.arange(m)
+        for a in range(m):
+            for b in range(a + 1, m):
+                _link_cells(cand, idx, identity, parent, a, a + 1, b, b + 1, r2)
+        return parent
+    gx = np.empty(m, dtype=np.int64)
+    gy = np.empty(m, dtype=np.int64)
+    for a in range(m):
+        gx[a] = int(math.floor(xs[a] / side))
+        gy[a] = int(math.floor(ys[a] / side))
+    width = gy.max() - gy.min() + 5
+    key = (gx - gx.min()) * width + (gy - gy.min() + 2)
+    order = np.argsort(key, kind="mergesort")
+    skey = key[order]
+    runs = np.flatnonzero(np.diff(skey)) + 1  # starts of the cells' runs, after the first
+    starts = np.empty(runs.shape[0] + 2, dtype=np.int64)
+    starts[0] = 0
+    starts[1:-1] = runs
+    starts[-1] = m
+    for c in range(starts.shape[0] - 1):
+        for p in range(starts[c] + 1, starts[c + 1]):  # one cell: all within r
+            ra = _find(parent, order[p])
+            rb = _find(parent, order[starts[c]])
+            parent[max(ra, rb)] = min(ra, rb)
+    for c in range(starts.shape[0] - 1):
+        a0 = starts[c]
+        a1 = starts[c + 1]
+        for dx in range(0, 3):
+            for dy in range(-2, 3):
+                if dx == 0 and dy <= 0:
+                    continue  # each pair of cells once
+                other = skey[a0] + dx * width + dy
+                b0 = np.searchsorted(skey, other)
+                if b0 >= m or skey[b0] != other:
+                    continue
+                b1 = np.searchsorted(skey, other, side="right")
+                _link_cells(cand, idx, order, parent, a0, a1, b0, b1, r2)
     return parent
 
 
