@@ -118,8 +118,8 @@ def _link(cand: NDArray[np.float64], idx: NDArray[np.int64], r2: float) -> NDArr
     gx = np.empty(m, dtype=np.int64)
     gy = np.empty(m, dtype=np.int64)
     for a in range(m):
-        gx[a] = int(math.floor(xs[a] / side))
-        gy[a] = int(math.floor(ys[a] / side))
+        gx[a] = math.floor(xs[a] / side)
+        gy[a] = math.floor(ys[a] / side)
     width = gy.max() - gy.min() + 5
     key = (gx - gx.min()) * width + (gy - gy.min() + 2)
     order = np.argsort(key, kind="mergesort")
