@@ -96,7 +96,8 @@ def _link(cand: NDArray[np.float64], idx: NDArray[np.int64], r2: float) -> NDArr
 
     A grid of cells of side r/sqrt(2) (a hair less): candidates in one cell are within r of
     each other and are linked directly; two cells at most 2 apart are linked at their first
-    pair within r. O(M log M) for M candidates, however densely they crowd one corner.
+    pair within r. O(M log M) for M candidates, however densely they crowd one corner. Up to
+    64 candidates (a scan of normal density) all pairs are compared instead (cheaper there).
     """
     m = idx.shape[0]
     parent = np.arange(m)
@@ -109,11 +110,15 @@ def _link(cand: NDArray[np.float64], idx: NDArray[np.int64], r2: float) -> NDArr
         xs[a] = cand[idx[a], C_X]
         ys[a] = cand[idx[a], C_Y]
     cells = ((xs.max() - xs.min()) / side + 5.0) * ((ys.max() - ys.min()) / side + 5.0)
-    if not cells < 1e15:  # a radius far below the coordinates' spread: all pairs
-        identity = np.arange(m)
+    if m <= 64 or not cells < 1e15:  # few candidates, or a radius far below their spread
         for a in range(m):
             for b in range(a + 1, m):
-                _link_cells(cand, idx, identity, parent, a, a + 1, b, b + 1, r2)
+                dx = xs[a] - xs[b]
+                dy = ys[a] - ys[b]
+                if dx * dx + dy * dy <= r2:
+                    ra = _find(parent, a)
+                    rb = _find(parent, b)
+                    parent[max(ra, rb)] = min(ra, rb)
         return parent
     gx = np.empty(m, dtype=np.int64)
     gy = np.empty(m, dtype=np.int64)
