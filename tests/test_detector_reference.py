@@ -170,3 +170,40 @@ def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
     for row, e in zip(rows[:count], expected, strict=True):
         assert row[M_BEAM] == e["beam"] and row[M_NMERGED] == e["n_merged"]
         assert (row[M_X], row[M_Y]) == e["xy"]
+
+
+def _frozen_detector_class() -> type:
+    """``CornerDetector`` of the frozen kernel of 91ca792 (checked against the reference by
+    this file's tests at that commit): an independent implementation for large scans."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    name = "frozen_kernel_91ca792"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+        sys.modules[name] = module
+        spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return sys.modules[name].CornerDetector
+
+
+def test_kernel_matches_frozen_kernel_on_a_100k_beam_scan() -> None:
+    """100,000 beams over 360 degrees (the block-skipping walk, the grid merge) against the
+    frozen kernel's plain walk and all-pairs merge: same candidates and keypoints."""
+    n = 100_000
+    inc = 2 * np.pi / n
+    world = World().add_polygon([[-3.0, -2.5], [4.0, -2.5], [4.0, 1.0], [1.5, 1.0],
+                                 [1.5, 3.0], [-3.0, 3.0]])  # fmt: skip
+    ranges = world.cast((0.4, -0.3, 0.25), -np.pi + inc * np.arange(n))
+    ranges += np.random.default_rng(2).normal(0.0, 0.001, n)
+    ranges[5000:5003] = np.nan
+    scan = LaserScan(ranges, -np.pi, inc, 0.02, 30.0)
+    new_kp, new_raw = CornerDetector().detect(scan, return_candidates=True)
+    old_kp, old_raw = _frozen_detector_class()().detect(scan, return_candidates=True)
+    assert len(new_raw) > 1000 and len(new_kp) >= 5
+    for new, old in ((new_raw, old_raw), (new_kp, old_kp)):
+        assert new.beam_index.tolist() == old.beam_index.tolist()
+        assert np.allclose(new.xy, old.xy, atol=TOL, rtol=0)
+        assert (new.n_scales == old.n_scales).all() and (new.n_merged == old.n_merged).all()
