@@ -265,6 +265,7 @@ def candidates(
     r2_sent = r2[top - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
     s_start = np.empty(n_sent, dtype=np.int64)
     s_stop = np.empty(n_sent, dtype=np.int64)
+    na = nd = -1  # step counts of the reach walks (dense: unused)
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -302,23 +303,41 @@ def candidates(
         elif not many:  # again, storing the running maxima
             reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)
             reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)
-        for k in range(n_scales):
-            if (top - k) % m == 0:
-                continue  # a sentinel: screened above
-            above = k + (top - k) % m  # the nearest sentinels above and below k
-            below = above - m
-            near = want_table or screened[above] or (below >= 0 and screened[below])
-            screened[k] = False
-            if not near:
-                continue
-            if not dense:
-                start[k] = j - within(rm_a, na, r2[k])
-                stop[k] = j + within(rm_d, nd, r2[k])
-            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+        rm = (rm_a, rm_d, -1 if dense else na, -1 if dense else nd)
+        _screen_rest(ps, inv, j, start, stop, screened, r2, m, cfg.min_points, loose_mse,
+                     max_cos2, want_table, rm)  # fmt: skip
         if not want_table and not keep_runs(screened, m):
             continue
         _test_scales(x, y, ps, ox, oy, j, start, stop, screened, cfg, limits, passed, res, table)
         _store(cand, j, passed, res, cfg.min_consecutive, max_cd2)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, min_points: int,
+                 loose_mse: float, max_cos2: float, want_all: bool, rm: tuple) -> None:  # fmt: skip
+    """Screen the scales of p_j other than the sentinels (already in ``screened``).
+
+    Every run of m consecutive scales holds a sentinel and lies between two failing ones,
+    so only scales next to a passing sentinel (within m-1) can be in a run; the others are
+    not screened (unless ``want_all``). ``rm`` holds the running maxima and step counts of
+    both :func:`~laser_corners.neighbourhood.reach` walks (counts -1: the bounds are
+    already in ``start``, ``stop``).
+    """
+    rm_a, rm_d, na, nd = rm
+    top = r2.shape[0] - 1
+    for k in range(top + 1):
+        if (top - k) % m == 0:
+            continue  # a sentinel
+        above = k + (top - k) % m  # the nearest sentinels above and below k
+        below = above - m
+        near = want_all or screened[above] or (below >= 0 and screened[below])
+        screened[k] = False
+        if not near:
+            continue
+        if na >= 0:
+            start[k] = j - within(rm_a, na, r2[k])
+            stop[k] = j + within(rm_d, nd, r2[k])
+        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
