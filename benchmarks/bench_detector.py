@@ -1,20 +1,29 @@
-"""Benchmark of the detector kernel: ms per scan and scans/s, printed as a Markdown table.
+"""Benchmark of the detector kernel against the frozen kernel of main at 91ca792, same process.
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_detector.py [--repeats 5] [--sim-scans 400]
+    PYTHONPATH=src .venv/bin/python benchmarks/bench_detector.py [--repeats 5]
 
-Simulated scans: Hokuyo UST-10LX (1081 beams, 270 deg, 0.25 deg) from random poses in the demo
-world (an L-shaped room with a pillar), range noise sigma 0, 0.01 and 0.03 m. Real scans: the
-first scans of the 180/360/768-beam bags in ../shared/data/real (read once, not timed).
-Timings use the paper preset, one scan per ``detect`` call pinned to one core; ``detect_many``
-runs the whole set as one batch (numba threads over scans). JIT start-up (compile, or load
-from numba's cache) is measured on the first call and reported separately.
+Data sets: simulated Hokuyo UST-10LX scans (1081 beams, 270 deg, 0.25 deg) from random poses
+in the demo world (an L-shaped room with a pillar) at range noise 0, 0.01 and 0.03 m, and the
+first scans of fr079.bag, intel.bag (180/360 beams) and hokuyo270_rooms.bag /left_scan
+(768 beams) in ../shared/data/real (read once, not timed). The paper preset, one
+``detect`` call per scan, on one core (``os.sched_setaffinity``, numba threads 1), after a
+warm-up; the old and the new kernel alternate scan by scan. Per data set: the median over the
+scans of each scan's best time over the repeats, for the frozen kernel
+(``benchmarks/frozen_kernel_91ca792.py``) and the new one, and their ratio new/old. The
+keypoints of both kernels are compared on every scan (count and position to 1e-9 m).
+
+Then the scaling in beam count: a synthetic 360-degree scan of a polygonal room (the demo
+world) with 100,000 and 400,000 beams at range noise 0.001 m, time(400k)/time(100k), in CPU
+time of the thread (these calls take seconds, long enough for other processes on a shared
+machine to distort wall-clock times).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
 import platform
 import sys
@@ -28,8 +37,19 @@ from laser_corners import CornerDetector, DetectorParams, LaserScan
 from laser_corners.demo import demo_world
 from laser_corners.sim import UST_10LX
 
-REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
+HERE = Path(__file__).resolve().parent
+REAL = HERE.parent / ".." / "shared" / "data" / "real"
 REAL_SETS = [("fr079.bag", "/scan"), ("intel.bag", "/scan"), ("hokuyo270_rooms.bag", "/left_scan")]
+
+
+def frozen_detector_class() -> type:
+    """``CornerDetector`` of the frozen kernel (its own module, hence its own numba cache)."""
+    path = HERE / "frozen_kernel_91ca792.py"
+    spec = importlib.util.spec_from_file_location("frozen_kernel_91ca792", path)
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    sys.modules[spec.name] = module  # numba's cache re-imports the module by name
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return module.CornerDetector
 
 
 def simulated_scans(n: int, seed: int = 0, noise_sigma: float = 0.01) -> list[LaserScan]:
@@ -49,10 +69,8 @@ def real_scans(name: str, topic: str, limit: int) -> list[LaserScan] | str:
     path = REAL / name
     if not path.is_file():
         return f"skipped: {path} not found"
-    try:
-        from laser_corners.io import open_scans
-    except ImportError as exc:  # pragma: no cover - the io package ships with the library
-        return f"skipped: laser_corners.io unavailable ({exc})"
+    from laser_corners.io import open_scans
+
     scans = []
     for scan in open_scans(path, topic=topic):
         scans.append(scan)
@@ -61,23 +79,67 @@ def real_scans(name: str, topic: str, limit: int) -> list[LaserScan] | str:
     return scans
 
 
-def time_per_scan(detector: CornerDetector, scans: list[LaserScan], repeats: int) -> np.ndarray:
-    times = []
+def dense_scan(n_beams: int, noise_sigma: float = 0.001, seed: int = 0) -> LaserScan:
+    """A 360-degree scan of the demo world with ``n_beams`` beams."""
+    inc = 2 * np.pi / n_beams
+    angles = -np.pi + inc * np.arange(n_beams)
+    ranges = demo_world().cast((0.4, -0.3, 0.25), angles)
+    ranges = ranges + np.random.default_rng(seed).normal(0.0, noise_sigma, n_beams)
+    return LaserScan(ranges, -np.pi, inc, 0.02, 30.0)
+
+
+def same_keypoints(a: object, b: object) -> bool:
+    return len(a) == len(b) and bool(np.allclose(a.xy, b.xy, atol=1e-9, rtol=0))  # type: ignore[arg-type, attr-defined]
+
+
+def compare(old: object, new: CornerDetector, scans: list[LaserScan], repeats: int) -> tuple:
+    """Per-scan best times (ms) of both detectors, alternating, and whether they agree."""
+    best_old = np.full(len(scans), np.inf)
+    best_new = np.full(len(scans), np.inf)
+    agree = True
+    for scan in scans[:20]:  # warm-up
+        old.detect(scan)  # type: ignore[attr-defined]
+        new.detect(scan)
     for _ in range(repeats):
-        for scan in scans:
+        for i, scan in enumerate(scans):
             t0 = time.perf_counter()
-            detector.detect(scan)
-            times.append(time.perf_counter() - t0)
-    return np.array(times) * 1e3
+            a = old.detect(scan)  # type: ignore[attr-defined]
+            t1 = time.perf_counter()
+            b = new.detect(scan)
+            t2 = time.perf_counter()
+            best_old[i] = min(best_old[i], t1 - t0)
+            best_new[i] = min(best_new[i], t2 - t1)
+            agree &= same_keypoints(a, b)
+    return best_old * 1e3, best_new * 1e3, agree
 
 
-def scans_per_second(detector: CornerDetector, scans: list[LaserScan], repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        detector.detect_many(scans)
-        best = min(best, time.perf_counter() - t0)
-    return len(scans) / best
+def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
+    print("\nScaling, synthetic 360-degree scan of the demo world, noise 0.001 m, best of 3,")
+    print("CPU time of the calling thread (time.thread_time: robust to other processes):")
+    print("| beams | keypoints | new s | old s |")
+    print("|---:|---:|---:|---:|")
+    times: dict[str, list[float]] = {"new": [], "old": []}
+    for n in (100_000, 400_000):
+        scan = dense_scan(n)
+        runs = {"new": new}
+        if with_old:
+            runs["old"] = old
+        kp = {}
+        for label, detector in runs.items():
+            best = np.inf
+            for _ in range(3 if label == "new" else 1):
+                t0 = time.thread_time()
+                kp[label] = detector.detect(scan)  # type: ignore[attr-defined]
+                best = min(best, time.thread_time() - t0)
+            times[label].append(best)
+        old_s = f"{times['old'][-1]:.3f}" if with_old else "-"
+        print(f"| {n:,} | {len(kp['new'])} | {times['new'][-1]:.3f} | {old_s} |")
+        if with_old and not same_keypoints(kp["old"], kp["new"]):
+            print(f"  WARNING: keypoints differ at {n} beams")
+    print(f"\ntime(400k)/time(100k): new {times['new'][1] / times['new'][0]:.1f}", end="")
+    if with_old:
+        print(f", old {times['old'][1] / times['old'][0]:.1f}", end="")
+    print()
 
 
 def main() -> int:
@@ -85,9 +147,15 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--sim-scans", type=int, default=400)
     parser.add_argument("--real-scans", type=int, default=1000)
+    parser.add_argument("--skip-old-scaling", action="store_true",
+                        help="do not time the frozen kernel on the dense scans (slow)")  # fmt: skip
     args = parser.parse_args()
 
-    detector = CornerDetector(DetectorParams())
+    numba.set_num_threads(1)
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+    old = frozen_detector_class()(DetectorParams())
+    new = CornerDetector(DetectorParams())
     sets: list[tuple[str, list[LaserScan] | str]] = [
         (f"simulated UST-10LX, noise {sigma} m", simulated_scans(args.sim_scans, noise_sigma=sigma))
         for sigma in (0.0, 0.01, 0.03)
@@ -95,33 +163,21 @@ def main() -> int:
     for name, topic in REAL_SETS:
         sets.append((f"{name} {topic}", real_scans(name, topic, args.real_scans)))
 
-    t0 = time.perf_counter()
-    detector.detect(sets[0][1][0])  # type: ignore[index]
-    first_call = (time.perf_counter() - t0) * 1e3
-    t0 = time.perf_counter()
-    detector.detect_many(sets[0][1][:2])  # type: ignore[index]
-    first_batch = (time.perf_counter() - t0) * 1e3
-
-    print(f"python {platform.python_version()}, numba {numba.__version__}, "
-          f"{os.cpu_count()} CPUs, numba threads {numba.get_num_threads()}")  # fmt: skip
-    print(f"JIT start-up (first detect call, compile or cache load): {first_call:.0f} ms; "
-          f"first detect_many call: {first_batch:.0f} ms\n")  # fmt: skip
-    print("| scans | beams | n | kp/scan | median ms/scan | p95 ms/scan | detect_many scans/s |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
-    affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+    print(f"python {platform.python_version()}, numba {numba.__version__}, pinned to one core, "
+          f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
+          "per scan, median over scans\n")  # fmt: skip
+    print("| data set | beams | scans | kp/scan | old ms | new ms | new/old | same kp |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|")
     for label, scans in sets:
         if isinstance(scans, str):
-            print(f"| {label} | | | | {scans} | | |")
+            print(f"| {label} | | | | {scans} | | | |")
             continue
-        kp = np.mean([len(k) for k in detector.detect_many(scans)])
-        if affinity:
-            os.sched_setaffinity(0, {min(affinity)})  # one core for the per-scan timing
-        ms = time_per_scan(detector, scans, args.repeats)
-        if affinity:
-            os.sched_setaffinity(0, affinity)
-        rate = scans_per_second(detector, scans, args.repeats)
-        print(f"| {label} | {scans[0].n_beams} | {len(scans)} | {kp:.2f} | "
-              f"{np.median(ms):.3f} | {np.percentile(ms, 95):.3f} | {rate:,.0f} |")  # fmt: skip
+        ms_old, ms_new, agree = compare(old, new, scans, args.repeats)
+        kp = np.mean([len(new.detect(s)) for s in scans])
+        m_old, m_new = np.median(ms_old), np.median(ms_new)
+        print(f"| {label} | {scans[0].n_beams} | {len(scans)} | {kp:.2f} | {m_old:.4f} | "
+              f"{m_new:.4f} | {m_new / m_old:.2f} | {'yes' if agree else 'NO'} |")  # fmt: skip
+    scaling(old, new, not args.skip_old_scaling)
     return 0
 
 

@@ -81,6 +81,28 @@ def direction(line: tuple[str, float, float, float]) -> tuple[float, float]:
     return (1 / norm, slope / norm) if model == "y|x" else (slope / norm, 1 / norm)
 
 
+def neighbourhood(pts: list, j: int, step: int, radius: float, max_gap: int) -> list:
+    """p_j, then the consecutive points from p_j towards ``step`` within ``radius`` of it;
+    a run of at most ``max_gap`` gaps followed by a point is stepped over (option
+    ``max_gap_beams``, 0 in the paper: every gap ends the neighbourhood)."""
+    pj = pts[j]
+    out = [pj]
+    i = j + step
+    while 0 <= i < len(pts):
+        if pts[i] is None:
+            gap_end = i
+            while 0 <= gap_end < len(pts) and pts[gap_end] is None:
+                gap_end += step
+            if abs(gap_end - i) > max_gap or not 0 <= gap_end < len(pts):
+                break
+            i = gap_end
+        if math.dist(pts[i], pj) > radius:
+            break
+        out.append(pts[i])
+        i += step
+    return out
+
+
 def candidates(scan: LaserScan, params: DetectorParams) -> dict[int, dict]:
     """Per-point candidate keypoints, keyed by beam index."""
     pts = points_of(scan)
@@ -92,17 +114,9 @@ def candidates(scan: LaserScan, params: DetectorParams) -> dict[int, dict]:
             continue
         per_scale = []
         for radius in params.scales:
-            arrival = [pj]
-            i = j - 1
-            while i >= 0 and pts[i] is not None and math.dist(pts[i], pj) <= radius:
-                arrival.insert(0, pts[i])
-                i -= 1
-            departure = [pj]
-            i = j + 1
-            while i < n and pts[i] is not None and math.dist(pts[i], pj) <= radius:
-                departure.append(pts[i])
-                i += 1
-            per_scale.append(check_scale(arrival, departure, pj, params))
+            arrival = neighbourhood(pts, j, -1, radius, params.max_gap_beams)[::-1]
+            departure = neighbourhood(pts, j, 1, radius, params.max_gap_beams)
+            per_scale.append(check_scale(arrival, departure, pj, params, radius))
         best = None
         k = 0
         while k < len(per_scale):
@@ -134,8 +148,11 @@ def candidates(scan: LaserScan, params: DetectorParams) -> dict[int, dict]:
     return out
 
 
-def check_scale(arrival, departure, pj, params: DetectorParams) -> dict | None:
+def check_scale(arrival, departure, pj, params: DetectorParams, radius: float) -> dict | None:
     if len(arrival) < params.min_points or len(departure) < params.min_points:
+        return None
+    reach = params.min_extent_ratio * radius  # option min_extent_ratio (0 in the paper)
+    if math.dist(arrival[0], pj) < reach or math.dist(departure[-1], pj) < reach:
         return None
     la = fit(arrival)
     ld = fit(departure)

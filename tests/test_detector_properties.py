@@ -228,3 +228,16 @@ def test_world_visible_corners_drop_hidden_ones() -> None:
     assert len(seen) == 0
     seen = world.visible_corners((0.0, -2.0, 0.0), UST_10LX)
     assert np.allclose(seen, [[1.0, 1.5]])  # the corner (1, -0.5): both its walls are seen
+
+
+def test_scale_index_is_the_first_scale_of_the_winning_run() -> None:
+    scan = corner_scan(corner=(2.0, 1.0))
+    keypoints, candidates = DETECTOR.detect(scan, return_candidates=True)
+    table = DETECTOR.scale_table(scan)
+    for kps in (keypoints, candidates):
+        assert kps.scale_index.dtype == np.int64 and kps.scale_index.shape == (len(kps),)
+        for j, k0, n in zip(kps.beam_index, kps.scale_index, kps.n_scales, strict=True):
+            assert table.passed[j, k0 : k0 + n].all()
+            assert k0 == 0 or not table.passed[j, k0 - 1]
+    assert keypoints.to_dicts()[0]["scale_index"] == keypoints.scale_index[0]
+    assert (Keypoints.empty().scale_index == np.zeros(0)).all()

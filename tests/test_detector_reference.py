@@ -98,3 +98,112 @@ def test_kernel_matches_reference_without_merging() -> None:
     expected = ref.candidates(scan, params)
     assert kps.beam_index.tolist() == sorted(expected)
     assert (kps.n_merged == 1).all()
+
+
+@pytest.mark.parametrize("max_gap", [1, 2, 4])
+def test_kernel_matches_reference_when_bridging_dropouts(max_gap: int) -> None:
+    """Option max_gap_beams: random dropouts (single beams and runs) bridged alike."""
+    rng = np.random.default_rng(10 + max_gap)
+    scan = rectangular_room().scan((0.2, 0.1, 0.3), UST_10LX, 0.003, rng)
+    ranges = scan.ranges.copy()
+    ranges[rng.random(ranges.size) < 0.05] = np.nan
+    ranges[300:303] = np.nan
+    ranges[::20] = np.inf
+    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
+                      scan.range_max)  # fmt: skip
+    params = DetectorParams(max_gap_beams=max_gap)
+    assert assert_same(gappy, params) >= 3
+    assert assert_same(gappy, params.with_overrides({"min_extent_ratio": 0.6})) >= 1
+
+
+def test_kernel_matches_reference_on_a_dense_scan() -> None:
+    """A scan dense enough for the block-skipping walk (many points within each scale)."""
+    world = World().add_polygon([[0.3, -0.4], [0.9, -0.4], [0.9, 0.5], [0.3, 0.5]])
+    n = 1500
+    inc = np.radians(60.0) / n
+    angles = -np.radians(30.0) + inc * np.arange(n)
+    ranges = world.cast((0.0, 0.0, 0.0), angles)
+    ranges += np.random.default_rng(5).normal(0.0, 0.0005, n)
+    ranges[700:702] = np.nan
+    scan = LaserScan(ranges, -np.radians(30.0), inc, 0.02, 10.0)
+    params = DetectorParams(scales=(0.05, 0.08, 0.11), min_consecutive_scales=2,
+                            max_point_distance=0.03, max_fit_rmse=0.01)  # fmt: skip
+    from laser_corners.neighbourhood import points_within as _points_within
+
+    x, y = CornerDetector()._scan_xy(scan)
+    assert _points_within(x, y, np.isfinite(x), params.scales[-1]) > 48  # the dense path
+    assert assert_same(scan, params) >= 1
+
+
+def test_kernel_matches_reference_with_many_sentinel_scales() -> None:
+    """More than three sentinel scales (here 12 scales, runs of 2): the walk stores its
+    running maxima and the other sentinels are counted from them."""
+    scan = rectangular_room().scan((-0.3, 0.2, 1.0), UST_10LX, 0.005, np.random.default_rng(7))
+    params = DetectorParams(scales=tuple(0.04 + 0.02 * k for k in range(12)),
+                            min_consecutive_scales=2)  # fmt: skip
+    assert assert_same(scan, params) >= 3
+
+
+@pytest.mark.parametrize("radius", [0.05, 0.2, 1e-15])
+def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
+    """The kernel's grid-based merge against the reference's all-pairs single linkage."""
+    from laser_corners.kernel import C_K0, C_NSC, C_OPEN, C_ORIENT, C_RMSE, C_X, C_Y, NC
+    from laser_corners.merge import M_BEAM, M_NMERGED, M_X, M_Y, NM, merge
+
+    rng = np.random.default_rng(3)
+    n = 400
+    centres = rng.uniform(-3, 3, (12, 2))
+    xy = centres[rng.integers(0, 12, n)] + rng.normal(0, 0.05, (n, 2))
+    xy[::7] = rng.uniform(-3, 3, (len(xy[::7]), 2))
+    cand = np.zeros((n, NC))
+    has = rng.random(n) < 0.8
+    cand[:, C_X], cand[:, C_Y] = xy[:, 0], xy[:, 1]
+    cand[:, C_NSC] = np.where(has, rng.integers(3, 6, n), 0)
+    cand[:, C_RMSE] = rng.choice([0.001, 0.002, 0.003], n)
+    cand[:, C_K0], cand[:, C_OPEN], cand[:, C_ORIENT] = 0, 90.0, 0.0
+    rows = np.empty((n, NM))
+    count = merge(cand, radius, rows)
+    cands = {j: {"xy": (xy[j, 0], xy[j, 1]), "rmse": cand[j, C_RMSE],
+                 "n_scales": int(cand[j, C_NSC])} for j in np.flatnonzero(has)}  # fmt: skip
+    expected = ref.merge(cands, radius)
+    assert count == len(expected)
+    for row, e in zip(rows[:count], expected, strict=True):
+        assert row[M_BEAM] == e["beam"] and row[M_NMERGED] == e["n_merged"]
+        assert (row[M_X], row[M_Y]) == e["xy"]
+
+
+def _frozen_detector_class() -> type:
+    """``CornerDetector`` of the frozen kernel of 91ca792 (checked against the reference by
+    this file's tests at that commit): an independent implementation for large scans."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    name = "frozen_kernel_91ca792"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+        sys.modules[name] = module
+        spec.loader.exec_module(module)  # type: ignore[union-attr]
+    return sys.modules[name].CornerDetector
+
+
+def test_kernel_matches_frozen_kernel_on_a_100k_beam_scan() -> None:
+    """100,000 beams over 360 degrees (the block-skipping walk, the grid merge) against the
+    frozen kernel's plain walk and all-pairs merge: same candidates and keypoints."""
+    n = 100_000
+    inc = 2 * np.pi / n
+    world = World().add_polygon([[-3.0, -2.5], [4.0, -2.5], [4.0, 1.0], [1.5, 1.0],
+                                 [1.5, 3.0], [-3.0, 3.0]])  # fmt: skip
+    ranges = world.cast((0.4, -0.3, 0.25), -np.pi + inc * np.arange(n))
+    ranges += np.random.default_rng(2).normal(0.0, 0.001, n)
+    ranges[5000:5003] = np.nan
+    scan = LaserScan(ranges, -np.pi, inc, 0.02, 30.0)
+    new_kp, new_raw = CornerDetector().detect(scan, return_candidates=True)
+    old_kp, old_raw = _frozen_detector_class()().detect(scan, return_candidates=True)
+    assert len(new_raw) > 1000 and len(new_kp) >= 5
+    for new, old in ((new_raw, old_raw), (new_kp, old_kp)):
+        assert new.beam_index.tolist() == old.beam_index.tolist()
+        assert np.allclose(new.xy, old.xy, atol=TOL, rtol=0)
+        assert (new.n_scales == old.n_scales).all() and (new.n_merged == old.n_merged).all()

@@ -16,6 +16,10 @@ MODULES = [
     "laser_corners.keypoints",
     "laser_corners.matching.descriptors",
     "laser_corners.matching.registration",
+    "laser_corners.kernel",
+    "laser_corners.merge",
+    "laser_corners.noise",
+    "laser_corners.presets",
 ]
 
 

@@ -29,11 +29,23 @@ def make(**kw):
         ("range_min", 10.0, "range_min .* must be < range_max"),
         ("ranges", np.ones((2, 3)), "ranges must be 1-D"),
         ("ranges", ["a", "b"], "ranges must be numeric"),
+        ("range_min", -1.0, "range_min must be a finite number >= 0"),
+        ("ranges", np.ones(1081), r"angle_increment \(0.1 rad\) with 1081 beams spans"),
     ],
 )
 def test_scan_validation_names_the_field(field, value, message) -> None:
     with pytest.raises(ValueError, match=message):
         make(**{field: value})
+
+
+def test_full_turn_and_clockwise_scans_are_accepted() -> None:
+    n = 1440
+    full = make(ranges=np.ones(n), angle_min=-math.pi, angle_increment=2 * math.pi / (n - 1))
+    assert full.n_beams == n
+    clockwise = make(ranges=np.ones(5), angle_increment=-0.1)
+    assert clockwise.angles[-1] == pytest.approx(-0.4)
+    with pytest.raises(ValueError, match="angle_increment"):
+        make(ranges=np.ones(1081), angle_increment=-1.0)
 
 
 def test_gaps_are_counted_never_errors() -> None:
@@ -121,3 +133,42 @@ def test_line_fit_models_and_degenerate_cases() -> None:
     assert fit_line([[0, 0], [1, 0], [2, 0]]).intersect(parallel) is None
     single = fit_line([[1, 1], [1, 1]])
     assert single.rmse == math.inf and single.intersect(horizontal) is None
+
+
+def test_params_ergonomics_one_line_messages() -> None:
+    p = DetectorParams()
+    with pytest.raises(
+        InvalidParamsError, match=r"frozen: cannot set 'min_points'.*with_overrides"
+    ):
+        p.min_points = 3  # type: ignore[misc]
+    assert p.with_overrides(["scales=0.1,0.2,0.3"]).scales == (0.1, 0.2, 0.3)
+    assert p.with_overrides(["scales=0.3", "min_consecutive_scales=1"]).scales == (0.3,)
+    for bad in ("scales=0.1,a", "scales=[a, b]"):
+        with pytest.raises(
+            InvalidParamsError, match="expected comma-separated metres like"
+        ) as info:
+            p.with_overrides([bad])
+        assert "\n" not in str(info.value)
+    with pytest.raises(InvalidParamsError, match="strictly increasing"):
+        p.with_overrides(["scales=0.2,0.1"])
+    with pytest.raises(InvalidParamsError, match="max_gap_beams must be >= 0"):
+        DetectorParams(max_gap_beams=-1)
+
+
+def test_detector_from_preset_and_by_name() -> None:
+    from laser_corners import CornerDetector
+    from laser_corners.sim import corner_scan
+
+    scan = corner_scan()
+    assert CornerDetector("paper").params == DetectorParams()
+    assert CornerDetector.from_preset("auto", scan).params == get_preset("auto", scan)
+    assert len(CornerDetector.from_preset("robust", scan).detect(scan)) == 1
+    for name in ("auto", "robust"):
+        with pytest.raises(InvalidParamsError, match=f"preset '{name}' needs a scan.*from_preset"):
+            CornerDetector.from_preset(name)
+        with pytest.raises(InvalidParamsError, match=f"preset '{name}' needs a scan"):
+            CornerDetector(name)
+    with pytest.raises(InvalidParamsError, match="unknown preset 'nope'"):
+        CornerDetector.from_preset("nope")
+    with pytest.raises(InvalidParamsError, match="takes DetectorParams or a preset name"):
+        CornerDetector(3)  # type: ignore[arg-type]

@@ -55,9 +55,11 @@ class Keypoints:
     n_merged : ndarray, shape (M,), int64
         Number of per-point candidates merged into the keypoint (1 for raw candidates).
     scale_index : ndarray, shape (M,), int64
-        Index k0 of the first scale of the winning run of scales (-1: unknown).
+        Index k0 of the first scale of the winning run of consecutive scales (of the
+        representative candidate for merged keypoints); the run is scales k0 ..
+        k0 + n_scales - 1. -1 when unknown (keypoints not made by the detector).
     cov : ndarray, shape (M, 2, 2)
-        Covariance of ``xy``, m² (:mod:`laser_corners.covariance`; NaN: unknown).
+        Covariance of ``xy``, m² (:mod:`laser_corners.covariance`; NaN when unknown).
     stamp : float or None
         Stamp of the scan.
     frame_id : str
@@ -108,13 +110,12 @@ class Keypoints:
         """Wrap arrays that already have the right dtypes and lengths, skipping the checks
         (the detector's per-scan fast path, where the checks cost more than the wrapping)."""
         keypoints = object.__new__(cls)
+        if "scale_index" not in arrays:
+            arrays["scale_index"] = np.full(arrays["xy"].shape[0], -1, dtype=np.int64)
+        if "cov" not in arrays:
+            arrays["cov"] = np.full((arrays["xy"].shape[0], 2, 2), np.nan)
         for name, value in arrays.items():
             object.__setattr__(keypoints, name, value)
-        m = arrays["xy"].shape[0]
-        if "scale_index" not in arrays:
-            object.__setattr__(keypoints, "scale_index", np.full(m, -1, dtype=np.int64))
-        if "cov" not in arrays:
-            object.__setattr__(keypoints, "cov", np.full((m, 2, 2), np.nan))
         object.__setattr__(keypoints, "stamp", stamp)
         object.__setattr__(keypoints, "frame_id", frame_id)
         return keypoints
@@ -124,7 +125,8 @@ class Keypoints:
         """No keypoints."""
         z = np.zeros(0)
         zi = np.zeros(0, dtype=np.int64)
-        return cls(np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id)
+        return cls(np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id,
+                   scale_index=zi)  # fmt: skip
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])

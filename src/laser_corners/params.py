@@ -62,6 +62,11 @@ class DetectorParams(BaseModel):
         off) of the old one. 0 (default, the paper) disables it.
     refine_exclude : float
         Radius around the keypoint whose points the refinement leaves out, metres.
+    max_gap_beams : int
+        Runs of at most this many invalid beams (dropouts) inside a neighbourhood are
+        stepped over instead of ending it; the next valid point must still lie within R_k.
+        0 (default, the paper) ends a neighbourhood at every gap. Not in the paper: see
+        ``docs/method.md``.
 
     Examples
     --------
@@ -85,6 +90,7 @@ class DetectorParams(BaseModel):
     min_extent_ratio: float = 0.0
     refine_radius: float = 0.0
     refine_exclude: float = 0.03
+    max_gap_beams: int = 0
 
     def __init__(self, **data: Any) -> None:
         try:
@@ -129,6 +135,13 @@ class DetectorParams(BaseModel):
     def _check_non_negative(cls, value: float) -> float:
         if not (value >= 0.0) or value == float("inf"):
             raise ValueError(f"must be a finite number >= 0, got {value}")
+        return value
+
+    @field_validator("max_gap_beams")
+    @classmethod
+    def _check_max_gap(cls, value: int) -> int:
+        if value < 0:
+            raise ValueError(f"max_gap_beams must be >= 0, got {value}")
         return value
 
     @field_validator("min_extent_ratio")
@@ -193,7 +206,13 @@ class DetectorParams(BaseModel):
         Parameters
         ----------
         assignments : iterable of ``"key=value"`` strings, or a mapping
-            Values in strings are parsed as YAML (``scales=[0.1, 0.2, 0.3]``, ``min_points=6``).
+            Values in strings are parsed as YAML (``scales=[0.1, 0.2, 0.3]``, ``min_points=6``);
+            tuple fields also take comma-separated numbers (``scales=0.1,0.2,0.3``).
+
+        Examples
+        --------
+        >>> DetectorParams().with_overrides(["scales=0.1,0.2", "min_consecutive_scales=2"]).scales
+        (0.1, 0.2)
         """
         updates: dict[str, Any] = {}
         if isinstance(assignments, Mapping):
@@ -214,9 +233,21 @@ class DetectorParams(BaseModel):
         unknown = set(updates) - set(type(self).model_fields)
         if unknown:
             raise InvalidParamsError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
+        for key, value in updates.items():
+            if key in _TUPLE_FIELDS:
+                updates[key] = _as_tuple(key, value)
         merged = self.model_dump()
         merged.update(updates)
         return type(self)(**merged)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise InvalidParamsError(
+            f"DetectorParams is frozen: cannot set {name!r}; make a changed copy with "
+            f"params.with_overrides({{{name!r}: ...}}) or params.model_copy(update=...)"
+        )
+
+    def __delattr__(self, name: str) -> None:
+        self.__setattr__(name, None)
 
     def to_yaml(self) -> str:
         """The parameters as a YAML document (the format :meth:`from_file` reads)."""
@@ -225,10 +256,30 @@ class DetectorParams(BaseModel):
         return yaml.safe_dump(data, sort_keys=False)
 
 
+_TUPLE_FIELDS = {"scales": "comma-separated metres like 0.05,0.075,0.1"}
+"""Tuple fields and the accepted form of their values, for messages."""
+
+
+def _as_tuple(key: str, value: Any) -> Any:
+    """A tuple field's override: comma-separated numbers or one number -> tuple of floats."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return (float(value),)
+    if not isinstance(value, str):
+        return value
+    try:
+        return tuple(float(part) for part in value.strip("[]() ").split(","))
+    except ValueError:
+        raise InvalidParamsError(f"{key}: expected {_TUPLE_FIELDS[key]}, got {value!r}") from None
+
+
 def _one_line(exc: ValidationError) -> str:
     parts = []
     for error in exc.errors():
-        where = ".".join(str(p) for p in error.get("loc", ())) or "parameters"
+        loc = error.get("loc", ())
+        where = ".".join(str(p) for p in loc) or "parameters"
         message = str(error.get("msg", "invalid")).removeprefix("Value error, ")
+        if loc and loc[0] in _TUPLE_FIELDS and error.get("type") != "value_error":
+            message = f"expected {_TUPLE_FIELDS[str(loc[0])]} ({message})"
+            where = str(loc[0])
         parts.append(f"{where}: {message}")
-    return "; ".join(parts)
+    return "; ".join(dict.fromkeys(parts))

@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 
 from laser_corners.errors import InvalidParamsError
+from laser_corners.noise import estimate_range_noise
 from laser_corners.params import PAPER_SCALES, DetectorParams
 from laser_corners.scan import LaserScan
 
@@ -23,6 +24,7 @@ __all__ = [
     "AUTO_N_SCALES",
     "AUTO_TARGET_RANGE",
     "PRESETS",
+    "PRESET_MAX_GAP_BEAMS",
     "ROBUST_NOISE_FLOOR",
     "auto_params",
     "get_preset",
@@ -33,6 +35,9 @@ AUTO_TARGET_RANGE = 3.0
 """Range (m) at which the ``auto`` preset's smallest adapted scale holds ``min_points`` points."""
 AUTO_N_SCALES = 17
 """Number of scales of the ``auto`` preset."""
+PRESET_MAX_GAP_BEAMS = 2
+"""``max_gap_beams`` of the ``auto`` and ``robust`` presets: neighbourhoods step over runs of
+up to 2 dropped beams (measured with ``benchmarks/dropout_study.py``, see ``docs/method.md``)."""
 
 
 def paper(scan: LaserScan | None = None) -> DetectorParams:
@@ -99,11 +104,15 @@ def auto_params(
 def auto(scan: LaserScan | None = None) -> DetectorParams:
     """Scales and spacing-dependent lengths adapted to ``scan``'s angular resolution.
 
-    See :func:`auto_params`; the target range is :data:`AUTO_TARGET_RANGE`.
+    See :func:`auto_params`; the target range is :data:`AUTO_TARGET_RANGE`; neighbourhoods
+    bridge runs of up to :data:`PRESET_MAX_GAP_BEAMS` dropped beams.
     """
     if scan is None:
-        raise InvalidParamsError("preset 'auto' needs a scan of the recording (its resolution)")
-    return auto_params(scan.angle_increment)
+        raise InvalidParamsError(
+            "preset 'auto' needs a scan of the recording (its angular resolution): "
+            "pass one, e.g. CornerDetector.from_preset('auto', scan)"
+        )
+    return auto_params(scan.angle_increment).with_overrides({"max_gap_beams": PRESET_MAX_GAP_BEAMS})
 
 
 ROBUST_NOISE_FLOOR = 0.01
@@ -125,13 +134,15 @@ def robust_params(noise_sigma: float) -> DetectorParams:
     * ``max_fit_rmse = max(0.025, 1.75 sigma)``, ``max_point_distance = 0.05 + 2 sigma``,
       ``max_centroid_distance = 0.025 + 2 sigma``: tolerances that follow the noise;
     * ``refine_radius = 0.5``, ``refine_exclude = 0.03``: each merged keypoint is re-estimated
-      from lines fitted to each wall's points within 0.5 m of it (those within 3 cm left out).
+      from lines fitted to each wall's points within 0.5 m of it (those within 3 cm left out);
+    * ``max_gap_beams = 2`` (:data:`PRESET_MAX_GAP_BEAMS`): runs of up to two dropped beams
+      inside a neighbourhood (or a refinement run) are stepped over.
 
     Parameters
     ----------
     noise_sigma : float
         Range noise standard deviation, metres (e.g. from
-        :func:`~laser_corners.eval.noise.estimate_range_noise`).
+        :func:`~laser_corners.noise.estimate_range_noise`).
 
     Examples
     --------
@@ -152,6 +163,7 @@ def robust_params(noise_sigma: float) -> DetectorParams:
         min_extent_ratio=0.6,
         refine_radius=0.5,
         refine_exclude=0.03,
+        max_gap_beams=PRESET_MAX_GAP_BEAMS,
     )
 
 
@@ -159,12 +171,13 @@ def robust(scan: LaserScan | None = None) -> DetectorParams:
     """Noise-adapted thresholds, neighbourhood extent test and keypoint refinement.
 
     The range noise is estimated from ``scan`` itself
-    (:func:`~laser_corners.eval.noise.estimate_range_noise`); see :func:`robust_params`.
+    (:func:`~laser_corners.noise.estimate_range_noise`); see :func:`robust_params`.
     """
-    from laser_corners.eval.noise import estimate_range_noise
-
     if scan is None:
-        raise InvalidParamsError("preset 'robust' needs a scan of the recording (its noise)")
+        raise InvalidParamsError(
+            "preset 'robust' needs a scan of the recording (its range noise): "
+            "pass one, e.g. CornerDetector.from_preset('robust', scan)"
+        )
     return robust_params(estimate_range_noise(scan))
 
 

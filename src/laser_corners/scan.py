@@ -12,6 +12,10 @@ from laser_corners.errors import InvalidScanError
 
 __all__ = ["LaserScan", "Pose2D"]
 
+# largest (n_beams - 1) * |angle_increment|: a full turn, plus a tolerance for increments
+# rounded to float32 by drivers
+_MAX_FIELD_OF_VIEW = 2.0 * math.pi * (1.0 + 1e-4)
+
 Pose2D = tuple[float, float, float]
 """A planar pose ``(x, y, theta)`` in metres and radians."""
 
@@ -31,8 +35,10 @@ class LaserScan:
     """One 2D laser scan, in the layout of ``sensor_msgs/LaserScan``.
 
     Beam ``i`` points at ``angle_min + i * angle_increment`` (radians, counter-clockwise in
-    the sensor frame). A beam is a *gap* (no valid return) when its range is NaN, infinite,
-    ``<= range_min`` or ``>= range_max``; gaps are counted, never an error.
+    the sensor frame). A negative ``angle_increment`` is allowed (legal in ROS: beams in
+    clockwise order); the detector gives the same keypoints for either beam order. The beams
+    may span at most one full turn. A beam is a *gap* (no valid return) when its range is
+    NaN, infinite, ``<= range_min`` or ``>= range_max``; gaps are counted, never an error.
 
     Parameters
     ----------
@@ -55,7 +61,9 @@ class LaserScan:
     ------
     InvalidScanError
         (a ``ValueError``) naming the field, for non-finite angle fields, a zero
-        ``angle_increment``, ``range_min >= range_max`` or ``ranges`` that are not 1-D.
+        ``angle_increment``, beams spanning more than a full turn
+        (``(len(ranges) - 1) * |angle_increment| > 2 pi``), a negative or infinite
+        ``range_min``, ``range_min >= range_max`` or ``ranges`` that are not 1-D.
 
     Examples
     --------
@@ -96,6 +104,16 @@ class LaserScan:
             raise InvalidScanError("LaserScan.range_min/range_max must be numbers") from None
         if math.isnan(range_min) or math.isnan(range_max):
             raise InvalidScanError("LaserScan.range_min/range_max must not be NaN")
+        if not (0.0 <= range_min < math.inf):
+            raise InvalidScanError(
+                f"LaserScan.range_min must be a finite number >= 0 (metres), got {range_min}"
+            )
+        field_of_view = (ranges.shape[0] - 1) * abs(angle_increment)
+        if field_of_view > _MAX_FIELD_OF_VIEW:
+            raise InvalidScanError(
+                f"LaserScan.angle_increment ({angle_increment} rad) with {ranges.shape[0]} "
+                f"beams spans {field_of_view:.4g} rad, more than a full turn (2 pi)"
+            )
         if range_min >= range_max:
             raise InvalidScanError(
                 f"LaserScan.range_min ({range_min}) must be < range_max ({range_max})"
@@ -126,8 +144,10 @@ class LaserScan:
     def valid(self) -> NDArray[np.bool_]:
         """Mask of beams with a valid return (finite, strictly inside the range interval)."""
         with np.errstate(invalid="ignore"):
-            return np.isfinite(self.ranges) & (self.ranges > self.range_min) & (
-                self.ranges < self.range_max
+            return (
+                np.isfinite(self.ranges)
+                & (self.ranges > self.range_min)
+                & (self.ranges < self.range_max)
             )
 
     @property

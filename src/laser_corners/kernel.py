@@ -1,0 +1,402 @@
+"""The detector's numba kernel: points -> per-point candidate keypoints (:func:`candidates`).
+
+Phases, each a small ``@njit`` function composed here:
+
+1. :func:`polar_to_xy`, then :func:`~laser_corners.neighbourhood.prepare`: gaps become NaN,
+   coordinates are shifted by the scan's centroid, prefix sums of x, y, x², y², xy and of the
+   valid-point count (every fit costs O(1));
+2. :mod:`~laser_corners.neighbourhood`: the neighbourhood bounds of a point for every scale,
+   one outward walk per side (:func:`~laser_corners.neighbourhood.reach`, or the
+   block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans and gap
+   bridging);
+3. :func:`~laser_corners.scale_tests.screen`: a division-free necessary condition of the
+   RMSE tests (eqs. 8-9) and of the angle test; scales that fail it fail the full test;
+4. :func:`~laser_corners.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
+   distance to p_j, opening angle);
+5. :func:`best_run`: the runs of consecutive passing scales, the centroid test, the winner.
+
+A point needs ``min_consecutive_scales`` consecutive passing scales (m), so every such run
+contains one of the *sentinel* scales K-1, K-1-m, K-1-2m, ... (the larger scales: their
+fits are the least noisy, so the screen rejects most wall points there). The sentinels are
+screened first, and a point where all of them fail is done (most points of a room lie on
+straight walls); only the others get every scale screened.
+
+The parameters reach the kernel through one conversion, :func:`kernel_config` (a packed
+array), read inside the kernel as a :class:`KernelConfig` by :func:`unpack`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.neighbourhood import (
+    PAD,
+    block_boxes,
+    padded,
+    points_within,
+    prepare,
+    reach,
+    walk,
+    within,
+)
+from laser_corners.params import DetectorParams
+from laser_corners.scale_tests import full_test, screen
+
+__all__ = ["KernelConfig", "candidates", "kernel_config", "polar_to_xy", "unpack"]
+
+# columns of the per-point candidate table (float64, shape (N, NC))
+C_X, C_Y, C_NSC, C_K0, C_RMSE, C_OPEN, C_ORIENT = range(7)
+NC = 7
+
+
+class KernelConfig(NamedTuple):
+    """The detector parameters as the kernel sees them (built by :func:`unpack`)."""
+
+    scales: NDArray[np.float64]
+    min_points: int
+    min_angle_deg: float
+    max_angle_deg: float
+    max_fit_rmse: float
+    max_point_distance: float
+    max_centroid_distance: float
+    min_consecutive: int
+    min_extent: float
+    max_gap: int
+    merge_radius: float
+    refine_radius: float
+    refine_exclude: float
+
+
+_N_SCALARS = 12  # scalars before the scales in the packed configuration
+
+
+def kernel_config(params: DetectorParams) -> NDArray[np.float64]:
+    """The one conversion of :class:`~laser_corners.DetectorParams` into kernel arguments.
+
+    A packed float64 array (the 12 scalars of :class:`KernelConfig` in order, then the
+    scales): one array argument is the cheapest for numba's dispatcher to type, a tuple costs
+    microseconds per call. Kernels read it with :func:`unpack`.
+    """
+    scalars = [
+        params.min_points,
+        params.min_angle_deg,
+        params.max_angle_deg,
+        params.max_fit_rmse,
+        params.max_point_distance,
+        params.max_centroid_distance,
+        params.min_consecutive_scales,
+        params.min_extent_ratio,
+        params.max_gap_beams,
+        params.merge_radius,
+        params.refine_radius,
+        params.refine_exclude,
+    ]
+    return np.array(scalars + list(params.scales), dtype=np.float64)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def unpack(packed: NDArray[np.float64]) -> KernelConfig:
+    """The :class:`KernelConfig` of a packed configuration from :func:`kernel_config`."""
+    return KernelConfig(
+        packed[_N_SCALARS:],
+        int(packed[0]),
+        packed[1],
+        packed[2],
+        packed[3],
+        packed[4],
+        packed[5],
+        int(packed[6]),
+        packed[7],
+        int(packed[8]),
+        packed[9],
+        packed[10],
+        packed[11],
+    )
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def polar_to_xy(
+    ranges: NDArray[np.float64],
+    cos_a: NDArray[np.float64],
+    sin_a: NDArray[np.float64],
+    range_min: float,
+    range_max: float,
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+) -> None:
+    """Polar -> Cartesian in beam order; gaps (NaN, inf, <= range_min, >= range_max) -> NaN."""
+    for i in range(ranges.shape[0]):
+        r = ranges[i]
+        if math.isfinite(r) and r > range_min and r < range_max:
+            x[i] = r * cos_a[i]
+            y[i] = r * sin_a[i]
+        else:
+            x[i] = math.nan
+            y[i] = math.nan
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def best_run(passed: NDArray[np.bool_], q: NDArray[np.float64], min_consecutive: int,
+             max_cd2: float) -> tuple:  # fmt: skip
+    """The winning run of consecutive passing scales: ``(k0, length, cx, cy)``.
+
+    The longest run of at least ``min_consecutive`` scales whose intersections ``q[k, :2]``
+    all lie within sqrt(``max_cd2``) of their centroid; ties go to the run of smaller scales.
+    ``length`` is 0 when there is none.
+    """
+    n_scales = passed.shape[0]
+    best_len = 0
+    best_k0 = -1
+    best_cx = 0.0
+    best_cy = 0.0
+    k = 0
+    while k < n_scales:
+        if not passed[k]:
+            k += 1
+            continue
+        k0 = k
+        while k < n_scales and passed[k]:
+            k += 1
+        run = k - k0
+        if run < min_consecutive or run <= best_len:
+            continue
+        cx = 0.0
+        cy = 0.0
+        for kk in range(k0, k):
+            cx += q[kk, 0]
+            cy += q[kk, 1]
+        cx /= run
+        cy /= run
+        compact = True
+        for kk in range(k0, k):
+            if (q[kk, 0] - cx) ** 2 + (q[kk, 1] - cy) ** 2 > max_cd2:
+                compact = False
+                break
+        if compact:
+            best_len = run
+            best_k0 = k0
+            best_cx = cx
+            best_cy = cy
+    return best_k0, best_len, best_cx, best_cy
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def keep_runs(screened: NDArray[np.bool_], m: int) -> bool:
+    """Clear screened scales outside a screened run of at least ``m``; True if any is left."""
+    n_scales = screened.shape[0]
+    k = 0
+    any_run = False
+    while k < n_scales:
+        k0 = k
+        while k < n_scales and screened[k]:
+            k += 1
+        if 0 < k - k0 < m:
+            screened[k0:k] = False
+        any_run |= k - k0 >= m
+        k += 1
+    return any_run
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _limits(cfg: KernelConfig) -> tuple:
+    """Derived thresholds: (full-test limits, loose screen mse, screen max cos², max cd²)."""
+    max_mse = cfg.max_fit_rmse * cfg.max_fit_rmse
+    limits = np.empty(4)
+    limits[0] = max_mse
+    limits[1] = cfg.max_point_distance * cfg.max_point_distance
+    limits[2] = math.cos(math.radians(cfg.min_angle_deg))
+    limits[3] = math.cos(math.radians(cfg.max_angle_deg))
+    # an opening angle in [min, max] has |cos| <= max(|cos min|, |cos max|); the margin
+    # keeps the screen never stricter than the exact test
+    max_abs_cos = max(abs(limits[2]), abs(limits[3]))
+    max_cos2 = max_abs_cos * max_abs_cos * (1.0 + 1e-9)
+    max_cd2 = cfg.max_centroid_distance * cfg.max_centroid_distance
+    return limits, max_mse * (1.0 + 1e-9), max_cos2, max_cd2
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def candidates(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    cand: NDArray[np.float64],
+    table: NDArray[np.float64],
+) -> None:
+    """Fill ``cand`` (N, NC) with each point's candidate keypoint (column C_NSC 0: none).
+
+    ``x``, ``y`` are the scan points in beam order, NaN for gaps. When ``table`` has shape
+    (N, K, 3) it also receives, per point and scale, the intersection x, y and 1.0/0.0 for
+    pass/fail (NaN where no intersection was computed).
+    """
+    cfg = unpack(packed)
+    n = x.shape[0]
+    scales = cfg.scales
+    n_scales = scales.shape[0]
+    want_table = table.shape[0] == n
+    valid, ox, oy, ps, next_valid, prev_valid = prepare(x, y)
+    r2 = scales * scales
+    # dense scans (many points within the largest scale) and gap bridging: block-skipping
+    # walk; otherwise the short branch-free walk, counted per scale on demand
+    dense = cfg.max_gap > 0 or points_within(x, y, valid, scales[n_scales - 1]) > 48.0
+    box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
+    limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
+    start = np.empty(n_scales, dtype=np.int64)
+    stop = np.empty(n_scales, dtype=np.int64)
+    inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
+    px = padded(x, valid)
+    py = padded(y, valid)
+    rm_a = np.empty(n + PAD)
+    rm_d = np.empty(n + PAD)
+    screened = np.zeros(n_scales, dtype=np.bool_)
+    passed = np.zeros(n_scales, dtype=np.bool_)
+    res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
+    m = cfg.min_consecutive
+    top = n_scales - 1  # sentinels: top, top - m, top - 2m, ... >= 0
+    # the walk counts the top three sentinels; with more it stores the running maxima
+    r2_a = r2[top - 2 * m] if top - 2 * m >= 0 else -1.0
+    r2_b = r2[top - m] if top - m >= 0 else -1.0
+    many = top - 3 * m >= 0
+    n_sent = top // m + 1
+    r2_sent = r2[top - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
+    s_start = np.empty(n_sent, dtype=np.int64)
+    s_stop = np.empty(n_sent, dtype=np.int64)
+    na = nd = -1  # step counts of the reach walks (dense: unused)
+    for j in range(n):
+        cand[j, C_NSC] = 0.0
+        if want_table:
+            table[j, :, 0:2] = math.nan
+            table[j, :, 2] = 0.0
+        if not valid[j]:
+            continue
+        if dense:  # the sentinel scales only, for now
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, cfg.max_gap, s_start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, cfg.max_gap, s_stop)
+            for i in range(n_sent):
+                start[top - (n_sent - 1 - i) * m] = s_start[i]
+                stop[top - (n_sent - 1 - i) * m] = s_stop[i]
+        else:
+            na, na_a, na_b = reach(j, -1, px, py, r2[top], r2_a, r2_b, rm_a, many)
+            nd, nd_a, nd_b = reach(j, 1, px, py, r2[top], r2_a, r2_b, rm_d, many)
+            for k, ca, cd in ((top, na, nd), (top - m, na_b, nd_b), (top - 2 * m, na_a, nd_a)):
+                if k >= 0:
+                    start[k] = j - ca
+                    stop[k] = j + cd
+        # every run of m consecutive scales holds one of the sentinels; a run lies between
+        # two failing sentinels, so only scales within m-1 of a passing one can be in one
+        hit = want_table
+        for k in range(top, -1, -m):
+            if not dense and k < top - 2 * m:
+                start[k] = j - within(rm_a, na, r2[k])
+                stop[k] = j + within(rm_d, nd, r2[k])
+            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+            hit |= screened[k]
+        if not hit:
+            continue
+        if dense:  # again, every scale
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
+        elif not many:  # again, storing the running maxima
+            reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)
+            reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)
+        rm = (rm_a, rm_d, -1 if dense else na, -1 if dense else nd)
+        _screen_rest(ps, inv, j, start, stop, screened, r2, m, cfg.min_points, loose_mse,
+                     max_cos2, want_table, rm)  # fmt: skip
+        if not want_table and not keep_runs(screened, m):
+            continue
+        _test_scales(x, y, ps, ox, oy, j, start, stop, screened, cfg, limits, passed, res, table)
+        _store(cand, j, passed, res, cfg.min_consecutive, max_cd2)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, min_points: int,
+                 loose_mse: float, max_cos2: float, want_all: bool, rm: tuple) -> None:  # fmt: skip
+    """Screen the scales of p_j other than the sentinels (already in ``screened``).
+
+    Every run of m consecutive scales holds a sentinel and lies between two failing ones,
+    so only scales next to a passing sentinel (within m-1) can be in a run; the others are
+    not screened (unless ``want_all``). ``rm`` holds the running maxima and step counts of
+    both :func:`~laser_corners.neighbourhood.reach` walks (counts -1: the bounds are
+    already in ``start``, ``stop``).
+    """
+    rm_a, rm_d, na, nd = rm
+    top = r2.shape[0] - 1
+    for k in range(top + 1):
+        if (top - k) % m == 0:
+            continue  # a sentinel
+        above = k + (top - k) % m  # the nearest sentinels above and below k
+        below = above - m
+        near = want_all or screened[above] or (below >= 0 and screened[below])
+        screened[k] = False
+        if not near:
+            continue
+        if na >= 0:
+            start[k] = j - within(rm_a, na, r2[k])
+            stop[k] = j + within(rm_d, nd, r2[k])
+        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelConfig,
+                 limits, passed, res, table) -> None:  # fmt: skip
+    """The exact test (:func:`~laser_corners.scale_tests.full_test`) of the screened scales
+    of p_j: ``passed[k]`` and ``res[k]`` (ix, iy, worst rmse, opening, bisector x, y)."""
+    want_table = table.shape[0] == x.shape[0]
+    for k in range(screened.shape[0]):
+        passed[k] = False
+        res[k, 0] = math.nan
+        res[k, 1] = math.nan
+        if not screened[k]:
+            continue
+        s = start[k]
+        e = stop[k]
+        if cfg.min_extent > 0.0:  # option, not in the paper: both runs must reach out
+            reach2 = (cfg.min_extent * cfg.scales[k]) ** 2
+            if (x[s] - x[j]) ** 2 + (y[s] - y[j]) ** 2 < reach2 or (
+                (x[e] - x[j]) ** 2 + (y[e] - y[j]) ** 2 < reach2
+            ):
+                continue
+        state, ix, iy, worst, opening, bx, by = full_test(x, y, ps, ox, oy, j, s, e, limits)
+        if state == 0:
+            continue
+        res[k, 0] = ix
+        res[k, 1] = iy
+        if want_table:
+            table[j, k, 0] = ix
+            table[j, k, 1] = iy
+        if state == 2:
+            passed[k] = True
+            res[k, 2] = worst
+            res[k, 3] = opening
+            res[k, 4] = bx
+            res[k, 5] = by
+            if want_table:
+                table[j, k, 2] = 1.0
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _store(cand, j, passed, res, min_consecutive, max_cd2) -> None:
+    """The winning run of p_j (if any) into its candidate row."""
+    k0, length, cx, cy = best_run(passed, res, min_consecutive, max_cd2)
+    if length == 0:
+        return
+    w = 0.0
+    o = 0.0
+    sbx = 0.0
+    sby = 0.0
+    for kk in range(k0, k0 + length):
+        w = max(w, res[kk, 2])
+        o += res[kk, 3]
+        sbx += res[kk, 4]
+        sby += res[kk, 5]
+    cand[j, C_X] = cx
+    cand[j, C_Y] = cy
+    cand[j, C_NSC] = length
+    cand[j, C_K0] = k0
+    cand[j, C_RMSE] = w
+    cand[j, C_OPEN] = o / length
+    cand[j, C_ORIENT] = math.atan2(sby, sbx)

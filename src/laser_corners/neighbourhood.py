@@ -1,0 +1,282 @@
+"""Neighbourhood bounds: how far the arrival and departure neighbourhoods of p_j reach.
+
+For every scale R_k the arrival (departure) neighbourhood of p_j is the run of points before
+(after) p_j up to the first point farther than R_k from p_j, a gap (or, with the option
+``max_gap_beams``, a run of more than that many gaps) or the scan's end. Two walks compute it
+exactly, for all scales in one pass per side:
+
+* :func:`reach`, for scans with a few dozen points within the largest scale: point by point,
+  four steps per iteration, branch-free; it stores the running maximum of the squared
+  distance, counted per scale afterwards (:func:`within`) or on the way (three sentinels);
+* :func:`walk`, for dense scans and gap bridging: skips aligned blocks of 8, 64, 512 or 4096
+  beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
+  O(blocks + points near the radii) instead of O(points within R).
+
+:func:`prepare` makes the per-scan tables (validity, prefix sums, next/previous valid index).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["PAD", "block_boxes", "padded", "points_within", "prepare", "reach", "walk", "within"]
+
+_LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
+_SHIFT = 3  # log2 of the block size ratio
+PAD = 4  # +inf entries before and after the padded coordinates of :func:`reach`
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
+    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count), next/previous valid
+    index (N if none / -1 if none)."""
+    n = x.shape[0]
+    valid = np.empty(n, dtype=np.bool_)
+    ox = 0.0
+    oy = 0.0
+    n_valid = 0
+    for i in range(n):
+        ok = math.isfinite(x[i]) and math.isfinite(y[i])
+        valid[i] = ok
+        if ok:
+            ox += x[i]
+            oy += y[i]
+            n_valid += 1
+    if n_valid > 0:
+        ox /= n_valid
+        oy /= n_valid
+    ps = np.zeros((n + 1, 6))  # one row per index: a neighbourhood's sums in one cache line
+    for i in range(n):
+        if valid[i]:
+            xi = x[i] - ox
+            yi = y[i] - oy
+            ps[i + 1, 0] = ps[i, 0] + xi
+            ps[i + 1, 1] = ps[i, 1] + yi
+            ps[i + 1, 2] = ps[i, 2] + xi * xi
+            ps[i + 1, 3] = ps[i, 3] + yi * yi
+            ps[i + 1, 4] = ps[i, 4] + xi * yi
+            ps[i + 1, 5] = ps[i, 5] + 1.0
+        else:
+            for c in range(6):
+                ps[i + 1, c] = ps[i, c]
+    next_valid = np.empty(n + 1, dtype=np.int64)
+    prev_valid = np.empty(n, dtype=np.int64)
+    next_valid[n] = n
+    for i in range(n - 1, -1, -1):
+        next_valid[i] = i if valid[i] else next_valid[i + 1]
+    last = -1
+    for i in range(n):
+        if valid[i]:
+            last = i
+        prev_valid[i] = last
+    return valid, ox, oy, ps, next_valid, prev_valid
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def block_boxes(
+    x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_]
+) -> NDArray[np.float64]:
+    """Bounding boxes (xmin, xmax, ymin, ymax) of the aligned full blocks of 8**(l+1) beams,
+    shape (levels, N // 8, 4); a block holding a gap gets an infinite box (never skipped)."""
+    n = x.shape[0]
+    nb0 = n >> _SHIFT
+    box = np.empty((_LEVELS, max(nb0, 1), 4))
+    for b in range(nb0):
+        x0 = math.inf
+        x1 = -math.inf
+        y0 = math.inf
+        y1 = -math.inf
+        for i in range(b << _SHIFT, (b + 1) << _SHIFT):
+            if not valid[i]:
+                x0 = -math.inf
+                x1 = math.inf
+                y0 = -math.inf
+                y1 = math.inf
+                break
+            x0 = min(x0, x[i])
+            x1 = max(x1, x[i])
+            y0 = min(y0, y[i])
+            y1 = max(y1, y[i])
+        box[0, b, 0] = x0
+        box[0, b, 1] = x1
+        box[0, b, 2] = y0
+        box[0, b, 3] = y1
+    for lev in range(1, _LEVELS):
+        for b in range(n >> (_SHIFT * (lev + 1))):
+            c0 = b << _SHIFT
+            box[lev, b, 0] = box[lev - 1, c0, 0]
+            box[lev, b, 1] = box[lev - 1, c0, 1]
+            box[lev, b, 2] = box[lev - 1, c0, 2]
+            box[lev, b, 3] = box[lev - 1, c0, 3]
+            for c in range(c0 + 1, c0 + (1 << _SHIFT)):
+                box[lev, b, 0] = min(box[lev, b, 0], box[lev - 1, c, 0])
+                box[lev, b, 1] = max(box[lev, b, 1], box[lev - 1, c, 1])
+                box[lev, b, 2] = min(box[lev, b, 2], box[lev - 1, c, 2])
+                box[lev, b, 3] = max(box[lev, b, 3], box[lev - 1, c, 3])
+    return box
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _box_d2(box: NDArray[np.float64], lev: int, b: int, xj: float, yj: float) -> float:
+    """Squared distance from (xj, yj) to the farthest corner of a block's box: an upper
+    bound of the kernel's d2 of every point in the block (monotone rounding)."""
+    dx = max(abs(box[lev, b, 0] - xj), abs(box[lev, b, 1] - xj))
+    dy = max(abs(box[lev, b, 2] - yj), abs(box[lev, b, 3] - yj))
+    return dx * dx + dy * dy
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip(box: NDArray[np.float64], i: int, step: int, n: int, xj: float, yj: float,
+          r2: float) -> int:  # fmt: skip
+    """Size of the largest aligned block starting at ``i`` (towards ``step``) that lies
+    within ``r2`` of (xj, yj), or 0."""
+    edge = i if step > 0 else i + 1  # aligned block boundary at the walk's near side
+    for lev in range(_LEVELS - 1, -1, -1):
+        size = 1 << (_SHIFT * (lev + 1))
+        if edge & (size - 1) != 0:
+            continue
+        b = (edge >> (_SHIFT * (lev + 1))) - (0 if step > 0 else 1)
+        if b < 0 or (b + 1) * size > n:
+            continue
+        if _box_d2(box, lev, b, xj, yj) <= r2:
+            return size
+    return 0
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def walk(
+    j: int,
+    step: int,
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    valid: NDArray[np.bool_],
+    next_valid: NDArray[np.int64],
+    prev_valid: NDArray[np.int64],
+    box: NDArray[np.float64],
+    r2: NDArray[np.float64],
+    max_gap: int,
+    bound: NDArray[np.int64],
+) -> None:
+    """Farthest valid index of the neighbourhood of p_j for every scale, one side.
+
+    Walks from ``j`` towards ``step`` (-1 arrival, +1 departure) up to the first point
+    farther than R_k from p_j, the first run of more than ``max_gap`` invalid beams, or the
+    scan's end; ``bound[k]`` is the last valid index before that point.
+    """
+    n = x.shape[0]
+    n_scales = r2.shape[0]
+    xj = x[j]
+    yj = y[j]
+    k = 0
+    last = j
+    i = j + step
+    while k < n_scales and 0 <= i < n:
+        if not valid[i]:  # a run of gaps: bridge it if short and a point follows
+            g = next_valid[i] if step > 0 else prev_valid[i]
+            if g < 0 or g >= n or abs(g - i) >= max_gap + 1:
+                break
+            i = g
+            continue
+        size = _skip(box, i, step, n, xj, yj, r2[k])
+        if size > 0:  # a whole block within R_k (and every larger scale)
+            i += step * size
+            last = i - step
+            continue
+        d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2
+        while k < n_scales and d2 > r2[k]:
+            bound[k] = last
+            k += 1
+        last = i
+        i += step
+    while k < n_scales:
+        bound[k] = last
+        k += 1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """``x`` with gaps and :data:`PAD` entries before and after set to +inf (far from all)."""
+    n = x.shape[0]
+    out = np.full(n + 2 * PAD, math.inf)
+    for i in range(n):
+        if valid[i]:
+            out[i + PAD] = x[i]
+    return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
+          r2_max: float, r2_a: float, r2_b: float, running_max: NDArray[np.float64],
+          store: bool) -> tuple:  # fmt: skip
+    """Walk from p_j towards ``step`` up to the largest scale, point by point.
+
+    Follows the running maximum of the squared distance to p_j (a gap, or the scan's end, is
+    infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``; returns
+    the number of steps within and the numbers of leading steps within sqrt(``r2_a``) and
+    sqrt(``r2_b``) (two more sentinel scales, counted on the way). With ``store`` the running
+    maximum of every step goes to ``running_max`` (for :func:`within`). Four steps per
+    iteration, whose running maxima are all computed from the previous one (a short
+    dependency chain, no branch per point). For dense scans :func:`walk` is used instead.
+    """
+    c = j + PAD
+    xj = px[c]
+    yj = py[c]
+    i = c + step
+    m = 0.0
+    steps = 0
+    ca = 0
+    cb = 0
+    while True:
+        d0 = (px[i] - xj) ** 2 + (py[i] - yj) ** 2
+        d1 = (px[i + step] - xj) ** 2 + (py[i + step] - yj) ** 2
+        d2 = (px[i + 2 * step] - xj) ** 2 + (py[i + 2 * step] - yj) ** 2
+        d3 = (px[i + 3 * step] - xj) ** 2 + (py[i + 3 * step] - yj) ** 2
+        d01 = max(d0, d1)
+        d012 = max(d01, d2)
+        m0 = max(m, d0)
+        m1 = max(m, d01)
+        m2 = max(m, d012)
+        m3 = max(m, max(d012, d3))
+        if store:
+            running_max[steps] = m0
+            running_max[steps + 1] = m1
+            running_max[steps + 2] = m2
+            running_max[steps + 3] = m3
+        ca += int(m0 <= r2_a) + int(m1 <= r2_a) + int(m2 <= r2_a) + int(m3 <= r2_a)
+        cb += int(m0 <= r2_b) + int(m1 <= r2_b) + int(m2 <= r2_b) + int(m3 <= r2_b)
+        if m3 > r2_max:
+            last = int(m0 <= r2_max) + int(m1 <= r2_max) + int(m2 <= r2_max)
+            return steps + last, ca, cb
+        m = m3
+        steps += 4
+        i += 4 * step
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def within(running_max: NDArray[np.float64], steps: int, r2: float) -> int:
+    """Number of leading steps of a :func:`reach` walk within sqrt(``r2``): a branch-free
+    binary search (the running maximum is non-decreasing)."""
+    lo = 0
+    size = steps
+    while size > 0:
+        half = size >> 1
+        ok = int(running_max[lo + half] <= r2)  # arithmetic, not a branch
+        lo += (half + 1) * ok
+        size = half - (2 * half + 1 - size) * ok
+    return lo
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def points_within(x, y, valid, radius: float) -> float:
+    """Estimated number of points within ``radius`` along the scan: radius / mean step."""
+    total = 0.0
+    count = 0
+    for i in range(x.shape[0] - 1):
+        if valid[i] and valid[i + 1]:
+            total += abs(x[i + 1] - x[i]) + abs(y[i + 1] - y[i])  # L1: a rough estimate
+            count += 1
+    return radius * count / total if total > 0.0 else 0.0
