@@ -9,6 +9,7 @@ Examples
 >>> from laser_corners import CornerDetector, DetectorParams, LaserScan
 """
 
+from laser_corners.citation import CITATION
 from laser_corners.detector import CornerDetector, ScaleTable
 from laser_corners.errors import (
     ClusterError,
@@ -26,6 +27,7 @@ from laser_corners.scan import LaserScan, Pose2D
 __version__ = "0.1.0"
 
 __all__ = [
+    "CITATION",
     "PAPER_SCALES",
     "ClusterError",
     "CornerDetector",

@@ -149,6 +149,7 @@ def test_run_job_writes_what_the_detector_finds(tmp_path: Path) -> None:
     metadata = table.schema.metadata
     assert b"min_points" in metadata[b"laser_corners.params"]
     assert metadata[b"laser_corners.input"].decode() == str(log)
+    assert b"M. F. Silva" in metadata[b"laser_corners.method"]
 
 
 def test_run_job_with_auto_preset_and_overrides_records_them(tmp_path: Path) -> None:

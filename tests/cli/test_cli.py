@@ -73,6 +73,10 @@ def test_detect_fr079_bag_to_parquet(tmp_path: Path) -> None:
     assert saved == DetectorParams()
     meta = pq.read_schema(out).metadata
     assert (
+        b"M. F. Silva" in meta[b"laser_corners.method"]
+        and b"10.1109/ICARA" in meta[b"laser_corners.method"]
+    )
+    assert (
         DetectorParams.model_validate(__import__("yaml").safe_load(meta[b"laser_corners.params"]))
         == DetectorParams()
     )

@@ -19,8 +19,8 @@ from laser_corners.io import (
     open_keypoint_writer,
     open_scans,
 )
-from laser_corners.pipeline import detect_recording
 from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS
+from laser_corners.pipeline import detect_recording
 
 
 def _scans_withrandom_keypoints(n: int) -> list[tuple[LaserScan, Keypoints]]:

@@ -16,6 +16,7 @@ import traceback
 from pathlib import Path
 
 from laser_corners.batch.manifest import PARTIAL_SUFFIX, BatchJob, JobResult
+from laser_corners.citation import CITATION
 from laser_corners.errors import LaserCornersError, first_line
 from laser_corners.io import KeypointWriter
 from laser_corners.io.writers import ParquetKeypointWriter
@@ -79,6 +80,7 @@ def _open_writer(recording: Recording, partial: Path, job: BatchJob) -> Keypoint
         partial, recording.has_poses,
         metadata={
             "laser_corners.params": recording.params.to_yaml(),
+            "laser_corners.method": CITATION,
             "laser_corners.input": job.input,
             "laser_corners.topic": job.topic or "",
         },

@@ -42,7 +42,7 @@ __all__ = [
     "markdown_table",
     "match_scan",
     "run_sweep",
-        "write_tables",
+    "write_tables",
 ]
 
 DEFAULT_SIGMAS: tuple[float, ...] = (0.0, 0.005, 0.01, 0.02, 0.03)

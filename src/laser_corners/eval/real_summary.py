@@ -11,17 +11,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from laser_corners.citation import CITATION
 from laser_corners.eval.real import RealEvaluation
 
 __all__ = ["CITATION", "headline", "repeatability_rows", "summary"]
-
-CITATION = (
-    'R. B. Sousa, H. M. Sobreira, M. F. Silva, A. P. Moreira, "Line Fitting-Based Corner-Like '
-    'Detector for 2D Laser Scanners Data", 2024 10th International Conference on Automation, '
-    "Robotics and Applications (ICARA), Athens, Greece, pp. 210-216, "
-    "doi:10.1109/ICARA60736.2024.10553006"
-)
-"""The paper whose section IV this evaluation follows (in every report and summary.json)."""
 
 
 def repeatability_rows(result: RealEvaluation) -> list[dict[str, Any]]:

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from laser_corners.citation import CITATION
 from laser_corners.io import KeypointWriter, open_keypoint_writer
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline.loop import RunSummary, detect_recording
@@ -118,7 +119,8 @@ def detect_file(
     try:
         writer = open_keypoint_writer(
             out, recording.source, with_map=recording.has_poses,
-            metadata={"laser_corners.params": params_yaml, "laser_corners.input": str(path)},
+            metadata={"laser_corners.params": params_yaml, "laser_corners.input": str(path),
+                      "laser_corners.method": CITATION},
         )  # fmt: skip
         if out is not None:
             Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from laser_corners.citation import CITATION
 from laser_corners.eval.real import PERSISTENCE_LEVELS, RealEvaluation
-from laser_corners.eval.real_summary import CITATION
 
 __all__ = ["real_markdown"]
 
