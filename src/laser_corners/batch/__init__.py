@@ -38,6 +38,7 @@ Modules: :mod:`~laser_corners.batch.plan` (jobs, names, skipped inputs),
 pool, Dask), :mod:`~laser_corners.batch.run` (:func:`run_batch`).
 """
 
+from laser_corners.batch import manifest
 from laser_corners.batch.manifest import (
     MANIFEST_NAME,
     PARAMS_NAME,
@@ -54,16 +55,9 @@ from laser_corners.batch.worker import run_job
 from laser_corners.pipeline import CHUNK_SCANS, ParamsChoice
 
 __all__ = [
+    *manifest.__all__,
     "CHUNK_SCANS",
-    "MANIFEST_NAME",
-    "PARAMS_NAME",
-    "PARTIAL_SUFFIX",
-    "BatchJob",
-    "BatchReport",
-    "JobResult",
-    "Manifest",
     "ParamsChoice",
-    "SkippedInput",
     "plan_inputs",
     "plan_jobs",
     "run_batch",

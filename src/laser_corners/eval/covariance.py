@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from laser_corners.detector import CornerDetector
 from laser_corners.params import DetectorParams
+from laser_corners.presets import robust_params
 from laser_corners.scan import LaserScan
 from laser_corners.sim.raycast import cast_ranges
 from laser_corners.sim.sensors import UST_10LX, SensorProfile
@@ -110,8 +111,6 @@ def covariance_consistency(
     continuous : bool
         Draw the noise uniformly in [``noises[0]``, ``noises[1]``] instead of from the list.
     """
-    from laser_corners.presets import robust_params
-
     rng = np.random.default_rng(seed)
     detectors: dict[DetectorParams, CornerDetector] = {}
     nees, noise_out, range_out = [], [], []

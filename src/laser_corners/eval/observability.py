@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.eval.grid import Grid
-from laser_corners.eval.visibility import _point_in_view, ranges_with_nan, view_limit
+from laser_corners.eval.visibility import View, point_in_view, ranges_with_nan, view_of
 from laser_corners.scan import LaserScan, Pose2D
 
 __all__ = ["ObservabilityMap", "observability_map"]
@@ -80,43 +80,42 @@ def _block_may_be_seen(
     return not (occlusion and (farthest < 0.0 or dc - half_diag > farthest + tolerance))
 
 
+# planes of the counter array (8, rows, cols): counts, then the id of the last scan that
+# counted the cell (so that a scan counts a cell once)
+_VIEW, _VIEW8, _HIT, _HIT8 = range(4)
+_MARK = 4  # plane of the mark of count plane p: _MARK + p
+
+
+@nb.njit(cache=True)
+def _count_once(counters: NDArray[np.int32], plane: int, scan_id: int, row: int, col: int) -> bool:
+    """Count the cell in ``plane`` unless this scan already did; True when it counted."""
+    if counters[_MARK + plane, row, col] == scan_id:
+        return False
+    counters[_MARK + plane, row, col] = scan_id
+    counters[plane, row, col] += 1
+    return True
+
+
 @nb.njit(cache=True)
 def _count_hits(
-    scan_id: int,
-    keypoint_cells: NDArray[np.int64],
-    in_view: NDArray[np.int32],
-    in_view_n8: NDArray[np.int32],
-    hits: NDArray[np.int32],
-    hits_n8: NDArray[np.int32],
-    mark_view: NDArray[np.int32],
-    mark_view_n8: NDArray[np.int32],
-    mark_hit: NDArray[np.int32],
-    mark_hit_n8: NDArray[np.int32],
+    scan_id: int, keypoint_cells: NDArray[np.int64], counters: NDArray[np.int32]
 ) -> None:
     """Count one scan's keypoint cells (and, for N8, their neighbours) once each.
 
     A cell with a keypoint was in view by definition: it counts as a view too.
     """
-    rows, cols = in_view.shape
+    rows, cols = counters.shape[1], counters.shape[2]
     for k in range(keypoint_cells.shape[0]):
         row = keypoint_cells[k, 0]
         col = keypoint_cells[k, 1]
         if row < 0 or row >= rows or col < 0 or col >= cols:
             continue
-        if mark_hit[row, col] != scan_id:
-            mark_hit[row, col] = scan_id
-            hits[row, col] += 1
-            if mark_view[row, col] != scan_id:
-                mark_view[row, col] = scan_id
-                in_view[row, col] += 1
+        if _count_once(counters, _HIT, scan_id, row, col):
+            _count_once(counters, _VIEW, scan_id, row, col)
         for nr in range(max(0, row - 1), min(rows, row + 2)):
             for nc in range(max(0, col - 1), min(cols, col + 2)):
-                if mark_hit_n8[nr, nc] != scan_id:
-                    mark_hit_n8[nr, nc] = scan_id
-                    hits_n8[nr, nc] += 1
-                    if mark_view_n8[nr, nc] != scan_id:
-                        mark_view_n8[nr, nc] = scan_id
-                        in_view_n8[nr, nc] += 1
+                if _count_once(counters, _HIT8, scan_id, nr, nc):
+                    _count_once(counters, _VIEW8, scan_id, nr, nc)
 
 
 @nb.njit(cache=True)
@@ -129,24 +128,16 @@ def _accumulate_scan(
     pose_y: float,
     pose_theta: float,
     ranges: NDArray[np.float64],
-    angle_min: float,
-    angle_increment: float,
-    range_min: float,
-    max_range: float,
-    tolerance: float,
-    occlusion: bool,
+    view: View,
     keypoint_cells: NDArray[np.int64],
-    in_view: NDArray[np.int32],
-    in_view_n8: NDArray[np.int32],
-    hits: NDArray[np.int32],
-    hits_n8: NDArray[np.int32],
-    mark_view: NDArray[np.int32],
-    mark_view_n8: NDArray[np.int32],
-    mark_hit: NDArray[np.int32],
-    mark_hit_n8: NDArray[np.int32],
+    counters: NDArray[np.int32],
 ) -> None:
-    """Add one scan to the counts; marks hold the id of the last scan that counted a cell."""
-    rows, cols = in_view.shape
+    """Add one scan to the counters.
+
+    ``view`` is (angle_min, angle_increment, range_min, max_range, tolerance, occlusion).
+    """
+    angle_min, angle_increment, _, max_range, tolerance, occlusion = view
+    rows, cols = counters.shape[1], counters.shape[2]
     # cells in view: only the box around the sensor that the measured ranges can reach
     reach = 0.0
     for r in ranges:
@@ -180,16 +171,10 @@ def _accumulate_scan(
                     # map -> sensor frame
                     px = c * dx + s * dy
                     py = -s * dx + c * dy
-                    if _point_in_view(
-                        px, py, ranges, angle_min, angle_increment, range_min, max_range,
-                        tolerance, occlusion,
-                    ):  # fmt: skip
-                        in_view[row, col] += 1
-                        mark_view[row, col] = scan_id
-                        in_view_n8[row, col] += 1
-                        mark_view_n8[row, col] = scan_id
-    _count_hits(scan_id, keypoint_cells, in_view, in_view_n8, hits, hits_n8, mark_view,
-                mark_view_n8, mark_hit, mark_hit_n8)  # fmt: skip
+                    if point_in_view(px, py, ranges, view):
+                        _count_once(counters, _VIEW, scan_id, row, col)
+                        _count_once(counters, _VIEW8, scan_id, row, col)
+    _count_hits(scan_id, keypoint_cells, counters)
 
 
 @dataclass(frozen=True)
@@ -276,12 +261,8 @@ def observability_map(
         raise ValueError(f"{len(scans)} scans but {len(keypoints_xy)} keypoint arrays")
     if poses is not None and len(poses) != len(scans):
         raise ValueError(f"{len(scans)} scans but {len(poses)} poses")
-    shape = grid.shape
-    in_view = np.zeros(shape, dtype=np.int32)
-    hits = np.zeros(shape, dtype=np.int32)
-    in_view_n8 = np.zeros(shape, dtype=np.int32)
-    hits_n8 = np.zeros(shape, dtype=np.int32)
-    marks = [np.full(shape, -1, dtype=np.int32) for _ in range(4)]
+    counters = np.zeros((8, *grid.shape), dtype=np.int32)
+    counters[_MARK:] = -1
     n_used = 0
     for i, scan in enumerate(scans):
         if step is not None and i % 200 == 0 and i:
@@ -290,13 +271,13 @@ def observability_map(
         if pose is None:
             continue
         cells = grid.cell_of(keypoints_xy[i])
+        view = view_of(scan, tolerance, occlusion, max_range)
         _accumulate_scan(
             i, grid.x0, grid.y0, grid.resolution, float(pose[0]), float(pose[1]),
-            float(pose[2]), ranges_with_nan(scan), scan.angle_min, scan.angle_increment,
-            scan.range_min, view_limit(scan, max_range), float(tolerance), bool(occlusion),
-            np.ascontiguousarray(cells), in_view, in_view_n8, hits, hits_n8, *marks,
+            float(pose[2]), ranges_with_nan(scan), view, np.ascontiguousarray(cells), counters,
         )  # fmt: skip
         n_used += 1
     if step is not None:
         step(len(scans), len(scans))
-    return ObservabilityMap(grid, in_view, hits, in_view_n8, hits_n8, n_used)
+    return ObservabilityMap(grid, counters[_VIEW].copy(), counters[_HIT].copy(),
+                            counters[_VIEW8].copy(), counters[_HIT8].copy(), n_used)  # fmt: skip

@@ -17,21 +17,22 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.scan import LaserScan
 
-__all__ = ["points_in_view", "ranges_with_nan", "view_limit"]
+__all__ = ["View", "point_in_view", "points_in_view", "ranges_with_nan", "view_limit", "view_of"]
+
+
+View = tuple[float, float, float, float, float, bool]
+"""(angle_min, angle_increment, range_min, max_range, tolerance, occlusion): what decides
+whether a scan sees a point (see :func:`point_in_view`)."""
+
+
+def view_of(scan: LaserScan, tolerance: float, occlusion: bool, max_range: float | None) -> View:
+    """The :data:`View` of a scan (``max_range`` caps its ``range_max``)."""
+    return (scan.angle_min, scan.angle_increment, scan.range_min,
+            view_limit(scan, max_range), float(tolerance), bool(occlusion))  # fmt: skip
 
 
 @nb.njit(cache=True)
-def _point_in_view(
-    px: float,
-    py: float,
-    ranges: NDArray[np.float64],
-    angle_min: float,
-    angle_increment: float,
-    range_min: float,
-    max_range: float,
-    tolerance: float,
-    occlusion: bool,
-) -> bool:
+def point_in_view(px: float, py: float, ranges: NDArray[np.float64], view: View) -> bool:
     """Whether a point (sensor frame) is in view; ``ranges`` has NaN for beams without return.
 
     The point must lie within ``[range_min, max_range]`` and between the first and the last
@@ -39,6 +40,7 @@ def _point_in_view(
     beyond the range measured by one of the two beams that bracket its bearing; beams without
     a return do not make a point visible.
     """
+    angle_min, angle_increment, range_min, max_range, tolerance, occlusion = view
     d = math.sqrt(px * px + py * py)
     if d < range_min or d > max_range:
         return False
@@ -69,21 +71,10 @@ def _point_in_view(
 
 @nb.njit(cache=True)
 def _points_in_view(
-    xy: NDArray[np.float64],
-    ranges: NDArray[np.float64],
-    angle_min: float,
-    angle_increment: float,
-    range_min: float,
-    max_range: float,
-    tolerance: float,
-    occlusion: bool,
-    out: NDArray[np.bool_],
+    xy: NDArray[np.float64], ranges: NDArray[np.float64], view: View, out: NDArray[np.bool_]
 ) -> None:
     for k in range(xy.shape[0]):
-        out[k] = _point_in_view(
-            xy[k, 0], xy[k, 1], ranges, angle_min, angle_increment, range_min, max_range,
-            tolerance, occlusion,
-        )  # fmt: skip
+        out[k] = point_in_view(xy[k, 0], xy[k, 1], ranges, view)
 
 
 def ranges_with_nan(scan: LaserScan) -> NDArray[np.float64]:
@@ -127,8 +118,5 @@ def points_in_view(
     """
     xy = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 2))
     out = np.zeros(xy.shape[0], dtype=np.bool_)
-    _points_in_view(
-        xy, ranges_with_nan(scan), scan.angle_min, scan.angle_increment, scan.range_min,
-        view_limit(scan, max_range), float(tolerance), bool(occlusion), out,
-    )  # fmt: skip
+    _points_in_view(xy, ranges_with_nan(scan), view_of(scan, tolerance, occlusion, max_range), out)
     return out
