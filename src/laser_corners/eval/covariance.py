@@ -24,7 +24,7 @@ from laser_corners.presets import robust_params
 from laser_corners.scan import LaserScan
 from laser_corners.sim.raycast import cast_ranges
 from laser_corners.sim.sensors import UST_10LX, SensorProfile
-from laser_corners.sim.worlds import _finish_scan
+from laser_corners.sim.worlds import finish_scan
 
 __all__ = ["CHI2_2_95", "ConsistencyResult", "covariance_consistency"]
 
@@ -76,7 +76,7 @@ def _corner_scan(
         end = corner + 3.0 * np.array([math.cos(a), math.sin(a)])
         walls.append([corner[0], corner[1], end[0], end[1]])
     ranges = cast_ranges(np.array(walls), (0.0, 0.0, 0.0), sensor.angles)
-    return _finish_scan(ranges, sensor, noise, rng, None, None), corner
+    return finish_scan(ranges, sensor, noise, rng, None, None), corner
 
 
 def covariance_consistency(

@@ -13,7 +13,7 @@ from laser_corners.sim.checks import check_number
 from laser_corners.sim.raycast import cast_circles, cast_ranges
 from laser_corners.sim.sensors import UST_10LX, SensorProfile
 
-__all__ = ["World", "corner_scan", "rectangular_room"]
+__all__ = ["World", "corner_scan", "finish_scan", "rectangular_room"]
 
 CORNER_MIN_TURN_DEG = 10.0
 """A polygon vertex is a corner when the outline turns there by more than this (degrees)."""
@@ -207,10 +207,10 @@ class World:
             ``noise_sigma`` is negative or not finite.
         """
         ranges = self.cast(pose, sensor.angles)
-        return _finish_scan(ranges, sensor, noise_sigma, rng, stamp, pose)
+        return finish_scan(ranges, sensor, noise_sigma, rng, stamp, pose)
 
 
-def _finish_scan(
+def finish_scan(
     ranges: NDArray[np.float64],
     sensor: SensorProfile,
     noise_sigma: float,
@@ -285,5 +285,5 @@ def corner_scan(
     # an open polyline of two walls (no closing segment)
     segments = np.array([[cx + 1.5 * sx, cy, cx, cy], [cx, cy, cx, cy + 1.5 * sy]])
     ranges = cast_ranges(segments, (0.0, 0.0, 0.0), sensor.angles)
-    scan = _finish_scan(ranges, sensor, noise_sigma, rng, None, None)
+    scan = finish_scan(ranges, sensor, noise_sigma, rng, None, None)
     return scan
