@@ -218,6 +218,8 @@ def finish_scan(
     stamp: float | None,
     pose: tuple[float, float, float] | None,
 ) -> LaserScan:
+    """A ``LaserScan`` of ``sensor`` from exact ``ranges`` (modified in place): Gaussian range
+    noise of ``noise_sigma`` metres, then the sensor's limits applied."""
     noise_sigma = check_number("noise_sigma", noise_sigma)
     if noise_sigma > 0.0:
         rng = rng if rng is not None else np.random.default_rng()
