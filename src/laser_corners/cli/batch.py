@@ -9,16 +9,14 @@ import typer
 
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import (
-    ParamsOption,
-    PresetOption,
-    SetOption,
     known_errors,
-    params_choice,
+    with_params_choice,
 )
 from laser_corners.errors import MissingDependencyError
 
 if TYPE_CHECKING:
     from laser_corners.batch import BatchReport
+    from laser_corners.pipeline import ParamsChoice
 
 __all__ = ["batch"]
 
@@ -69,6 +67,7 @@ _Topic = Annotated[
 
 
 @app.command()
+@with_params_choice
 def batch(
     inputs: _Inputs,
     outdir: _Outdir,
@@ -76,9 +75,8 @@ def batch(
     scheduler: _Scheduler = None,
     threads: _Threads = None,
     topic: _Topic = None,
-    params_file: ParamsOption = None,
-    set_: SetOption = None,
-    preset: PresetOption = None,
+    *,
+    choice: ParamsChoice,
 ) -> None:
     """Detect keypoints in many recordings in parallel (process pool or Dask), resumably."""
     with known_errors():
@@ -87,7 +85,6 @@ def batch(
 
         from laser_corners.batch import run_batch
 
-        choice = params_choice(preset, params_file, set_)
         err = Console(stderr=True)
         bar = Progress(
             TextColumn("[bold]batch"), BarColumn(), MofNCompleteColumn(),

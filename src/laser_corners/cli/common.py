@@ -7,8 +7,10 @@ option names where the user needs them.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -31,6 +33,7 @@ __all__ = [
     "known_errors",
     "new_folder",
     "params_choice",
+    "with_params_choice",
     "writable_file",
 ]
 
@@ -117,3 +120,45 @@ def new_folder(path: Path, option: str = "--output") -> Path:
     except OSError as exc:
         raise fail(f"{path}: cannot create the folder for {option} ({exc.strerror})") from None
     return path
+
+
+def with_params_choice(command: Callable[..., None]) -> Callable[..., None]:
+    """Give a command the options ``--params``, ``--set`` and ``--preset`` as one argument.
+
+    The command declares a parameter ``choice`` (a
+    :class:`~laser_corners.pipeline.ParamsChoice`) instead of the three options; typer sees the
+    three options, and the command receives them checked and combined (one definition of the
+    detector-parameter options for every command that detects).
+    """
+    signature = inspect.signature(command)
+    kept = []
+    for name, parameter in signature.parameters.items():
+        if name == "choice":
+            continue
+        annotation = parameter.annotation
+        if isinstance(annotation, str):  # postponed annotations: typer needs the objects
+            annotation = eval(annotation, command.__globals__)
+        kept.append(parameter.replace(annotation=annotation))
+    keyword = inspect.Parameter.KEYWORD_ONLY
+    added = [
+        inspect.Parameter("params_file", keyword, default=None, annotation=ParamsOption),
+        inspect.Parameter("set_", keyword, default=None, annotation=SetOption),
+        inspect.Parameter("preset", keyword, default=None, annotation=PresetOption),
+    ]
+
+    @functools.wraps(command)
+    def run(
+        *args: object,
+        params_file: Path | None = None,
+        set_: list[str] | None = None,
+        preset: str | None = None,
+        **kwargs: object,
+    ) -> None:
+        with known_errors():
+            choice = params_choice(preset, params_file, set_)
+        command(*args, choice=choice, **kwargs)
+
+    parameters = [*kept, *added]
+    run.__signature__ = signature.replace(parameters=parameters)  # type: ignore[attr-defined]
+    run.__annotations__ = {p.name: p.annotation for p in parameters}
+    return run

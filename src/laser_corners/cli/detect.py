@@ -10,17 +10,15 @@ import typer
 from laser_corners.cli.app import app
 from laser_corners.cli.common import (
     InputArg,
-    ParamsOption,
-    PresetOption,
-    SetOption,
     TopicOption,
     known_errors,
     params_choice,
+    with_params_choice,
     writable_file,
 )
 
 if TYPE_CHECKING:
-    from laser_corners.pipeline import DetectRun
+    from laser_corners.pipeline import DetectRun, ParamsChoice
 
 __all__ = ["detect", "info", "params", "plot"]
 
@@ -71,6 +69,7 @@ def _summary_table(run: DetectRun) -> Any:
 
 
 @app.command()
+@with_params_choice
 def detect(
     input_path: InputArg,
     output: Annotated[
@@ -83,9 +82,8 @@ def detect(
         ),
     ] = None,
     topic: TopicOption = None,
-    params_file: ParamsOption = None,
-    set_: SetOption = None,
-    preset: PresetOption = None,
+    *,
+    choice: ParamsChoice,
 ) -> None:
     """Detect keypoints in every scan of a recording; progress bar, then a summary."""
     with known_errors():
@@ -93,7 +91,6 @@ def detect(
 
         from laser_corners.pipeline import detect_file
 
-        choice = params_choice(preset, params_file, set_)
         if output is not None:
             writable_file(output)
         bar = _progress_bar()
@@ -196,6 +193,7 @@ def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
 
 
 @app.command()
+@with_params_choice
 def plot(
     input_path: InputArg,
     scan_index: Annotated[int, typer.Option("--scan", "-n", help="Scan index (0-based).")] = 0,
@@ -203,13 +201,11 @@ def plot(
         Path | None, typer.Option("--output", "-o", help="PNG to write (default INPUT_scanN.png).")
     ] = None,
     topic: TopicOption = None,
-    params_file: ParamsOption = None,
-    set_: SetOption = None,
-    preset: PresetOption = None,
+    *,
+    choice: ParamsChoice,
 ) -> None:
     """Plot one scan: points, per-point candidates and keypoints (sensor frame)."""
     with known_errors():
-        choice = params_choice(preset, params_file, set_)
         output = writable_file(
             output or Path(f"{input_path.name.split('.')[0]}_scan{scan_index}.png")
         )

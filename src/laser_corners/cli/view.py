@@ -3,25 +3,26 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import (
     InputArg,
-    ParamsOption,
-    PresetOption,
-    SetOption,
     TopicOption,
     known_errors,
-    params_choice,
+    with_params_choice,
 )
+
+if TYPE_CHECKING:
+    from laser_corners.pipeline import ParamsChoice
 
 __all__ = ["view"]
 
 
 @app.command()
+@with_params_choice
 def view(
     input_path: InputArg,
     save: Annotated[
@@ -43,15 +44,13 @@ def view(
         int | None, typer.Option("--max-scans", min=1, help="Stop after this many scans.")
     ] = None,
     topic: TopicOption = None,
-    params_file: ParamsOption = None,
-    set_: SetOption = None,
-    preset: PresetOption = None,
+    *,
+    choice: ParamsChoice,
 ) -> None:
     """Stream scans and keypoints (and map-frame keypoints when poses exist) to rerun."""
     with known_errors():
         from laser_corners.viz.viewer import ViewerUnavailableError, view_recording
 
-        choice = params_choice(preset, params_file, set_)
         try:
             summary = view_recording(
                 input_path, topic=topic, params=choice, save=save, connect=connect, every=every,
