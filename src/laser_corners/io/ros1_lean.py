@@ -8,6 +8,7 @@ and offset), so the order is exactly the one of ``AnyReader.messages`` (by time,
 connection then index order: a stable sort of the per-connection lists), but each run of
 messages that lies in one chunk is handled at once:
 
+* the order comes from :class:`~laser_corners.io.ros1_index.LeanPlan`;
 * the chunk is decompressed once (bz2 and lz4 release the GIL, so a reader thread overlaps
   this with the detector) and kept while the run order comes back to it;
 * the MESSAGE_DATA record headers (https://wiki.ros.org/Bags/Format/2.0, op 0x02) of the run
@@ -23,7 +24,6 @@ counted skips are the ones of the per-message path.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,60 +43,15 @@ from laser_corners.io.ros1_decode import (
 )
 
 __all__ = [
-    "LeanPlan",
     "ScanBlock",
     "decode_odometry_block",
     "decode_scan_block",
+    "finite_pose",
     "locate",
     "tf_repeats",
 ]
 
 _I64 = np.int64
-
-
-@dataclass
-class LeanPlan:
-    """Every message to read, in ``AnyReader.messages`` order.
-
-    Attributes
-    ----------
-    times : ndarray of int64
-        Log times (ns).
-    chunks : ndarray of int64
-        Position of each message's chunk in the file.
-    offsets : ndarray of int64
-        Offset of its record in the decompressed chunk.
-    ranks : ndarray of int64
-        Index of its connection in ``connections``.
-    connections : list
-        The rosbags connections read.
-    """
-
-    times: NDArray[np.int64]
-    chunks: NDArray[np.int64]
-    offsets: NDArray[np.int64]
-    ranks: NDArray[np.int64]
-    connections: list[Any]
-
-    @classmethod
-    def of(cls, connections: list[Any]) -> LeanPlan:
-        """The plan of ``connections`` (all owned by one plain rosbags ROS 1 ``Reader``)."""
-        parts = [np.array(c.owner.indexes[c.id], dtype=_I64).reshape(-1, 3) for c in connections]
-        ranks = np.concatenate(
-            [np.full(len(p), rank, dtype=_I64) for rank, p in enumerate(parts)] or [[]]
-        ).astype(_I64)
-        table = np.concatenate(parts) if parts else np.empty((0, 3), dtype=_I64)
-        order = np.argsort(table[:, 0], kind="stable")  # heapq.merge of time-sorted lists
-        table, ranks = table[order], ranks[order]
-        return cls(table[:, 0].copy(), table[:, 1].copy(), table[:, 2].copy(), ranks, connections)
-
-    def runs(self) -> list[tuple[int, int]]:
-        """``(start, stop)`` of each maximal run of consecutive messages in one chunk."""
-        if self.chunks.size == 0:
-            return []
-        cuts = np.flatnonzero(np.diff(self.chunks)) + 1
-        bounds = [0, *cuts.tolist(), int(self.chunks.size)]
-        return list(itertools.pairwise(bounds))
 
 
 def _gather(data: NDArray[np.uint8], starts: NDArray[np.int64], width: int) -> NDArray[np.uint8]:
@@ -212,10 +167,10 @@ def locate(
     return starts, lengths, None
 
 
-def _matrix(
-    data: bytes, starts: NDArray[np.int64], length: int
-) -> NDArray[np.uint8]:
-    return _gather(np.frombuffer(data, dtype=np.uint8), starts, length)
+def _matrix(data: bytes, starts: NDArray[np.int64], length: int) -> NDArray[np.uint8]:
+    """Rows ``data[start : start + length]`` (a copy; slices stacked: long rows)."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    return np.stack([buf[s : s + length] for s in starts.tolist()])
 
 
 def _column(rows: NDArray[np.uint8], at: int, dtype: str) -> NDArray[Any]:

@@ -21,18 +21,15 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from rosbags.rosbag1 import Reader as Reader1
-from rosbags.rosbag1.reader import read_bytes
 
 from laser_corners.errors import InputError, InvalidScanError, first_line
 from laser_corners.io.bagfile import (
-    _CHUNK_ERRORS,
+    CHUNK_ERRORS,
     CORRUPT_ERRORS,
     iter_messages,
     open_bag_reader,
@@ -58,133 +55,19 @@ from laser_corners.io.ros1_decode import (
     odometry_of,
     transforms_of,
 )
-from laser_corners.io.ros1_lean import (
-    LeanPlan,
-    ScanBlock,
-    decode_odometry_block,
-    decode_scan_block,
-    finite_pose,
-    locate,
-    tf_repeats,
+from laser_corners.io.ros1_index import LeanPlan
+from laser_corners.io.ros1_lean import finite_pose, locate
+from laser_corners.io.ros1_runs import (
+    SCAN,
+    ChunkCache,
+    ChunkRun,
+    RawScan,
+    kind_of,
+    lean_readable,
 )
 from laser_corners.scan import LaserScan, Pose2D
 
 __all__ = ["BagSource"]
-
-
-@dataclass
-class _RawScan:
-    """A decoded LaserScan message waiting for its pose."""
-
-    where: str
-    log_time_ns: int
-    stamp_ns: int
-    frame_id: str
-    angle_min: float
-    angle_increment: float
-    range_min: float
-    range_max: float
-    ranges: NDArray[np.floating]
-    checked: bool = False  # lean path: geometry checked, ranges float64 read-only
-
-
-_SCAN, _ODOMETRY, _TF, _TF_STATIC = range(4)
-
-
-def _kind(connection: Any, scan_topic: str) -> int:
-    if connection.topic == scan_topic:
-        return _SCAN
-    if connection.msgtype == ODOMETRY:
-        return _ODOMETRY
-    return _TF_STATIC if connection.topic == "/tf_static" else _TF
-
-
-def lean_readable(reader: Any, topics: list[str], fast: set[int]) -> bool:
-    """Whether the lean path (:mod:`laser_corners.io.ros1_lean`) reads these topics: one
-    ROS 1 bag read by rosbags' reader, standard message definitions only."""
-    if reader.is2 or len(reader.readers) != 1 or not isinstance(reader.readers[0], Reader1):
-        return False
-    return all(c.id in fast for c in reader.connections if c.topic in topics)
-
-
-class _ChunkCache:
-    """Decompressed chunks of a rosbags ROS 1 reader, the last few kept."""
-
-    def __init__(self, owner: Any, keep: int = 3) -> None:
-        self.owner = owner
-        self.keep = keep
-        self.data: dict[int, bytes] = {}
-
-    def get(self, pos: int) -> bytes:
-        found = self.data.pop(pos, None)
-        if found is None:
-            chunk = self.owner.chunks[pos]
-            self.owner.bio.seek(chunk.datapos)
-            found = chunk.decompressor(read_bytes(self.owner.bio, chunk.datasize))
-            if len(self.data) >= self.keep:
-                del self.data[next(iter(self.data))]
-        self.data[pos] = found  # most recent last
-        return found
-
-
-class _Run:
-    """The located messages of one chunk run, decoded in blocks where their layout allows."""
-
-    def __init__(
-        self, data: bytes, starts: NDArray[np.int64], lengths: NDArray[np.int64], kinds: list[int]
-    ) -> None:
-        self.data = data
-        self.starts = starts
-        self.lengths = lengths
-        self.kinds = kinds
-        self.repeat = [False] * len(kinds)
-        self.odometry: dict[int, tuple[str, str, tuple[float, float, float, float]]] = {}
-        self.scans: dict[int, tuple[ScanBlock, int]] = {}
-
-    def raw(self, j: int) -> bytes:
-        start = int(self.starts[j])
-        return self.data[start : start + int(self.lengths[j])]
-
-    def _same_length(self, kind: int) -> NDArray[np.int64]:
-        """Rows of ``kind`` with the length of its first message."""
-        rows = np.flatnonzero(np.array(self.kinds, dtype=np.int64) == kind)
-        if rows.size == 0:
-            return rows
-        return rows[self.lengths[rows] == self.lengths[rows[0]]]
-
-    def decode(self) -> None:
-        """Decode scans and odometry as matrices; mark repeated tf messages: after the first
-        tf message of a layout, the others of that layout and topic name the same frames and
-        change nothing (the first value of a transform wins, ``/tf_static`` over ``/tf``)."""
-        rows = self._same_length(_SCAN)
-        if rows.size:
-            block = decode_scan_block(self.data, self.starts[rows], int(self.lengths[rows[0]]))
-            if block is not None:
-                self.scans = {j: (block, r) for r, j in enumerate(rows.tolist())}
-        rows = self._same_length(_ODOMETRY)
-        if rows.size:
-            odometry = decode_odometry_block(self.data, self.starts[rows], int(self.lengths[rows[0]]))
-            if odometry is not None:
-                frame, child, samples = odometry
-                self.odometry = {j: (frame, child, s) for j, s in zip(rows.tolist(), samples)}
-        for kind in (_TF, _TF_STATIC):
-            rows = self._same_length(kind)
-            if rows.size > 1:
-                same = tf_repeats(self.data, self.starts[rows], int(self.lengths[rows[0]]))
-                if same is not None:
-                    for j in rows[1:][same[1:]].tolist():
-                        self.repeat[j] = True
-
-    def scan(self, j: int, where: str, log_time: int) -> _RawScan | None:
-        found = self.scans.get(j)
-        if found is None:
-            return None
-        block, r = found
-        return _RawScan(
-            where, log_time, block.stamps_ns[r], block.frame_id, block.angle_min[r],
-            block.angle_increment[r], block.range_min[r], block.range_max[r], block.ranges[r],
-            block.checked[r],
-        )  # fmt: skip
 
 
 class BagSource(ScanSource):
@@ -220,6 +103,10 @@ class BagSource(ScanSource):
         rosbags refused the bag's index; it is read from its chunk records.
     """
 
+    lean: bool = True
+    """Read ROS 1 bags with :mod:`laser_corners.io.ros1_lean` where it applies (False: the
+    per-message path through rosbags, e.g. to compare them)."""
+
     def __init__(
         self, path: Path, kind: SourceKind, topic: str | None = None, strict: bool = True
     ) -> None:
@@ -227,7 +114,6 @@ class BagSource(ScanSource):
         self.kind = kind
         self.stamps_ns: list[int] = []
         self.log_times_ns: list[int] = []
-        self.lean = True  # read ROS 1 bags with the lean path where it applies
         self._lean_index = 0
         with self.reader() as reader:
             self.topics: dict[str, tuple[str, int]] = {}
@@ -272,7 +158,7 @@ class BagSource(ScanSource):
     @contextmanager
     def reader(self) -> Iterator[Any]:
         """An open rosbags ``AnyReader``; damaged bags raise :class:`InputError`."""
-        with open_bag_reader(self.path, self.kind) as reader:
+        with open_bag_reader(self.path, self.kind, lean=self.lean) as reader:
             yield reader
 
     def messages(self, reader: Any, topics: list[str]) -> Iterator[tuple[Any, int, bytes]]:
@@ -346,7 +232,7 @@ class BagSource(ScanSource):
             if self.lean and lean_readable(reader, topics, fast):
                 yield from self._lean_scans(reader, topics, track)
                 return
-            waiting: deque[_RawScan] = deque()
+            waiting: deque[RawScan] = deque()
             index = 0
             for connection, log_time, raw in self.messages(reader, topics):  # type: ignore[arg-type]
                 if connection.topic != self.topic:
@@ -367,7 +253,7 @@ class BagSource(ScanSource):
                     except CORRUPT_ERRORS as exc:
                         self._skip("undecodable LaserScan message", where, first_line(exc))
                         continue
-                item = _RawScan(where, int(log_time), *fields)
+                item = RawScan(where, int(log_time), *fields)
                 if track is None or (not waiting and track.ready(item.stamp_ns, item.frame_id)):
                     yield from self._release(item, track)
                 else:
@@ -382,26 +268,28 @@ class BagSource(ScanSource):
         (:mod:`laser_corners.io.ros1_lean`)."""
         connections = [c for c in reader.connections if c.topic in topics]
         plan = LeanPlan.of(connections)
-        kinds = [_kind(c, self.topic) for c in connections]
+        kinds = [kind_of(c, self.topic) for c in connections]
         ids = np.array([c.id for c in connections], dtype=np.int64)
-        chunks = _ChunkCache(connections[0].owner) if connections else None
-        waiting: deque[_RawScan] = deque()
+        chunks = ChunkCache(connections[0].owner) if connections else None
+        waiting: deque[RawScan] = deque()
         self._lean_index = 0
         for start, stop in plan.runs():
             try:
                 data = chunks.get(int(plan.chunks[start]))  # type: ignore[union-attr]
-            except _CHUNK_ERRORS as exc:
-                raise self.error(f"damaged bag data ({type(exc).__name__}: {first_line(exc)})")
+            except CHUNK_ERRORS as exc:
+                raise self.error(
+                    f"damaged bag data ({type(exc).__name__}: {first_line(exc)})"
+                ) from None
             ranks = plan.ranks[start:stop]
             starts, lengths, error = locate(
                 data, plan.offsets[start:stop], ids[ranks], plan.times[start:stop]
             )
-            run = _Run(data, starts, lengths, [kinds[r] for r in ranks[: starts.size].tolist()])
+            run = ChunkRun(data, starts, lengths, [kinds[r] for r in ranks[: starts.size].tolist()])
             run.decode()
             yield from self._lean_run(reader, run, plan.times[start:stop], connections,
                                       ranks, track, waiting)  # fmt: skip
             if error is not None:
-                if isinstance(error, _CHUNK_ERRORS):
+                if isinstance(error, CHUNK_ERRORS):
                     raise self.error(
                         f"damaged bag data ({type(error).__name__}: {first_line(error)})"
                     ) from None
@@ -410,13 +298,13 @@ class BagSource(ScanSource):
             yield from self._release(waiting.popleft(), track)
 
     def _lean_run(
-        self, reader: Any, run: _Run, times: NDArray[np.int64], connections: list[Any],
-        ranks: NDArray[np.int64], track: StreamingTrack | None, waiting: deque[_RawScan],
+        self, reader: Any, run: ChunkRun, times: NDArray[np.int64], connections: list[Any],
+        ranks: NDArray[np.int64], track: StreamingTrack | None, waiting: deque[RawScan],
     ) -> Iterator[LaserScan]:  # fmt: skip
         """The messages of one chunk run, in order (see :meth:`_scans`)."""
         log_times = times.tolist()
         for j, kind in enumerate(run.kinds):
-            if kind == _SCAN:
+            if kind == SCAN:
                 where = f"message {self._lean_index} of {self.topic}"
                 self._lean_index += 1
                 self.position = where
@@ -435,7 +323,7 @@ class BagSource(ScanSource):
             if self._lean_index == 0:
                 self.position = f"reading {self.odom_topic} and tf"
             if run.repeat[j]:
-                continue  # a tf message that changes nothing (see _Run.decode)
+                continue  # a tf message that changes nothing (see ChunkRun.decode)
             sample = run.odometry.get(j)
             if sample is not None:
                 track.add_odometry(*sample)
@@ -447,7 +335,7 @@ class BagSource(ScanSource):
 
     def _raw_scan(
         self, reader: Any, connection: Any, raw: bytes, where: str, log_time: int
-    ) -> _RawScan | None:
+    ) -> RawScan | None:
         """A scan message decoded on its own (None: undecodable, counted as skipped)."""
         fields = decode_ros1_laserscan(raw)
         if fields is None:
@@ -456,9 +344,9 @@ class BagSource(ScanSource):
             except CORRUPT_ERRORS as exc:
                 self._skip("undecodable LaserScan message", where, first_line(exc))
                 return None
-        return _RawScan(where, log_time, *fields)
+        return RawScan(where, log_time, *fields)
 
-    def _release(self, item: _RawScan, track: StreamingTrack | None) -> Iterator[LaserScan]:
+    def _release(self, item: RawScan, track: StreamingTrack | None) -> Iterator[LaserScan]:
         """The LaserScan of a decoded message (nothing, counted as skipped, when invalid)."""
         self.position = item.where
         stamp = item.stamp_ns * 1e-9
