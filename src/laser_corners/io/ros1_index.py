@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from rosbags.rosbag1 import Reader, ReaderError
-from rosbags.rosbag1.reader import Header, IndexData, RecordType, read_bytes, read_uint32
+from rosbags.rosbag1.reader import IndexData, deserialize_uint32
 
 __all__ = ["LeanIndexReader", "LeanPlan"]
 
@@ -77,15 +77,41 @@ class LeanIndexReader(Reader):
         super().close()
 
     def read_index_data(self, pos: int, indexes: dict[int, list[IndexData]]) -> None:
-        """Read the INDEX_DATA record here into :attr:`index_arrays` (rosbags' checks)."""
+        """Read the INDEX_DATA record here into :attr:`index_arrays`.
+
+        The record header is read as ``Reader.read_index_data`` reads it (the field layout
+        of the first record assumed for all, the same checks and errors), so the same bags
+        are refused (and then read from their chunks, :mod:`laser_corners.io.ros1_chunks`).
+        """
         assert self.bio
-        header = Header.read(self.bio, RecordType.IDXDATA)
-        if (version := header.get_uint32("ver")) != 1:
-            raise ReaderError(f"IDXDATA version {version} is not supported.")
-        conn, count = header.get_uint32("conn"), header.get_uint32("count")
-        size = read_uint32(self.bio)
+        buf = self.bio.read(55)
+        if not self.index_data_header_offsets:
+            (size,) = deserialize_uint32(buf, 0)
+            assert size == 47
+            idx, connpos, countpos = 4, -1, -1
+            while idx < size:
+                char = buf[idx + 6]
+                if char == 61:  # ord(b'=')
+                    assert buf[idx + 7] == 4
+                    idx += 8
+                elif char == 114:  # ord(b'r')
+                    if (ver := buf[idx + 8]) != 1:
+                        raise ReaderError(f"IDXDATA version {ver} is not supported.")
+                    idx += 12
+                elif char == 110:  # ord(b'n')
+                    connpos = idx + 9
+                    idx += 13
+                else:
+                    assert char == 117  # ord(b'u')
+                    countpos = idx + 10
+                    idx += 14
+            self.index_data_header_offsets = (connpos, countpos)
+        connpos, countpos = self.index_data_header_offsets
+        (conn,) = deserialize_uint32(buf, connpos)
+        (count,) = deserialize_uint32(buf, countpos)
+        (size,) = deserialize_uint32(buf, 51)
         assert size == count * 12
-        array = np.frombuffer(read_bytes(self.bio, size), dtype=_ENTRY)
+        array = np.frombuffer(self.bio.read(size), dtype=_ENTRY)
         self.index_arrays[conn].append((pos, array))
         indexes[conn].extend(itertools.repeat(0, count))  # placeholders: counted, sorted fast
 
