@@ -13,7 +13,10 @@ decompressed once); a scan waits in a small look-ahead buffer until an odometry 
 after it has been read, which gives the pose the whole-bag track (:meth:`BagSource.pose_track`)
 gives. ROS 1 LaserScan, Odometry and TFMessage bytes are decoded with ``struct``/numpy
 (:mod:`laser_corners.io.ros1_decode`); a message whose lengths do not add up, and every
-ROS 2/MCAP message, goes through rosbags' deserializer.
+ROS 2/MCAP message, goes through rosbags' deserializer. ROS 1 bags of standard definitions are
+read by the lean path (:meth:`BagSource._lean_scans`: the messages of each chunk located and
+decoded in blocks, :mod:`laser_corners.io.ros1_lean`), which yields exactly what the
+per-message path yields; ``BagSource.lean = False`` turns it off.
 """
 
 from __future__ import annotations
