@@ -133,10 +133,12 @@ class LaserScan:
         None. Anything else must go through ``LaserScan(...)``.
         """
         scan = object.__new__(cls)
-        scan.__dict__.update(
-            ranges=ranges, angle_min=angle_min, angle_increment=angle_increment,
-            range_min=range_min, range_max=range_max, stamp=stamp, frame_id=frame_id, pose=pose,
-        )  # fmt: skip
+        for name, value in (
+            ("ranges", ranges), ("angle_min", angle_min), ("angle_increment", angle_increment),
+            ("range_min", range_min), ("range_max", range_max), ("stamp", stamp),
+            ("frame_id", frame_id), ("pose", pose),
+        ):  # fmt: skip
+            object.__setattr__(scan, name, value)  # frozen dataclass, as __post_init__ does
         return scan
 
     # --- end of the trusted constructor -------------------------------------------------------
