@@ -23,12 +23,15 @@ one-off loading of numba's cached kernels in each worker process is counted apar
 the issue's target of 10,000 scans/s per worker. A warm-up job first loads numba's cache.
 The machine is shared: the load average is printed with the numbers.
 
-First, fr079.bag alone (4,934 scans of 360 beams) through the pipeline's detect loop into
-Parquet, one numba thread, with the reader thread off and on (``prefetch``), alternating in
-the same process, best of ``--repeats``: wall scans/s, and the CPU time of the detecting
-thread and of the reader thread per scan. ``bound`` is ``scans / max(thread CPU times)``: what
-one worker would reach with a core per thread (an upper bound: the Python parts of the two
-threads share the GIL); on a loaded machine the wall rate is far below it.
+First, fr079.bag alone (4,934 scans of 360 beams): read alone, and through the pipeline's
+detect loop into Parquet, one numba thread, with the ROS 1 bag read by the per-message path
+through rosbags (old, ``BagSource.lean = False``) and by the lean path (new,
+:mod:`laser_corners.io.ros1_lean`), each with the reader thread off and on (``prefetch``),
+alternating in the same process, best of ``--repeats``: wall scans/s, and the CPU time of the
+main (detecting and writing) thread and of the reader thread per scan. ``bound`` is
+``scans / max(thread CPU times)``: what one worker would reach with a core per thread (an
+upper bound: the Python parts of the two threads share the GIL); on a loaded machine the wall
+rate is far below it.
 """
 
 from __future__ import annotations
@@ -41,6 +44,8 @@ import time
 from pathlib import Path
 
 from laser_corners.batch import BatchJob, BatchReport, JobResult, run_batch, run_job
+from laser_corners.io import open_scans
+from laser_corners.io.rosbag import BagSource
 from laser_corners.io.writers import ParquetKeypointWriter
 from laser_corners.pipeline import RunSummary, detect_recording, open_recording, set_threads
 
@@ -77,38 +82,72 @@ def run(
     return best
 
 
-def fr079_loop(prefetch: bool) -> RunSummary:
-    """fr079.bag through the detect loop into a Parquet file (reading, detection, writing)."""
-    recording = open_recording(REAL / "fr079.bag")
-    with tempfile.TemporaryDirectory(prefix="bench-loop-") as outdir:
-        writer = ParquetKeypointWriter(Path(outdir) / "k.parquet", recording.has_poses)
-        return detect_recording(recording, writer=writer, threads=1, prefetch=prefetch)
+def fr079_loop(prefetch: bool, lean: bool) -> RunSummary:
+    """fr079.bag through the detect loop into a Parquet file (reading, detection, writing),
+    the ROS 1 bag read by the lean path (``lean``) or by the per-message path."""
+    BagSource.lean = lean
+    try:
+        recording = open_recording(REAL / "fr079.bag")
+        with tempfile.TemporaryDirectory(prefix="bench-loop-") as outdir:
+            writer = ParquetKeypointWriter(Path(outdir) / "k.parquet", recording.has_poses)
+            return detect_recording(recording, writer=writer, threads=1, prefetch=prefetch)
+    finally:
+        BagSource.lean = True
+
+
+def read_only(lean: bool) -> tuple[int, float, float]:
+    """fr079.bag read alone (no detection): scans, wall s, CPU s of this thread."""
+    BagSource.lean = lean
+    try:
+        wall, cpu = time.perf_counter(), time.thread_time()
+        count = sum(1 for _ in open_scans(REAL / "fr079.bag"))
+        return count, time.perf_counter() - wall, time.thread_time() - cpu
+    finally:
+        BagSource.lean = True
 
 
 def compare_prefetch(repeats: int) -> None:
+    """fr079.bag, one worker, one numba thread: per-message vs lean reading path, reader thread
+    off / on, alternating in one process (best wall time of ``repeats``)."""
     set_threads(1)
-    best: dict[bool, RunSummary] = {}
+    configs = [(lean, prefetch) for lean in (False, True) for prefetch in (False, True)]
+    best: dict[tuple[bool, bool], RunSummary] = {}
+    reads: dict[bool, tuple[int, float, float]] = {}
     for _ in range(repeats):
-        for prefetch in (False, True):
-            summary = fr079_loop(prefetch)
-            if prefetch not in best or summary.seconds < best[prefetch].seconds:
-                best[prefetch] = summary
-    print("## fr079.bag, one worker, one numba thread: reader thread off / on\n")
-    print("| reader thread | scans | wall [s] | scans/s | detect+write thread CPU us/scan | "
-          "reader thread CPU us/scan | bound scans/s |")  # fmt: skip
-    print("|---|---:|---:|---:|---:|---:|---:|")
-    for prefetch, s in best.items():
+        for lean in (False, True):
+            found = read_only(lean)
+            if lean not in reads or found[2] < reads[lean][2]:
+                reads[lean] = found
+        for config in configs:
+            summary = fr079_loop(config[1], config[0])
+            if config not in best or summary.seconds < best[config].seconds:
+                best[config] = summary
+    print("## fr079.bag, reading alone (open_scans, no detection)\n")
+    print("| reading path | scans | wall [s] | scans/s | CPU us/scan |")
+    print("|---|---:|---:|---:|---:|")
+    for lean, (n, wall, cpu) in reads.items():
+        label = "lean (new)" if lean else "per message (old)"
+        print(f"| {label} | {n} | {wall:.3f} | {n / wall:,.0f} | {1e6 * cpu / n:.1f} |")
+    print("\n## fr079.bag end to end (read + detect + write Parquet), one worker, one numba "
+          "thread\n")  # fmt: skip
+    print("| reading path | reader thread | scans | wall [s] | scans/s | main thread CPU "
+          "us/scan | reader thread CPU us/scan | bound scans/s |")  # fmt: skip
+    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    for (lean, prefetch), s in best.items():
         n = s.n_scans
         main_us = 1e6 * s.cpu_seconds / n
         reader_us = 1e6 * s.reader_cpu_seconds / n
         bound = n / max(s.cpu_seconds, s.reader_cpu_seconds)
-        label = "on" if prefetch else "off"
-        print(f"| {label} | {n} | {s.seconds:.3f} | {s.scans_per_second:,.0f} | "
+        path = "lean (new)" if lean else "per message (old)"
+        thread = "on" if prefetch else "off"
+        print(f"| {path} | {thread} | {n} | {s.seconds:.3f} | {s.scans_per_second:,.0f} | "
               f"{main_us:.1f} | {reader_us:.1f} | {bound:,.0f} |")  # fmt: skip
-    ratio = best[False].seconds / best[True].seconds
+    old, new = best[(False, True)], best[(True, True)]
     print(
-        f"\nspeed-up of the reader thread (wall, same run): {ratio:.2f}x; "
-        f"load average now {os.getloadavg()[0]:.2f}\n"
+        f"\nlean / per-message path, reader thread on (wall, same run): "
+        f"{old.seconds / new.seconds:.2f}x; per-message path without / with the reader thread: "
+        f"{best[(False, False)].seconds / old.seconds:.2f}x; target {TARGET_PER_WORKER:,} "
+        f"scans/s; load average now {os.getloadavg()[0]:.2f}\n"
     )
 
 
@@ -188,8 +227,6 @@ def main() -> None:
     print("\n## per job (first configuration)\n")
     print("| job | scans | beams | s | read s | detect s | write s | scans/s |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    from laser_corners.io import open_scans
-
     for r in sorted(reports[0][1].results, key=lambda r: r.key):
         first = open_scans(r.input, r.topic).first_scan()
         beams = first.n_beams if first is not None else 0

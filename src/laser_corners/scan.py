@@ -130,6 +130,37 @@ class LaserScan:
                 raise InvalidScanError(f"LaserScan.pose must be 3 finite numbers, got {self.pose}")
             object.__setattr__(self, "pose", pose)
 
+    # --- trusted constructor for readers (helper READER, issue 14) ---------------------------
+    @classmethod
+    def from_checked(
+        cls,
+        ranges: NDArray[np.float64],
+        angle_min: float,
+        angle_increment: float,
+        range_min: float,
+        range_max: float,
+        stamp: float | None,
+        frame_id: str,
+        pose: Pose2D | None,
+    ) -> LaserScan:
+        """A scan from fields a reader has already checked, without validation or copy.
+
+        The caller guarantees what ``__post_init__`` would establish: ``ranges`` a read-only
+        1-D float64 array, Python floats with finite angles, a non-zero increment,
+        ``range_min < range_max``, a float or None stamp, and a pose of 3 finite floats or
+        None. Anything else must go through ``LaserScan(...)``.
+        """
+        scan = object.__new__(cls)
+        for name, value in (
+            ("ranges", ranges), ("angle_min", angle_min), ("angle_increment", angle_increment),
+            ("range_min", range_min), ("range_max", range_max), ("stamp", stamp),
+            ("frame_id", frame_id), ("pose", pose),
+        ):  # fmt: skip
+            object.__setattr__(scan, name, value)  # frozen dataclass, as __post_init__ does
+        return scan
+
+    # --- end of the trusted constructor -------------------------------------------------------
+
     @property
     def n_beams(self) -> int:
         """Number of beams, valid or not."""

@@ -8,7 +8,10 @@ from pathlib import Path
 IO = Path(__file__).resolve().parents[2] / "src" / "laser_corners" / "io"
 READERS = {"rosbag", "carmen", "arrays"}
 WRITERS = {"writers", "bagwriter"}
-HELPERS = {"poses", "ros1_decode", "ros1_chunks", "bagfile", "messages"}
+HELPERS = {
+    "poses", "ros1_decode", "ros1_chunks", "ros1_index", "ros1_lean", "ros1_runs", "bagfile",
+    "messages",
+}  # fmt: skip
 LAZY_OK = {"pyarrow", "pyarrow.parquet"}  # heavy: imported when a Parquet writer opens
 
 

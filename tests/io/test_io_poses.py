@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 import pytest
 
-from laser_corners.io.poses import PoseTrack, StreamingTrack
+from laser_corners.io.poses import PoseTrack, StreamingTrack, interp_at
 
 
 def test_streaming_track_unwraps_yaw_exactly_as_np_unwrap() -> None:
@@ -32,5 +34,19 @@ def test_streaming_track_unwraps_yaw_exactly_as_np_unwrap() -> None:
     in_order = StreamingTrack()
     for sample in sorted([*samples, late]):
         in_order.add_odometry("odom", "base", sample)
+    in_order.add_transforms([("base", "laser", (0.1, 0.0, 0.5))], is_static=True)
     in_order.pose(0.0, "base")
-    np.testing.assert_array_equal(in_order._current().yaw, np.unwrap(ordered[:, 3]))  # type: ignore[union-attr]
+    np.testing.assert_array_equal(in_order._yaw, np.unwrap(ordered[:, 3]))
+    # the list interpolation is np.interp's, bit for bit (samples, between them, outside)
+    for stamp in [*np.linspace(-0.7, 40.6, 301).tolist(), *ordered[:, 0].tolist()]:
+        assert in_order.pose(stamp, "laser") == reference.pose(stamp, "laser")
+
+
+def test_interp_at_is_np_interp_bit_for_bit() -> None:
+    rng = np.random.default_rng(5)
+    times = np.sort(rng.uniform(0.0, 10.0, 50))
+    values = rng.normal(0.0, 3.0, 50)
+    for stamp in [*rng.uniform(-1.0, 11.0, 500).tolist(), *times.tolist(), -5.0, 99.0]:
+        j = bisect.bisect_right(times.tolist(), stamp) - 1
+        got = interp_at(stamp, times.tolist(), values.tolist(), j)
+        assert got == float(np.interp(stamp, times, values))

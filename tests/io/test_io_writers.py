@@ -19,7 +19,7 @@ from laser_corners.io import (
     open_keypoint_writer,
     open_scans,
 )
-from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS
+from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS, map_xy
 from laser_corners.pipeline import detect_recording
 
 
@@ -174,3 +174,11 @@ def test_outputs_in_a_missing_folder_are_one_clear_output_error(tmp_path: Path) 
         path = tmp_path / "missing" / f"k{suffix}"
         with pytest.raises(OutputError, match=r"k\.\w+: the folder .*missing does not exist"):
             open_keypoint_writer(path, None, with_map=False)  # type: ignore[arg-type]
+
+
+def test_map_xy_is_keypoints_transformed_bit_for_bit() -> None:
+    rng = np.random.default_rng(3)
+    for seed in range(20):
+        keypoints = random_keypoints(1 + seed, seed=seed)
+        pose = tuple(float(v) for v in rng.uniform(-50.0, 50.0, 3))
+        assert np.array_equal(map_xy(keypoints.xy, pose), keypoints.transformed(pose).xy)

@@ -22,8 +22,10 @@ from rosbags.typesys import Stores, get_typestore
 
 from laser_corners.errors import InputError, first_line
 from laser_corners.io.ros1_chunks import ChunkOrderReader
+from laser_corners.io.ros1_index import LeanIndexReader
 
 __all__ = [
+    "CHUNK_ERRORS",
     "CORRUPT_ERRORS",
     "BagInput",
     "iter_messages",
@@ -36,7 +38,7 @@ CORRUPT_ERRORS: tuple[type[BaseException], ...] = (
     struct.error, zlib.error, UnicodeDecodeError, ValueError, IndexError, KeyError,
 )  # fmt: skip
 """What rosbags lets through on damaged bags (it asserts on some, real or damaged)."""
-_CHUNK_ERRORS = (*CORRUPT_ERRORS, RuntimeError)  # lz4 raises RuntimeError on bad frames
+CHUNK_ERRORS = (*CORRUPT_ERRORS, RuntimeError)  # lz4 raises RuntimeError on bad frames
 
 
 class BagInput(Protocol):
@@ -61,7 +63,7 @@ def _chunk_reader(path: Path, refused: BaseException) -> AnyReader:
     reader.readers = [ChunkOrderReader(path)]
     try:
         reader.open()
-    except _CHUNK_ERRORS as exc:
+    except CHUNK_ERRORS as exc:
         raise InputError(
             f"{path}: cannot open the ros1 bag, damaged or truncated? ({first_line(exc)}; "
             f"rosbags: {type(refused).__name__}: {first_line(refused)})"
@@ -70,10 +72,12 @@ def _chunk_reader(path: Path, refused: BaseException) -> AnyReader:
 
 
 @contextmanager
-def open_bag_reader(path: Path, kind: str) -> Iterator[AnyReader]:
+def open_bag_reader(path: Path, kind: str, lean: bool = True) -> Iterator[AnyReader]:
     """An open rosbags ``AnyReader`` of the bag ``path`` of ``kind`` (closed on exit).
 
-    A ROS 1 bag whose index rosbags refuses is read from its chunk records instead.
+    A ROS 1 bag is read by :class:`~laser_corners.io.ros1_index.LeanIndexReader` (rosbags'
+    reader, its index read with numpy; ``lean=False``: rosbags' own); one whose index rosbags
+    refuses is read from its chunk records instead.
 
     Raises
     ------
@@ -87,6 +91,8 @@ def open_bag_reader(path: Path, kind: str) -> Iterator[AnyReader]:
         )
     try:
         reader = AnyReader([path], default_typestore=stock_typestore(kind))
+        if kind == "ros1" and lean:  # the same reader, its index read with numpy
+            reader.readers = [LeanIndexReader(path)]
         reader.open()
     except CORRUPT_ERRORS as exc:
         if kind != "ros1" or isinstance(exc, (FileNotFoundError, PermissionError)):
@@ -121,6 +127,6 @@ def iter_messages(
             item = next(iterator)
         except StopIteration:
             return
-        except _CHUNK_ERRORS as exc:
+        except CHUNK_ERRORS as exc:
             raise error(f"damaged bag data ({type(exc).__name__}: {first_line(exc)})") from None
         yield item

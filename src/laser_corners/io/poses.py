@@ -31,6 +31,7 @@ __all__ = [
     "Transform",
     "compose",
     "frame_name",
+    "interp_at",
     "yaw_from_quaternion",
 ]
 
@@ -147,83 +148,126 @@ def add_transforms(
     return changed
 
 
+def interp_at(stamp: float, times: list[float], values: list[float], j: int) -> float:
+    """``np.interp(stamp, times, values)`` for one stamp, bit for bit (numpy's formula and
+    edge cases), with ``j = bisect_right(times, stamp) - 1`` already found."""
+    if j < 0:
+        return values[0]
+    if j >= len(times) - 1:
+        return values[-1]
+    if times[j] == stamp:
+        return values[j]
+    slope = (values[j + 1] - values[j]) / (times[j + 1] - times[j])
+    result = slope * (stamp - times[j]) + values[j]
+    if math.isnan(result):  # numpy: try from the other end
+        result = slope * (stamp - times[j + 1]) + values[j + 1]
+        if math.isnan(result) and values[j] == values[j + 1]:
+            result = values[j]
+    return result
+
+
 class StreamingTrack:
     """The whole-bag :class:`PoseTrack`, built while the bag is read once.
 
     Odometry samples are kept sorted as ``sorted()`` sorts them there and the yaw is unwrapped
     step by step exactly as ``np.unwrap`` does, so the pose of a scan asked for once the
-    samples around its stamp are in equals the one of the whole-bag track.
+    samples around its stamp are in equals the one of the whole-bag track (the interpolation
+    is numpy's, done on Python lists: :func:`interp_at`).
     """
 
     def __init__(self) -> None:
         self.odom_frame = self.base_frame = ""
         self._samples: list[OdomSample] = []
-        self._data = np.empty((4, 64), dtype=np.float64)  # rows t, x, y, unwrapped yaw
+        self._t: list[float] = []
+        self._x: list[float] = []
+        self._y: list[float] = []
+        self._yaw: list[float] = []  # unwrapped
         self._correction = 0.0  # the running sum of np.unwrap's corrections
         self._rebuild = False
         self._candidates: dict[str, tuple[str, Pose2D, bool]] = {}
         self._mount: dict[str, Pose2D | None] = {}
-        self._track: PoseTrack | None = None
+        self._tree: PoseTrack | None = None  # the transforms (no samples), for mounts
 
     def add_odometry(self, frame_id: str, child_frame_id: str, sample: OdomSample) -> None:
         """Add one ``nav_msgs/Odometry`` sample (``frame_id, child_frame_id, sample``)."""
-        self.odom_frame = self.odom_frame or frame_name(frame_id)
-        self.base_frame = self.base_frame or frame_name(child_frame_id)
-        self._track = None
+        if not self.base_frame or not self.odom_frame:
+            self.odom_frame = self.odom_frame or frame_name(frame_id)
+            self.base_frame = self.base_frame or frame_name(child_frame_id)
+            self._tree = None
+            self._mount = {}
         if self._rebuild or (self._samples and sample < self._samples[-1]):
             bisect.insort(self._samples, sample)  # out of order: rebuilt when next used
             self._rebuild = True
             return
-        n = len(self._samples)
-        self._samples.append(sample)
-        if n == self._data.shape[1]:
-            self._data = np.concatenate([self._data, np.empty_like(self._data)], axis=1)
         yaw = sample[3]
-        if n:
-            step = yaw - self._samples[n - 1][3]
-            wrapped = float(np.mod(step + math.pi, 2 * math.pi)) - math.pi
+        if self._samples:
+            step = yaw - self._samples[-1][3]
+            wrapped = (step + math.pi) % (2 * math.pi) - math.pi  # np.mod's result for floats
             if wrapped == -math.pi and step > 0:
                 wrapped = math.pi
             if abs(step) >= math.pi:
                 self._correction += wrapped - step
             yaw = yaw + self._correction
-        self._data[:, n] = (sample[0], sample[1], sample[2], yaw)
+        self._samples.append(sample)
+        self._t.append(sample[0])
+        self._x.append(sample[1])
+        self._y.append(sample[2])
+        self._yaw.append(yaw)
 
     def add_transforms(self, transforms: list[Transform], is_static: bool) -> None:
         """Add the transforms of one ``tf2_msgs/TFMessage`` (first value wins; static wins)."""
         if add_transforms(self._candidates, transforms, is_static):
             self._mount = {}  # the tree changed
-            self._track = None
+            self._tree = None
 
-    def _current(self) -> PoseTrack | None:
-        if not self._samples:
-            return None
+    def _update(self) -> None:
+        """Apply a pending rebuild (out-of-order samples) and the transform tree."""
         if self._rebuild:
             data = np.array(self._samples, dtype=np.float64).T
             data[3] = np.unwrap(data[3])
-            self._data = np.concatenate([data, np.empty_like(data)], axis=1)
+            self._t, self._x, self._y, self._yaw = (row.tolist() for row in data)
             self._correction = float(data[3, -1] - self._samples[-1][3])
             self._rebuild = False
-        if self._track is None:
+        if self._tree is None:
             parents = {
                 child: (parent, pose)
                 for child, (parent, pose, _) in self._candidates.items()
                 if not (child == self.base_frame and parent == self.odom_frame)
             }
-            t, x, y, yaw = self._data[:, : len(self._samples)]  # contiguous rows
-            self._track = PoseTrack(
-                self.odom_frame, self.base_frame, t, x, y, yaw, parents, self._mount,
-            )  # fmt: skip
-        return self._track
+            empty = np.empty(0)
+            self._tree = PoseTrack(
+                self.odom_frame, self.base_frame, empty, empty, empty, empty, parents, self._mount
+            )
+
+    def _mount_of(self, frame: str) -> Pose2D | None:
+        found = self._mount.get(frame_name(frame), self)  # self: not computed yet
+        if found is not self:
+            return found  # type: ignore[return-value]
+        self._update()
+        assert self._tree is not None
+        return self._tree.mount(frame)
 
     def ready(self, stamp_ns: int, frame_id: str) -> bool:
         """Whether the pose at ``stamp_ns`` is final: odometry after it, a known mount."""
         if not self._samples or self._samples[-1][0] <= stamp_ns * 1e-9:
             return False
-        track = self._current()
-        return track is not None and track.mount(frame_id) is not None
+        return self._mount_of(frame_id) is not None
 
     def pose(self, stamp: float, frame: str) -> Pose2D | None:
         """Pose of ``frame`` at ``stamp`` from what has been read (as :meth:`PoseTrack.pose`)."""
-        track = self._current()
-        return track.pose(stamp, frame) if track is not None else None
+        if not self._samples:
+            return None
+        self._update()
+        mount = self._mount_of(frame)
+        times = self._t
+        if mount is None or not times:
+            return None
+        if stamp < times[0] - POSE_TOLERANCE_S or stamp > times[-1] + POSE_TOLERANCE_S:
+            return None
+        j = bisect.bisect_right(times, stamp) - 1
+        base = (
+            interp_at(stamp, times, self._x, j),
+            interp_at(stamp, times, self._y, j),
+            interp_at(stamp, times, self._yaw, j),
+        )
+        return compose(base, mount)

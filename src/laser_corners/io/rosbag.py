@@ -13,7 +13,10 @@ decompressed once); a scan waits in a small look-ahead buffer until an odometry 
 after it has been read, which gives the pose the whole-bag track (:meth:`BagSource.pose_track`)
 gives. ROS 1 LaserScan, Odometry and TFMessage bytes are decoded with ``struct``/numpy
 (:mod:`laser_corners.io.ros1_decode`); a message whose lengths do not add up, and every
-ROS 2/MCAP message, goes through rosbags' deserializer.
+ROS 2/MCAP message, goes through rosbags' deserializer. ROS 1 bags of standard definitions are
+read by the lean path (:meth:`BagSource._lean_scans`: the messages of each chunk located and
+decoded in blocks, :mod:`laser_corners.io.ros1_lean`), which yields exactly what the
+per-message path yields; ``BagSource.lean = False`` turns it off.
 """
 
 from __future__ import annotations
@@ -21,7 +24,6 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +32,7 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InputError, InvalidScanError, first_line
 from laser_corners.io.bagfile import (
+    CHUNK_ERRORS,
     CORRUPT_ERRORS,
     iter_messages,
     open_bag_reader,
@@ -55,24 +58,19 @@ from laser_corners.io.ros1_decode import (
     odometry_of,
     transforms_of,
 )
+from laser_corners.io.ros1_index import LeanPlan
+from laser_corners.io.ros1_lean import finite_pose, locate
+from laser_corners.io.ros1_runs import (
+    SCAN,
+    ChunkCache,
+    ChunkRun,
+    RawScan,
+    kind_of,
+    lean_readable,
+)
 from laser_corners.scan import LaserScan, Pose2D
 
 __all__ = ["BagSource"]
-
-
-@dataclass
-class _RawScan:
-    """A decoded LaserScan message waiting for its pose."""
-
-    where: str
-    log_time_ns: int
-    stamp_ns: int
-    frame_id: str
-    angle_min: float
-    angle_increment: float
-    range_min: float
-    range_max: float
-    ranges: NDArray[np.float32]
 
 
 class BagSource(ScanSource):
@@ -108,6 +106,10 @@ class BagSource(ScanSource):
         rosbags refused the bag's index; it is read from its chunk records.
     """
 
+    lean: bool = True
+    """Read ROS 1 bags with :mod:`laser_corners.io.ros1_lean` where it applies (False: the
+    per-message path through rosbags, e.g. to compare them)."""
+
     def __init__(
         self, path: Path, kind: SourceKind, topic: str | None = None, strict: bool = True
     ) -> None:
@@ -115,6 +117,7 @@ class BagSource(ScanSource):
         self.kind = kind
         self.stamps_ns: list[int] = []
         self.log_times_ns: list[int] = []
+        self._lean_index = 0
         with self.reader() as reader:
             self.topics: dict[str, tuple[str, int]] = {}
             for connection in reader.connections:
@@ -158,7 +161,7 @@ class BagSource(ScanSource):
     @contextmanager
     def reader(self) -> Iterator[Any]:
         """An open rosbags ``AnyReader``; damaged bags raise :class:`InputError`."""
-        with open_bag_reader(self.path, self.kind) as reader:
+        with open_bag_reader(self.path, self.kind, lean=self.lean) as reader:
             yield reader
 
     def messages(self, reader: Any, topics: list[str]) -> Iterator[tuple[Any, int, bytes]]:
@@ -229,7 +232,10 @@ class BagSource(ScanSource):
             }  # fmt: skip
             track = StreamingTrack() if self.odom_topic is not None else None
             topics = [self.topic, *([self.odom_topic, *self.tf_topics] if track else [])]
-            waiting: deque[_RawScan] = deque()
+            if self.lean and lean_readable(reader, topics, fast):
+                yield from self._lean_scans(reader, topics, track)
+                return
+            waiting: deque[RawScan] = deque()
             index = 0
             for connection, log_time, raw in self.messages(reader, topics):  # type: ignore[arg-type]
                 if connection.topic != self.topic:
@@ -250,7 +256,7 @@ class BagSource(ScanSource):
                     except CORRUPT_ERRORS as exc:
                         self._skip("undecodable LaserScan message", where, first_line(exc))
                         continue
-                item = _RawScan(where, int(log_time), *fields)
+                item = RawScan(where, int(log_time), *fields)
                 if track is None or (not waiting and track.ready(item.stamp_ns, item.frame_id)):
                     yield from self._release(item, track)
                 else:
@@ -258,15 +264,108 @@ class BagSource(ScanSource):
             while waiting:
                 yield from self._release(waiting.popleft(), track)
 
-    def _release(self, item: _RawScan, track: StreamingTrack | None) -> Iterator[LaserScan]:
+    def _lean_scans(
+        self, reader: Any, topics: list[str], track: StreamingTrack | None
+    ) -> Iterator[LaserScan]:
+        """What the per-message loop of :meth:`_scans` yields, chunk run by chunk run
+        (:mod:`laser_corners.io.ros1_lean`)."""
+        connections = [c for c in reader.connections if c.topic in topics]
+        plan = LeanPlan.of(connections)
+        kinds = [kind_of(c, self.topic) for c in connections]
+        ids = np.array([c.id for c in connections], dtype=np.int64)
+        chunks = ChunkCache(connections[0].owner) if connections else None
+        waiting: deque[RawScan] = deque()
+        self._lean_index = 0
+        for start, stop in plan.runs():
+            try:
+                data = chunks.get(int(plan.chunks[start]))  # type: ignore[union-attr]
+            except CHUNK_ERRORS as exc:
+                raise self.error(
+                    f"damaged bag data ({type(exc).__name__}: {first_line(exc)})"
+                ) from None
+            ranks = plan.ranks[start:stop]
+            starts, lengths, error = locate(
+                data, plan.offsets[start:stop], ids[ranks], plan.times[start:stop]
+            )
+            run = ChunkRun(data, starts, lengths, [kinds[r] for r in ranks[: starts.size].tolist()])
+            run.decode()
+            yield from self._lean_run(reader, run, plan.times[start:stop], connections,
+                                      ranks, track, waiting)  # fmt: skip
+            if error is not None:
+                if isinstance(error, CHUNK_ERRORS):
+                    raise self.error(
+                        f"damaged bag data ({type(error).__name__}: {first_line(error)})"
+                    ) from None
+                raise error
+        while waiting:
+            yield from self._release(waiting.popleft(), track)
+
+    def _lean_run(
+        self, reader: Any, run: ChunkRun, times: NDArray[np.int64], connections: list[Any],
+        ranks: NDArray[np.int64], track: StreamingTrack | None, waiting: deque[RawScan],
+    ) -> Iterator[LaserScan]:  # fmt: skip
+        """The messages of one chunk run, in order (see :meth:`_scans`)."""
+        log_times = times.tolist()
+        for j, kind in enumerate(run.kinds):
+            if kind == SCAN:
+                where = f"message {self._lean_index} of {self.topic}"
+                self._lean_index += 1
+                self.position = where
+                item = run.scan(j, where, log_times[j])
+                if item is None:
+                    item = self._raw_scan(reader, connections[ranks[j]], run.raw(j), where,
+                                          log_times[j])  # fmt: skip
+                    if item is None:
+                        continue
+                if track is None or (not waiting and track.ready(item.stamp_ns, item.frame_id)):
+                    yield from self._release(item, track)
+                else:
+                    waiting.append(item)
+                continue
+            assert track is not None
+            if self._lean_index == 0:
+                self.position = f"reading {self.odom_topic} and tf"
+            if run.repeat[j]:
+                continue  # a tf message that changes nothing (see ChunkRun.decode)
+            sample = run.odometry.get(j)
+            if sample is not None:
+                track.add_odometry(*sample)
+            else:
+                connection = connections[ranks[j]]
+                self._pose_message(reader, connection, run.raw(j), True, track)
+            while waiting and track.ready(waiting[0].stamp_ns, waiting[0].frame_id):
+                yield from self._release(waiting.popleft(), track)
+
+    def _raw_scan(
+        self, reader: Any, connection: Any, raw: bytes, where: str, log_time: int
+    ) -> RawScan | None:
+        """A scan message decoded on its own (None: undecodable, counted as skipped)."""
+        fields = decode_ros1_laserscan(raw)
+        if fields is None:
+            try:
+                fields = laserscan_fields(reader.deserialize(raw, connection.msgtype))
+            except CORRUPT_ERRORS as exc:
+                self._skip("undecodable LaserScan message", where, first_line(exc))
+                return None
+        return RawScan(where, log_time, *fields)
+
+    def _release(self, item: RawScan, track: StreamingTrack | None) -> Iterator[LaserScan]:
         """The LaserScan of a decoded message (nothing, counted as skipped, when invalid)."""
         self.position = item.where
         stamp = item.stamp_ns * 1e-9
+        pose = track.pose(stamp, item.frame_id) if track is not None else None
+        if item.checked and finite_pose(pose):  # the lean path checked the geometry
+            self.stamps_ns.append(item.stamp_ns)
+            self.log_times_ns.append(item.log_time_ns)
+            yield LaserScan.from_checked(
+                item.ranges, item.angle_min, item.angle_increment, item.range_min,
+                item.range_max, stamp, item.frame_id, pose,
+            )  # fmt: skip
+            return
         try:
             scan = LaserScan(
                 item.ranges.astype(np.float64), item.angle_min, item.angle_increment,
-                item.range_min, item.range_max, stamp, item.frame_id,
-                track.pose(stamp, item.frame_id) if track is not None else None,
+                item.range_min, item.range_max, stamp, item.frame_id, pose,
             )  # fmt: skip
         except InvalidScanError as exc:
             self._skip("invalid LaserScan fields", item.where, str(exc))
