@@ -52,6 +52,7 @@ __all__ = [
     "APEX_FACTOR",
     "COV_FLOOR",
     "SCALE_RUN_FACTOR",
+    "DeferredCovariances",
     "keypoint_covariances",
     "line_fit_covariance",
     "scan_range_noise",
@@ -404,3 +405,22 @@ def keypoint_covariances(
         cov[t, 1, 0] = acc[1]
         cov[t, 1, 1] = acc[2] + iso
     return cov
+
+
+class DeferredCovariances:
+    """A picklable, deferred call of :func:`keypoint_covariances` (lazy ``Keypoints.cov``).
+
+    Holds the arguments (the scan's points, the keypoints' rows, the scales and the
+    detector's options) and computes the covariances when called.
+    """
+
+    __slots__ = ("args",)
+
+    def __init__(self, *args: object) -> None:
+        self.args = args
+
+    def __call__(self) -> NDArray[np.float64]:
+        return keypoint_covariances(*self.args)
+
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        return (DeferredCovariances, self.args)

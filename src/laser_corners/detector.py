@@ -50,7 +50,7 @@ from laser_corners.covariance import (
     APEX_FACTOR,
     COV_FLOOR,
     SCALE_RUN_FACTOR,
-    keypoint_covariances,
+    DeferredCovariances,
 )
 from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.kernel import NC, candidates, kernel_config, polar_to_xy
@@ -86,9 +86,11 @@ def _keypoints_from_rows(
     params: DetectorParams,
     scales: NDArray[np.float64],
 ) -> Keypoints:
-    """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`).
+    """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`),
+    computed on the first access of ``Keypoints.cov``.
 
-    ``points`` are the scan's x, y (NaN for gaps) and its beam spacing in radians.
+    ``points`` are the scan's x, y (NaN for gaps, not modified afterwards) and its beam
+    spacing in radians.
     """
     columns = rows.T.copy()  # one row per field, each contiguous: views below
     xy = rows[:, M_X : M_Y + 1].copy()
@@ -96,7 +98,7 @@ def _keypoints_from_rows(
     n_scales = columns[M_NSC].astype(np.int64)
     k0 = columns[M_K0].astype(np.int64)
     x, y, spacing = points
-    cov = keypoint_covariances(
+    cov = DeferredCovariances(
         x, y, xy, beam, k0, n_scales, scales, spacing, APEX_FACTOR, COV_FLOOR,
         SCALE_RUN_FACTOR, params.refine_radius, params.refine_exclude, params.min_points,
         params.max_fit_rmse,
@@ -104,6 +106,7 @@ def _keypoints_from_rows(
     return Keypoints._from_valid_arrays(
         stamp,
         frame_id,
+        cov,
         xy=xy,
         beam_index=beam,
         opening_angle_deg=columns[M_OPEN],
@@ -112,7 +115,6 @@ def _keypoints_from_rows(
         rmse=columns[M_RMSE],
         n_merged=columns[M_NMERGED].astype(np.int64),
         scale_index=k0,
-        cov=cov,
     )
 
 
@@ -303,8 +305,8 @@ class CornerDetector:
         pts = np.asarray(xy, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] != 2:
             raise InvalidScanError(f"points must have shape (N, 2), got {pts.shape}")
-        x = np.ascontiguousarray(pts[:, 0])
-        y = np.ascontiguousarray(pts[:, 1])
+        x = pts[:, 0].copy()  # copies: the gaps are set below, the covariances read them later
+        y = pts[:, 1].copy()
         # a point with a NaN or inf in either coordinate is a gap
         bad = ~(np.isfinite(x) & np.isfinite(y))
         x[bad] = np.nan
