@@ -125,13 +125,13 @@ class Keypoints:
             arrays["scale_index"] = np.full(arrays["xy"].shape[0], -1, dtype=np.int64)
         if "cov" not in arrays and cov_source is None:
             arrays["cov"] = np.full((arrays["xy"].shape[0], 2, 2), np.nan)
-        for name, value in arrays.items():
-            object.__setattr__(keypoints, name, value)
+        state = keypoints.__dict__  # frozen: fill the instance's dict directly (one call)
+        state.update(arrays)
         if "cov" not in arrays:
-            object.__setattr__(keypoints, "_cov_source", cov_source)
-            object.__setattr__(keypoints, "_cov_rotations", ())
-        object.__setattr__(keypoints, "stamp", stamp)
-        object.__setattr__(keypoints, "frame_id", frame_id)
+            state["_cov_source"] = cov_source
+            state["_cov_rotations"] = ()
+        state["stamp"] = stamp
+        state["frame_id"] = frame_id
         return keypoints
 
     def __getattr__(self, name: str) -> Any:

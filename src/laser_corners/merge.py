@@ -31,7 +31,7 @@ from laser_corners.kernel import (
 )
 from laser_corners.linefit import intersect, select_from_sums
 
-__all__ = ["NM", "detect_batch", "finish", "merge", "raw_rows", "refine"]
+__all__ = ["NM", "detect_batch", "detect_xy", "finish", "merge", "raw_rows", "refine"]
 
 # columns of the keypoint rows (float64, shape (M, NM))
 M_X, M_Y, M_BEAM, M_OPEN, M_ORIENT, M_NSC, M_RMSE, M_NMERGED, M_K0 = range(9)
@@ -324,7 +324,14 @@ def detect_one(ranges, cos_a, sin_a, range_min: float, range_max: float,
     x = np.empty(n)
     y = np.empty(n)
     polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
-    cand = np.empty((n, NC))
+    return detect_xy(x, y, packed, rows)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np.float64],
+              rows: NDArray[np.float64]) -> int:  # fmt: skip
+    """One scan's points (beam order, NaN for gaps) -> keypoint rows; returns their count."""
+    cand = np.empty((x.shape[0], NC))
     candidates(x, y, packed, cand, np.empty((0, 0, 3)))
     return finish(x, y, cand, packed, rows)
 
