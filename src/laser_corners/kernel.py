@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from laser_corners.neighbourhood import (
     PAD,
     block_boxes,
+    links,
     padded,
     points_within,
     prepare,
@@ -240,12 +241,16 @@ def candidates(
     scales = cfg.scales
     n_scales = scales.shape[0]
     want_table = table.shape[0] == n
-    valid, ox, oy, ps, next_valid, prev_valid = prepare(x, y)
+    valid, ox, oy, ps = prepare(x, y)
     r2 = scales * scales
     # dense scans (many points within the largest scale) and gap bridging: block-skipping
     # walk; otherwise the short branch-free walk, counted per scale on demand
     dense = cfg.max_gap > 0 or points_within(x, y, valid, scales[n_scales - 1]) > 48.0
     box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
+    if dense:
+        next_valid, prev_valid = links(valid)
+    else:
+        next_valid = prev_valid = np.empty(0, dtype=np.int64)
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
     start = np.empty(n_scales, dtype=np.int64)
     stop = np.empty(n_scales, dtype=np.int64)

@@ -12,7 +12,8 @@ exactly, for all scales in one pass per side:
   beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
   O(blocks + points near the radii) instead of O(points within R).
 
-:func:`prepare` makes the per-scan tables (validity, prefix sums, next/previous valid index).
+:func:`prepare` makes the per-scan tables (validity, prefix sums), :func:`links` the
+next/previous valid index (dense scans and gap bridging only).
 """
 
 from __future__ import annotations
@@ -23,7 +24,17 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["PAD", "block_boxes", "padded", "points_within", "prepare", "reach", "walk", "within"]
+__all__ = [
+    "PAD",
+    "block_boxes",
+    "links",
+    "padded",
+    "points_within",
+    "prepare",
+    "reach",
+    "walk",
+    "within",
+]
 
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
@@ -32,8 +43,7 @@ PAD = 4  # +inf entries before and after the padded coordinates of :func:`reach`
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
-    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count), next/previous valid
-    index (N if none / -1 if none)."""
+    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count)."""
     n = x.shape[0]
     valid = np.empty(n, dtype=np.bool_)
     ox = 0.0
@@ -63,6 +73,13 @@ def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
         else:
             for c in range(6):
                 ps[i + 1, c] = ps[i, c]
+    return valid, ox, oy, ps
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def links(valid: NDArray[np.bool_]) -> tuple:
+    """Next/previous valid index of every index (N if none / -1 if none), for :func:`walk`."""
+    n = valid.shape[0]
     next_valid = np.empty(n + 1, dtype=np.int64)
     prev_valid = np.empty(n, dtype=np.int64)
     next_valid[n] = n
@@ -73,7 +90,7 @@ def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
         if valid[i]:
             last = i
         prev_valid[i] = last
-    return valid, ox, oy, ps, next_valid, prev_valid
+    return next_valid, prev_valid
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
