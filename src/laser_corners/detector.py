@@ -67,7 +67,7 @@ from laser_corners.merge import (
     M_Y,
     NM,
     detect_batch,
-    detect_xy,
+    detect_into,
     finish,
     raw_rows,
 )
@@ -283,11 +283,16 @@ class CornerDetector:
             Only with ``return_candidates``: every scan point that passed, with its own
             keypoint (``n_merged`` is 1).
         """
-        x, y = self._scan_xy(scan)
         if return_candidates:
+            x, y = self._scan_xy(scan)
             return self._detect_xy(x, y, scan.stamp, scan.frame_id, True, scan.angle_increment)
-        rows = np.empty((scan.n_beams, NM))
-        n_out = detect_xy(x, y, self._config, rows)  # x, y: also what the covariances read
+        cos_a, sin_a = self._trig(scan)
+        n = scan.n_beams
+        x = np.empty(n)  # the scan's points, kept for the covariances
+        y = np.empty(n)
+        rows = np.empty((n, NM))
+        n_out = detect_into(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max,
+                            self._config, x, y, rows)  # fmt: skip
         points = (x, y, abs(scan.angle_increment))
         return _keypoints_from_rows(rows[:n_out], scan.stamp, scan.frame_id, points,
                                     *self._cov_args)  # fmt: skip
