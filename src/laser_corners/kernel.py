@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from laser_corners.neighbourhood import (
     PAD,
     block_boxes,
+    extend,
     links,
     padded,
     points_within,
@@ -308,10 +309,14 @@ def candidates(
         if dense:  # again, every scale
             walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
             walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
-        elif not many or st < top:  # again, to the largest scale, storing the running maxima
+        # bounds of the other scales: dense, already in start/stop (mode 0); with more than
+        # three sentinels, from the stored running maxima (1, after a walk to the largest
+        # scale); else extended from the sentinels' bounds, point by point (2)
+        mode = 0 if dense else (1 if many else 2)
+        if mode == 1 and st < top:  # again, to the largest scale, storing the running maxima
             na = reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)[0]
             nd = reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)[0]
-        rm = (rm_a, rm_d, -1 if dense else na, -1 if dense else nd)
+        rm = (rm_a, rm_d, na, nd, px, py, mode)
         _screen_rest(ps, inv, j, start, stop, screened, r2, m, st, cfg.min_points, loose_mse,
                      max_cos2, want_table, rm)  # fmt: skip
         if not want_table and not keep_runs(screened, m):
@@ -328,11 +333,14 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
     Every run of m consecutive scales holds a sentinel and lies between two failing ones,
     so only scales next to a passing sentinel (within m-1) can be in a run; the others are
     not screened (unless ``want_all``). ``rm`` holds the running maxima and step counts of
-    both :func:`~laser_corners.neighbourhood.reach` walks (counts -1: the bounds are
-    already in ``start``, ``stop``).
+    both :func:`~laser_corners.neighbourhood.reach` walks, the padded coordinates and the
+    mode: 0, the bounds are already in ``start``, ``stop``; 1, from the running maxima
+    (:func:`~laser_corners.neighbourhood.within`); 2, from the bounds of the sentinels next
+    to the scale (:func:`~laser_corners.neighbourhood.extend`).
     """
-    rm_a, rm_d, na, nd = rm
+    rm_a, rm_d, na, nd, px, py, mode = rm
     top = r2.shape[0] - 1
+    far = px.shape[0]  # more steps than any walk takes (it stops at the padding)
     for k in range(top + 1):
         if k <= st and (st - k) % m == 0:
             continue  # a sentinel
@@ -343,9 +351,16 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
         screened[k] = False
         if not near:
             continue
-        if na >= 0:
+        if mode == 1:
             start[k] = j - within(rm_a, na, r2[k])
             stop[k] = j + within(rm_d, nd, r2[k])
+        elif mode == 2:  # between the counts of the sentinels below (or 0) and above (or none)
+            lo_a = j - start[below] if below >= 0 else 0
+            lo_d = stop[below] - j if below >= 0 else 0
+            hi_a = j - start[above] if above >= 0 else far
+            hi_d = stop[above] - j if above >= 0 else far
+            start[k] = j - extend(j, -1, px, py, lo_a, hi_a, r2[k])
+            stop[k] = j + extend(j, 1, px, py, lo_d, hi_d, r2[k])
         screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2)
 
 

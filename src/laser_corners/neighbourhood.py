@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 __all__ = [
     "PAD",
     "block_boxes",
+    "extend",
     "links",
     "padded",
     "points_within",
@@ -285,6 +286,28 @@ def within(running_max: NDArray[np.float64], steps: int, r2: float) -> int:
         lo += (half + 1) * ok
         size = half - (2 * half + 1 - size) * ok
     return lo
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def extend(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64], lo: int,
+           hi: int, r2: float) -> int:  # fmt: skip
+    """Number of leading steps of a :func:`reach` walk from p_j within sqrt(``r2``), given
+    that the first ``lo`` steps are within it and at most ``hi`` are (the counts of a smaller
+    and a larger scale): only the steps after ``lo`` are looked at, point by point.
+
+    Equal to :func:`within` on the running maxima: the first ``lo`` distances are at most
+    the smaller radius, so the running maximum at a later step is within sqrt(``r2``)
+    exactly when every distance up to it is.
+    """
+    c = j + PAD
+    xj = px[c]
+    yj = py[c]
+    count = lo
+    i = c + step * (lo + 1)
+    while count < hi and (px[i] - xj) ** 2 + (py[i] - yj) ** 2 <= r2:
+        count += 1
+        i += step
+    return count
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
