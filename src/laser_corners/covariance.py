@@ -37,7 +37,10 @@ line (:func:`scan_range_noise`, projected on the line's normal by the incidence 
 
 Constants calibrated by ``benchmarks/covariance_study.py`` (Monte Carlo, ``docs/matching.md``).
 Cost: O(M·K·n) for M keypoints, K scales and n points per neighbourhood (sums taken around the
-keypoint, well conditioned); about 4 µs per keypoint.
+keypoint, well conditioned); 2-5 µs per keypoint, 10-20 µs per 1081-beam scan
+(``benchmarks/bench_detector.py``). The detector does not compute it in ``detect``: it
+hands the keypoints a :class:`DeferredCovariances`, called on the first access of
+``Keypoints.cov``.
 """
 
 from __future__ import annotations
