@@ -144,6 +144,18 @@ def test_kernel_matches_reference_with_many_sentinel_scales() -> None:
     assert assert_same(scan, params) >= 3
 
 
+@pytest.mark.parametrize(
+    ("n_scales", "m"), [(9, 1), (9, 2), (9, 4), (7, 3), (8, 3), (10, 3), (13, 3), (3, 3), (5, 5)]
+)
+def test_kernel_matches_reference_for_sentinel_layouts(n_scales: int, m: int) -> None:
+    """Sentinels K-m, K-2m, ...: layouts of scale count and run length (one, two, three or
+    more sentinels; scales above the highest sentinel; as many scales as m)."""
+    scan = rectangular_room().scan((0.4, -0.2, 0.3), UST_10LX, 0.01, np.random.default_rng(m))
+    params = DetectorParams(scales=tuple(0.05 + 0.025 * k for k in range(n_scales)),
+                            min_consecutive_scales=m)  # fmt: skip
+    assert assert_same(scan, params) >= 1
+
+
 @pytest.mark.parametrize("radius", [0.05, 0.2, 1e-15])
 def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
     """The kernel's grid-based merge against the reference's all-pairs single linkage."""

@@ -37,7 +37,10 @@ line (:func:`scan_range_noise`, projected on the line's normal by the incidence 
 
 Constants calibrated by ``benchmarks/covariance_study.py`` (Monte Carlo, ``docs/matching.md``).
 Cost: O(M·K·n) for M keypoints, K scales and n points per neighbourhood (sums taken around the
-keypoint, well conditioned); about 4 µs per keypoint.
+keypoint, well conditioned); 2-5 µs per keypoint, 10-20 µs per 1081-beam scan
+(``benchmarks/bench_detector.py``). The detector does not compute it in ``detect``: it
+hands the keypoints a :class:`DeferredCovariances`, called on the first access of
+``Keypoints.cov``.
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ __all__ = [
     "APEX_FACTOR",
     "COV_FLOOR",
     "SCALE_RUN_FACTOR",
+    "DeferredCovariances",
     "keypoint_covariances",
     "line_fit_covariance",
     "scan_range_noise",
@@ -404,3 +408,22 @@ def keypoint_covariances(
         cov[t, 1, 0] = acc[1]
         cov[t, 1, 1] = acc[2] + iso
     return cov
+
+
+class DeferredCovariances:
+    """A picklable, deferred call of :func:`keypoint_covariances` (lazy ``Keypoints.cov``).
+
+    Holds the arguments (the scan's points, the keypoints' rows, the scales and the
+    detector's options) and computes the covariances when called.
+    """
+
+    __slots__ = ("args",)
+
+    def __init__(self, *args: object) -> None:
+        self.args = args
+
+    def __call__(self) -> NDArray[np.float64]:
+        return keypoint_covariances(*self.args)
+
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        return (DeferredCovariances, self.args)

@@ -50,7 +50,7 @@ from laser_corners.covariance import (
     APEX_FACTOR,
     COV_FLOOR,
     SCALE_RUN_FACTOR,
-    keypoint_covariances,
+    DeferredCovariances,
 )
 from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.kernel import NC, candidates, kernel_config, polar_to_xy
@@ -67,7 +67,7 @@ from laser_corners.merge import (
     M_Y,
     NM,
     detect_batch,
-    detect_one,
+    detect_into,
     finish,
     raw_rows,
 )
@@ -78,41 +78,48 @@ from laser_corners.scan import LaserScan
 __all__ = ["CornerDetector", "ScaleTable"]
 
 
+_INT_COLUMNS = np.array([M_BEAM, M_NSC, M_NMERGED, M_K0])  # integer fields of the rows
+
+
+def _cov_options(params: DetectorParams) -> tuple:
+    """The arguments of :func:`~laser_corners.covariance.keypoint_covariances` after the
+    beam spacing (constants and the detector's options)."""
+    return (APEX_FACTOR, COV_FLOOR, SCALE_RUN_FACTOR, params.refine_radius,
+            params.refine_exclude, params.min_points, params.max_fit_rmse)  # fmt: skip
+
+
 def _keypoints_from_rows(
     rows: NDArray[np.float64],
     stamp: float | None,
     frame_id: str,
     points: tuple[NDArray[np.float64], NDArray[np.float64], float],
-    params: DetectorParams,
     scales: NDArray[np.float64],
+    cov_options: tuple,
 ) -> Keypoints:
-    """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`).
+    """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`),
+    computed on the first access of ``Keypoints.cov``.
 
-    ``points`` are the scan's x, y (NaN for gaps) and its beam spacing in radians.
+    ``points`` are the scan's x, y (NaN for gaps, not modified afterwards) and its beam
+    spacing in radians; ``cov_options`` from :func:`_cov_options`.
     """
     columns = rows.T.copy()  # one row per field, each contiguous: views below
     xy = rows[:, M_X : M_Y + 1].copy()
-    beam = columns[M_BEAM].astype(np.int64)
-    n_scales = columns[M_NSC].astype(np.int64)
-    k0 = columns[M_K0].astype(np.int64)
+    ints = columns.take(_INT_COLUMNS, axis=0).astype(np.int64)
+    beam, n_scales, n_merged, k0 = ints
     x, y, spacing = points
-    cov = keypoint_covariances(
-        x, y, xy, beam, k0, n_scales, scales, spacing, APEX_FACTOR, COV_FLOOR,
-        SCALE_RUN_FACTOR, params.refine_radius, params.refine_exclude, params.min_points,
-        params.max_fit_rmse,
-    )  # fmt: skip
+    cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, scales, spacing, *cov_options)
     return Keypoints._from_valid_arrays(
         stamp,
         frame_id,
+        cov,
         xy=xy,
         beam_index=beam,
         opening_angle_deg=columns[M_OPEN],
         orientation=columns[M_ORIENT],
         n_scales=n_scales,
         rmse=columns[M_RMSE],
-        n_merged=columns[M_NMERGED].astype(np.int64),
+        n_merged=n_merged,
         scale_index=k0,
-        cov=cov,
     )
 
 
@@ -185,7 +192,7 @@ class CornerDetector:
         self.params = params
         self._config = kernel_config(params)
         self._scales = np.asarray(params.scales, dtype=np.float64)
-        self._cov_args = (params, self._scales)  # what the keypoint covariances need
+        self._cov_args = (self._scales, _cov_options(params))  # for covariances
         self._geometry: tuple[int, float, float] | None = None
         self._cos = np.empty(0)
         self._sin = np.empty(0)
@@ -243,8 +250,8 @@ class CornerDetector:
         raw = np.empty((n, NM))
         n_raw = raw_rows(cand, raw)
         unrefined = self.params.model_copy(update={"refine_radius": 0.0})  # raw: not refined
-        raw_kp = _keypoints_from_rows(raw[:n_raw], stamp, frame_id, points, unrefined,
-                                      self._scales)  # fmt: skip
+        raw_kp = _keypoints_from_rows(raw[:n_raw], stamp, frame_id, points, self._scales,
+                                      _cov_options(unrefined))  # fmt: skip
         return keypoints, raw_kp
 
     # ----------------------------------------------------------------- public API
@@ -276,14 +283,16 @@ class CornerDetector:
             Only with ``return_candidates``: every scan point that passed, with its own
             keypoint (``n_merged`` is 1).
         """
-        x, y = self._scan_xy(scan)
         if return_candidates:
+            x, y = self._scan_xy(scan)
             return self._detect_xy(x, y, scan.stamp, scan.frame_id, True, scan.angle_increment)
         cos_a, sin_a = self._trig(scan)
-        rows = np.empty((scan.n_beams, NM))
-        n_out = detect_one(
-            scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max, self._config, rows
-        )
+        n = scan.n_beams
+        x = np.empty(n)  # the scan's points, kept for the covariances
+        y = np.empty(n)
+        rows = np.empty((n, NM))
+        n_out = detect_into(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max,
+                            self._config, x, y, rows)  # fmt: skip
         points = (x, y, abs(scan.angle_increment))
         return _keypoints_from_rows(rows[:n_out], scan.stamp, scan.frame_id, points,
                                     *self._cov_args)  # fmt: skip
@@ -303,8 +312,8 @@ class CornerDetector:
         pts = np.asarray(xy, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] != 2:
             raise InvalidScanError(f"points must have shape (N, 2), got {pts.shape}")
-        x = np.ascontiguousarray(pts[:, 0])
-        y = np.ascontiguousarray(pts[:, 1])
+        x = pts[:, 0].copy()  # copies: the gaps are set below, the covariances read them later
+        y = pts[:, 1].copy()
         # a point with a NaN or inf in either coordinate is a gap
         bad = ~(np.isfinite(x) & np.isfinite(y))
         x[bad] = np.nan

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -59,7 +60,9 @@ class Keypoints:
         representative candidate for merged keypoints); the run is scales k0 ..
         k0 + n_scales - 1. -1 when unknown (keypoints not made by the detector).
     cov : ndarray, shape (M, 2, 2)
-        Covariance of ``xy``, m² (:mod:`laser_corners.covariance`; NaN when unknown).
+        Covariance of ``xy``, m² (:mod:`laser_corners.covariance`; NaN when unknown). For
+        keypoints from the detector it is computed on first access and then kept, so a
+        ``detect`` whose covariances are never read does not pay for them.
     stamp : float or None
         Stamp of the scan.
     frame_id : str
@@ -105,20 +108,50 @@ class Keypoints:
 
     @classmethod
     def _from_valid_arrays(
-        cls, stamp: float | None, frame_id: str, **arrays: NDArray[np.generic]
+        cls,
+        stamp: float | None,
+        frame_id: str,
+        cov_source: Callable[[], NDArray[np.float64]] | None = None,
+        **arrays: NDArray[np.generic],
     ) -> Keypoints:
         """Wrap arrays that already have the right dtypes and lengths, skipping the checks
-        (the detector's per-scan fast path, where the checks cost more than the wrapping)."""
+        (the detector's per-scan fast path, where the checks cost more than the wrapping).
+
+        ``cov_source``, when given and ``cov`` is not, is a picklable callable that returns
+        the (M, 2, 2) covariances; it is called on the first access of :attr:`cov`.
+        """
         keypoints = object.__new__(cls)
         if "scale_index" not in arrays:
             arrays["scale_index"] = np.full(arrays["xy"].shape[0], -1, dtype=np.int64)
-        if "cov" not in arrays:
+        if "cov" not in arrays and cov_source is None:
             arrays["cov"] = np.full((arrays["xy"].shape[0], 2, 2), np.nan)
-        for name, value in arrays.items():
-            object.__setattr__(keypoints, name, value)
-        object.__setattr__(keypoints, "stamp", stamp)
-        object.__setattr__(keypoints, "frame_id", frame_id)
+        state = keypoints.__dict__  # frozen: fill the instance's dict directly (one call)
+        state.update(arrays)
+        if "cov" not in arrays:
+            state["_cov_source"] = cov_source
+            state["_cov_rotations"] = ()
+        state["stamp"] = stamp
+        state["frame_id"] = frame_id
         return keypoints
+
+    def __getattr__(self, name: str) -> Any:
+        # only reached for attributes not in the instance: ``cov`` of lazy keypoints
+        if name != "cov":
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        compute = self.__dict__.get("_cov_source")
+        if compute is None:  # not made by the constructors (e.g. object.__new__)
+            cov = np.full((len(self), 2, 2), np.nan)
+        else:
+            cov = compute()
+            for rot in self.__dict__.get("_cov_rotations", ()):  # as transformed() does
+                cov = rot @ cov @ rot.T
+            self.__dict__.pop("_cov_source")  # frees the scan the source holds
+        object.__setattr__(self, "cov", cov)
+        return cov
+
+    def _cov_is_lazy(self) -> bool:
+        """Whether :attr:`cov` is still to be computed (for tests and benchmarks)."""
+        return "cov" not in self.__dict__
 
     @classmethod
     def empty(cls, stamp: float | None = None, frame_id: str = "") -> Keypoints:
@@ -158,10 +191,24 @@ class Keypoints:
         rot = np.array([[c, -s], [s, c]])
         xy = self.xy @ rot.T + np.array([px, py])
         orientation = np.angle(np.exp(1j * (self.orientation + theta)))
-        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "cov"}
+        values.update(xy=xy, orientation=orientation, frame_id=frame_id)
+        if self._cov_is_lazy():  # stays lazy: turned when computed
+            stamp = values.pop("stamp")
+            values.pop("frame_id")
+            compute = self.__dict__.get("_cov_source")
+            moved = Keypoints._from_valid_arrays(stamp, frame_id, compute, **values)
+            if compute is not None:
+                rotations = (*self.__dict__.get("_cov_rotations", ()), rot)
+                object.__setattr__(moved, "_cov_rotations", rotations)
+            return moved
         cov = rot @ self.cov @ rot.T  # the covariance turns with the points
-        values.update(xy=xy, orientation=orientation, frame_id=frame_id, cov=cov)
-        return Keypoints(**values)
+        return Keypoints(**values, cov=cov)
 
     def __repr__(self) -> str:
         return f"Keypoints(n={len(self)}, stamp={self.stamp}, frame_id={self.frame_id!r})"
+
+
+# ``cov`` is a dataclass field (constructor argument, ``fields()``), but without a class
+# attribute, so that an instance without one reaches ``__getattr__`` (lazy covariance)
+del Keypoints.cov

@@ -31,7 +31,16 @@ from laser_corners.kernel import (
 )
 from laser_corners.linefit import intersect, select_from_sums
 
-__all__ = ["NM", "detect_batch", "finish", "merge", "raw_rows", "refine"]
+__all__ = [
+    "NM",
+    "detect_batch",
+    "detect_into",
+    "detect_xy",
+    "finish",
+    "merge",
+    "raw_rows",
+    "refine",
+]
 
 # columns of the keypoint rows (float64, shape (M, NM))
 M_X, M_Y, M_BEAM, M_OPEN, M_ORIENT, M_NSC, M_RMSE, M_NMERGED, M_K0 = range(9)
@@ -321,10 +330,25 @@ def detect_one(ranges, cos_a, sin_a, range_min: float, range_max: float,
                packed: NDArray[np.float64], rows: NDArray[np.float64]) -> int:  # fmt: skip
     """One scan's ranges -> keypoint rows; returns their count."""
     n = ranges.shape[0]
-    x = np.empty(n)
-    y = np.empty(n)
+    return detect_into(ranges, cos_a, sin_a, range_min, range_max, packed, np.empty(n),
+                       np.empty(n), rows)  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
+                packed: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64],
+                rows: NDArray[np.float64]) -> int:  # fmt: skip
+    """:func:`detect_one` that also hands back the scan's points in ``x``, ``y`` (one call
+    for the detector's per-scan path, which keeps them for the covariances)."""
     polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
-    cand = np.empty((n, NC))
+    return detect_xy(x, y, packed, rows)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np.float64],
+              rows: NDArray[np.float64]) -> int:  # fmt: skip
+    """One scan's points (beam order, NaN for gaps) -> keypoint rows; returns their count."""
+    cand = np.empty((x.shape[0], NC))
     candidates(x, y, packed, cand, np.empty((0, 0, 3)))
     return finish(x, y, cand, packed, rows)
 

@@ -12,7 +12,8 @@ exactly, for all scales in one pass per side:
   beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
   O(blocks + points near the radii) instead of O(points within R).
 
-:func:`prepare` makes the per-scan tables (validity, prefix sums, next/previous valid index).
+:func:`prepare` makes the per-scan tables (validity, prefix sums), :func:`links` the
+next/previous valid index (dense scans and gap bridging only).
 """
 
 from __future__ import annotations
@@ -23,7 +24,18 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["PAD", "block_boxes", "padded", "points_within", "prepare", "reach", "walk", "within"]
+__all__ = [
+    "PAD",
+    "block_boxes",
+    "extend",
+    "links",
+    "padded",
+    "points_within",
+    "prepare",
+    "reach",
+    "walk",
+    "within",
+]
 
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
@@ -32,8 +44,7 @@ PAD = 4  # +inf entries before and after the padded coordinates of :func:`reach`
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
-    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count), next/previous valid
-    index (N if none / -1 if none)."""
+    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count)."""
     n = x.shape[0]
     valid = np.empty(n, dtype=np.bool_)
     ox = 0.0
@@ -63,6 +74,13 @@ def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
         else:
             for c in range(6):
                 ps[i + 1, c] = ps[i, c]
+    return valid, ox, oy, ps
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def links(valid: NDArray[np.bool_]) -> tuple:
+    """Next/previous valid index of every index (N if none / -1 if none), for :func:`walk`."""
+    n = valid.shape[0]
     next_valid = np.empty(n + 1, dtype=np.int64)
     prev_valid = np.empty(n, dtype=np.int64)
     next_valid[n] = n
@@ -73,7 +91,7 @@ def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
         if valid[i]:
             last = i
         prev_valid[i] = last
-    return valid, ox, oy, ps, next_valid, prev_valid
+    return next_valid, prev_valid
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -268,6 +286,28 @@ def within(running_max: NDArray[np.float64], steps: int, r2: float) -> int:
         lo += (half + 1) * ok
         size = half - (2 * half + 1 - size) * ok
     return lo
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def extend(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64], lo: int,
+           hi: int, r2: float) -> int:  # fmt: skip
+    """Number of leading steps of a :func:`reach` walk from p_j within sqrt(``r2``), given
+    that the first ``lo`` steps are within it and at most ``hi`` are (the counts of a smaller
+    and a larger scale): only the steps after ``lo`` are looked at, point by point.
+
+    Equal to :func:`within` on the running maxima: the first ``lo`` distances are at most
+    the smaller radius, so the running maximum at a later step is within sqrt(``r2``)
+    exactly when every distance up to it is.
+    """
+    c = j + PAD
+    xj = px[c]
+    yj = py[c]
+    count = lo
+    i = c + step * (lo + 1)
+    while count < hi and (px[i] - xj) ** 2 + (py[i] - yj) ** 2 <= r2:
+        count += 1
+        i += step
+    return count
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
