@@ -51,6 +51,14 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.fit_covariance import (
+    fit_terms,
+    line_fit_covariance,
+    pair_covariance,
+    scale_covariance,
+    scan_range_noise,
+)
+
 __all__ = [
     "APEX_FACTOR",
     "COV_FLOOR",
@@ -69,167 +77,6 @@ SCALE_RUN_FACTOR = 2.0
 """Inflation of the run-of-scales covariance (step 3; not for refined keypoints), calibrated:
 the merge keeps the candidate with the lowest RMSE and the gates keep fits whose residuals
 happen to be small, so the fits' own residual variance under-states the keypoint's error."""
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _fit_terms(
-    n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
-) -> tuple[bool, float, float, float, float, float, float]:
-    """Kept model of a neighbourhood (as ``select_from_sums``) with its variance terms.
-
-    Returns ``(y_on_x, c0, c1, s2, v_mean, s_vv, n)``: intercept and slope of the kept
-    model u = c0 + c1·v, residual variance s² = SSE/(n-2) (eqs. 8-9), mean and centred
-    spread of the independent variable v.
-    """
-    inv = 1.0 / n
-    dxx = sxx - sx * sx * inv
-    dyy = syy - sy * sy * inv
-    dxy = sxy - sx * sy * inv
-    det = max(dxx * dyy - dxy * dxy, 0.0)
-    y_on_x = dxx >= dyy
-    spread = dxx if y_on_x else dyy
-    slope = dxy / spread  # eq. 3 / eq. 6
-    if y_on_x:
-        c0 = (sy - slope * sx) * inv  # eq. 4
-        v_mean = sx * inv
-    else:
-        c0 = (sx - slope * sy) * inv  # eq. 7
-        v_mean = sy * inv
-    sse = det / spread  # eq. 8 / eq. 9 times n
-    s2 = sse / (n - 2.0) if n > 2.0 else 0.0
-    return y_on_x, c0, slope, s2, v_mean, spread, n
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def line_fit_covariance(
-    n: float, v_mean: float, s_vv: float, s2: float
-) -> tuple[float, float, float]:
-    """Covariance of (c0, c1) of a least-squares line u = c0 + c1·v.
-
-    Returns ``(var_c0, cov_c0_c1, var_c1)`` for ``n`` points with mean ``v_mean`` and centred
-    spread ``s_vv`` of v and residual variance ``s2``.
-    """
-    return s2 * (1.0 / n + v_mean * v_mean / s_vv), -s2 * v_mean / s_vv, s2 / s_vv
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _sums(
-    x: NDArray[np.float64], y: NDArray[np.float64], lo: int, hi: int, cx: float, cy: float
-) -> tuple[float, float, float, float, float, float]:
-    """n, Σx, Σy, Σx², Σy², Σxy of points lo..hi (inclusive) relative to (cx, cy)."""
-    n = 0.0
-    sx = sy = sxx = syy = sxy = 0.0
-    for i in range(lo, hi + 1):
-        dx = x[i] - cx
-        dy = y[i] - cy
-        n += 1.0
-        sx += dx
-        sy += dy
-        sxx += dx * dx
-        syy += dy * dy
-        sxy += dx * dy
-    return n, sx, sy, sxx, syy, sxy
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _scale_covariance(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    s: int,
-    j: int,
-    e: int,
-    cx: float,
-    cy: float,
-    sigma2: float,
-    out: NDArray[np.float64],
-) -> bool:
-    """Covariance of the intersection of the fits of [s, j] and [j, e] (step 2); adds to out."""
-    sa = _sums(x, y, s, j, cx, cy)
-    sd = _sums(x, y, j, e, cx, cy)
-    return _pair_covariance(sa, sd, x[s], y[s], x[e], y[e], sigma2, out)
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _pair_covariance(
-    sa: tuple[float, float, float, float, float, float],
-    sd: tuple[float, float, float, float, float, float],
-    pax: float,
-    pay: float,
-    pdx: float,
-    pdy: float,
-    sigma2: float,
-    out: NDArray[np.float64],
-) -> bool:
-    """Step 2 for two neighbourhoods given by their sums (relative to the keypoint) and one
-    point of each (for the incidence angle of the noise floor); adds to ``out``."""
-    ya, a0, a1, s2a, va, sva, na = _fit_terms(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
-    yd, d0, d1, s2d, vd, svd, nd = _fit_terms(sd[0], sd[1], sd[2], sd[3], sd[4], sd[5])
-    if not (sva > 0.0 and svd > 0.0):
-        return False
-    s2a = max(s2a, _noise_floor(pax, pay, ya, a1, sigma2))
-    s2d = max(s2d, _noise_floor(pdx, pdy, yd, d1, sigma2))
-    # gradients of f = u - c0 - c1 v with respect to q = (x, y)
-    fa_x, fa_y = (-a1, 1.0) if ya else (1.0, -a1)
-    fd_x, fd_y = (-d1, 1.0) if yd else (1.0, -d1)
-    det = fa_x * fd_y - fa_y * fd_x
-    if det == 0.0:
-        return False
-    # intersection (eqs. 10-13, in the frame centred on the keypoint)
-    ra = a0  # f_a(q) = 0  <=>  fa · q = c0 (up to sign conventions below)
-    rd = d0
-    qx = (fd_y * ra - fa_y * rd) / det
-    qy = (-fd_x * ra + fa_x * rd) / det
-    # columns of F^-1
-    g_ax, g_ay = fd_y / det, -fd_x / det
-    g_dx, g_dy = -fa_y / det, fa_x / det
-    v_a = qx if ya else qy
-    v_d = qx if yd else qy
-    var_a = s2a * (1.0 / na + (v_a - va) ** 2 / sva)
-    var_d = s2d * (1.0 / nd + (v_d - vd) ** 2 / svd)
-    out[0] += var_a * g_ax * g_ax + var_d * g_dx * g_dx
-    out[1] += var_a * g_ax * g_ay + var_d * g_dx * g_dy
-    out[2] += var_a * g_ay * g_ay + var_d * g_dy * g_dy
-    return True
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _noise_floor(px: float, py: float, y_on_x: bool, c1: float, sigma2: float) -> float:
-    """Residual variance (in u) that range noise sigma2 alone causes on this line.
-
-    Range noise moves a point along its beam; its component along the line's normal is
-    σ·cos ψ (ψ = incidence angle), which is σ·cos ψ·√(1 + c1²) along u.
-    """
-    nx, ny = (-c1, 1.0) if y_on_x else (1.0, -c1)
-    norm2 = nx * nx + ny * ny
-    b2 = px * px + py * py
-    if b2 == 0.0:
-        return 0.0
-    cos2 = (nx * px + ny * py) ** 2 / (norm2 * b2)
-    return sigma2 * cos2 * norm2
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def scan_range_noise(x: NDArray[np.float64], y: NDArray[np.float64], max_jump: float) -> float:
-    """Range-noise sigma of a scan from the median absolute second difference of its ranges.
-
-    Same estimator as :func:`laser_corners.eval.noise.estimate_range_noise` (MAD·1.4826/√6
-    over triples without gaps or jumps above ``max_jump``), on Cartesian points.
-    """
-    n = x.shape[0]
-    r = np.sqrt(x * x + y * y)
-    vals = np.empty(max(n - 2, 0))
-    m = 0
-    for i in range(1, n - 1):
-        a = r[i - 1]
-        b = r[i]
-        c = r[i + 1]
-        if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
-            if abs(b - a) < max_jump and abs(c - b) < max_jump:
-                vals[m] = abs(a - 2.0 * b + c)
-                m += 1
-    if m < 10:
-        return 0.0
-    return 1.482602218505602 * np.median(vals[:m]) / math.sqrt(6.0)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -317,14 +164,14 @@ def _refined_covariance(
         sd, end_d = _wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2)
         if sa[0] < max(min_points, 3) or sd[0] < max(min_points, 3):
             return False
-        fa = _fit_terms(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
-        fd = _fit_terms(sd[0], sd[1], sd[2], sd[3], sd[4], sd[5])
+        fa = fit_terms(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
+        fd = fit_terms(sd[0], sd[1], sd[2], sd[3], sd[4], sd[5])
         mse_a = fa[3] * (fa[6] - 2.0) / fa[6]  # eqs. 8-9: SSE / n
         mse_d = fd[3] * (fd[6] - 2.0) / fd[6]
         if mse_a > max_rmse * max_rmse or mse_d > max_rmse * max_rmse:
             rad *= 0.5
             continue
-        return _pair_covariance(sa, sd, x[end_a], y[end_a], x[end_d], y[end_d], sigma2, out)
+        return pair_covariance(sa, sd, x[end_a], y[end_a], x[end_d], y[end_d], sigma2, out)
     return False
 
 
@@ -396,7 +243,7 @@ def keypoint_covariances(
                 s = _bound(x, y, j, -1, r2)
                 e = _bound(x, y, j, 1, r2)
                 if j - s + 1 >= 3 and e - j + 1 >= 3:
-                    if _scale_covariance(x, y, s, j, e, cx, cy, sigma2, acc):
+                    if scale_covariance(x, y, s, j, e, cx, cy, sigma2, acc):
                         used += 1
         if used > 0:
             for c in range(3):

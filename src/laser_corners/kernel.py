@@ -13,7 +13,8 @@ Phases, each a small ``@njit`` function composed here:
    RMSE tests (eqs. 8-9) and of the angle test; scales that fail it fail the full test;
 4. :func:`~laser_corners.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
    distance to p_j, opening angle);
-5. :func:`best_run`: the runs of consecutive passing scales, the centroid test, the winner.
+5. :func:`~laser_corners.scale_tests.best_run`: the runs of consecutive passing scales, the
+   centroid test, the winner.
 
 A point needs ``min_consecutive_scales`` consecutive passing scales (m), so every such run
 contains one of the *sentinel* scales K-m, K-2m, K-3m, ... (spaced m apart, the highest
@@ -49,7 +50,7 @@ from laser_corners.neighbourhood import (
     within,
 )
 from laser_corners.params import DetectorParams
-from laser_corners.scale_tests import full_test, screen
+from laser_corners.scale_tests import best_run, full_test, keep_runs, screen
 
 __all__ = ["KernelConfig", "candidates", "kernel_config", "polar_to_xy", "unpack"]
 
@@ -142,68 +143,6 @@ def polar_to_xy(
         else:
             x[i] = math.nan
             y[i] = math.nan
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def best_run(passed: NDArray[np.bool_], q: NDArray[np.float64], min_consecutive: int,
-             max_cd2: float) -> tuple:  # fmt: skip
-    """The winning run of consecutive passing scales: ``(k0, length, cx, cy)``.
-
-    The longest run of at least ``min_consecutive`` scales whose intersections ``q[k, :2]``
-    all lie within sqrt(``max_cd2``) of their centroid; ties go to the run of smaller scales.
-    ``length`` is 0 when there is none.
-    """
-    n_scales = passed.shape[0]
-    best_len = 0
-    best_k0 = -1
-    best_cx = 0.0
-    best_cy = 0.0
-    k = 0
-    while k < n_scales:
-        if not passed[k]:
-            k += 1
-            continue
-        k0 = k
-        while k < n_scales and passed[k]:
-            k += 1
-        run = k - k0
-        if run < min_consecutive or run <= best_len:
-            continue
-        cx = 0.0
-        cy = 0.0
-        for kk in range(k0, k):
-            cx += q[kk, 0]
-            cy += q[kk, 1]
-        cx /= run
-        cy /= run
-        compact = True
-        for kk in range(k0, k):
-            if (q[kk, 0] - cx) ** 2 + (q[kk, 1] - cy) ** 2 > max_cd2:
-                compact = False
-                break
-        if compact:
-            best_len = run
-            best_k0 = k0
-            best_cx = cx
-            best_cy = cy
-    return best_k0, best_len, best_cx, best_cy
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def keep_runs(screened: NDArray[np.bool_], m: int) -> bool:
-    """Clear screened scales outside a screened run of at least ``m``; True if any is left."""
-    n_scales = screened.shape[0]
-    k = 0
-    any_run = False
-    while k < n_scales:
-        k0 = k
-        while k < n_scales and screened[k]:
-            k += 1
-        if 0 < k - k0 < m:
-            screened[k0:k] = False
-        any_run |= k - k0 >= m
-        k += 1
-    return any_run
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

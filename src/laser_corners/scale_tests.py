@@ -3,7 +3,8 @@
 :func:`screen` is a necessary condition of the RMSE tests (eqs. 8-9) and of the angle test,
 a hair permissive; :func:`full_test` is the paper's test exactly: both line fits from the
 prefix sums (eqs. 2-9), their intersection (eqs. 10-13), its distance to p_j and the
-directed opening angle.
+directed opening angle. :func:`best_run` picks a point's run of consecutive passing scales
+and :func:`keep_runs` tells whether the screened scales can still hold one.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 
 from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
 
-__all__ = ["full_test", "screen"]
+__all__ = ["best_run", "full_test", "keep_runs", "screen"]
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -119,3 +120,65 @@ def full_test(
     by = by / norm if norm > 0.0 else 0.0
     worst = math.sqrt(max(mse_a, mse_d))
     return (2, ix, iy, worst, math.degrees(math.acos(cos_open)), bx, by)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def best_run(passed: NDArray[np.bool_], q: NDArray[np.float64], min_consecutive: int,
+             max_cd2: float) -> tuple:  # fmt: skip
+    """The winning run of consecutive passing scales: ``(k0, length, cx, cy)``.
+
+    The longest run of at least ``min_consecutive`` scales whose intersections ``q[k, :2]``
+    all lie within sqrt(``max_cd2``) of their centroid; ties go to the run of smaller scales.
+    ``length`` is 0 when there is none.
+    """
+    n_scales = passed.shape[0]
+    best_len = 0
+    best_k0 = -1
+    best_cx = 0.0
+    best_cy = 0.0
+    k = 0
+    while k < n_scales:
+        if not passed[k]:
+            k += 1
+            continue
+        k0 = k
+        while k < n_scales and passed[k]:
+            k += 1
+        run = k - k0
+        if run < min_consecutive or run <= best_len:
+            continue
+        cx = 0.0
+        cy = 0.0
+        for kk in range(k0, k):
+            cx += q[kk, 0]
+            cy += q[kk, 1]
+        cx /= run
+        cy /= run
+        compact = True
+        for kk in range(k0, k):
+            if (q[kk, 0] - cx) ** 2 + (q[kk, 1] - cy) ** 2 > max_cd2:
+                compact = False
+                break
+        if compact:
+            best_len = run
+            best_k0 = k0
+            best_cx = cx
+            best_cy = cy
+    return best_k0, best_len, best_cx, best_cy
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def keep_runs(screened: NDArray[np.bool_], m: int) -> bool:
+    """Clear screened scales outside a screened run of at least ``m``; True if any is left."""
+    n_scales = screened.shape[0]
+    k = 0
+    any_run = False
+    while k < n_scales:
+        k0 = k
+        while k < n_scales and screened[k]:
+            k += 1
+        if 0 < k - k0 < m:
+            screened[k0:k] = False
+        any_run |= k - k0 >= m
+        k += 1
+    return any_run
