@@ -58,6 +58,7 @@ from laser_corners.fit_covariance import (
     scale_covariance,
     scan_range_noise,
 )
+from laser_corners.merge import nearest, wall_sums
 
 __all__ = [
     "APEX_FACTOR",
@@ -95,40 +96,6 @@ def _bound(x: NDArray[np.float64], y: NDArray[np.float64], j: int, step: int, r2
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _wall_sums(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    apex: int,
-    step: int,
-    cx: float,
-    cy: float,
-    r2: float,
-    e2: float,
-) -> tuple[tuple[float, float, float, float, float, float], int]:
-    """Sums of one wall's run for the refinement (as ``detector._refine``) and its far end."""
-    n = x.shape[0]
-    cnt = sx = sy = sxx = syy = sxy = 0.0
-    far = apex
-    i = apex + step
-    while 0 <= i < n and math.isfinite(x[i]):
-        dx = x[i] - cx
-        dy = y[i] - cy
-        d2 = dx * dx + dy * dy
-        if d2 > r2:
-            break
-        if d2 >= e2:
-            cnt += 1.0
-            sx += dx
-            sy += dy
-            sxx += dx * dx
-            syy += dy * dy
-            sxy += dx * dy
-            far = i
-        i += step
-    return (cnt, sx, sy, sxx, syy, sxy), far
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _refined_covariance(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -140,28 +107,19 @@ def _refined_covariance(
     min_points: int,
     max_rmse: float,
     sigma2: float,
+    max_gap: int,
     out: NDArray[np.float64],
 ) -> bool:
     """Step 2 for a keypoint refined from longer wall runs (option ``refine_radius``): the
-    runs of ``detector._refine`` around the keypoint, with its radius halving."""
-    n = x.shape[0]
-    apex = beam
-    best = (x[beam] - cx) ** 2 + (y[beam] - cy) ** 2
-    for step in (-1, 1):
-        i = beam + step
-        while 0 <= i < n and math.isfinite(x[i]):
-            d2 = (x[i] - cx) ** 2 + (y[i] - cy) ** 2
-            if d2 > radius * radius:
-                break
-            if d2 < best:
-                best = d2
-                apex = i
-            i += step
+    runs of :func:`laser_corners.merge.refine` around the keypoint, with its radius halving."""
+    apex = nearest(x, y, beam, cx, cy, radius * radius, max_gap)
     rad = radius
     e2 = exclude * exclude
+    sa = np.zeros(6)
+    sd = np.zeros(6)
     while rad >= 4.0 * exclude:
-        sa, end_a = _wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2)
-        sd, end_d = _wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2)
+        end_a = wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2, max_gap, sa)
+        end_d = wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2, max_gap, sd)
         if sa[0] < max(min_points, 3) or sd[0] < max(min_points, 3):
             return False
         fa = fit_terms(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
@@ -192,6 +150,7 @@ def keypoint_covariances(
     refine_exclude: float = 0.0,
     min_points: int = 3,
     max_rmse: float = math.inf,
+    max_gap: int = 0,
 ) -> NDArray[np.float64]:
     """Covariance (M, 2, 2) of every keypoint (module docstring, steps 1-4).
 
@@ -214,6 +173,8 @@ def keypoint_covariances(
         The detector's refinement options: when ``refine_radius > 0`` a keypoint's
         covariance comes from the two wall runs the refinement fits (the keypoint is their
         intersection), falling back to the run of scales when those runs are too short.
+    max_gap : int
+        The detector's ``max_gap_beams``: the wall runs step over that many dropped beams.
     """
     m = xy.shape[0]
     cov = np.zeros((m, 2, 2))
@@ -232,7 +193,7 @@ def keypoint_covariances(
             used = int(
                 _refined_covariance(
                     x, y, cx, cy, j, refine_radius, refine_exclude, min_points, max_rmse,
-                    sigma2, acc,
+                    sigma2, max_gap, acc,
                 )
             )  # fmt: skip
         if used == 0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):

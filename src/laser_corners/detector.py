@@ -85,7 +85,8 @@ def _cov_options(params: DetectorParams) -> tuple:
     """The arguments of :func:`~laser_corners.covariance.keypoint_covariances` after the
     beam spacing (constants and the detector's options)."""
     return (APEX_FACTOR, COV_FLOOR, SCALE_RUN_FACTOR, params.refine_radius,
-            params.refine_exclude, params.min_points, params.max_fit_rmse)  # fmt: skip
+            params.refine_exclude, params.min_points, params.max_fit_rmse,
+            params.max_gap_beams)  # fmt: skip
 
 
 def _keypoints_from_rows(

@@ -227,7 +227,7 @@ def _next(x: NDArray[np.float64], i: int, step: int, max_gap: int) -> int:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _nearest(x, y, b: int, cx: float, cy: float, r2: float, max_gap: int) -> int:
+def nearest(x, y, b: int, cx: float, cy: float, r2: float, max_gap: int) -> int:
     """The scan point nearest to (cx, cy), searched outwards from beam ``b`` within ``r2``."""
     apex = b
     best = (x[b] - cx) ** 2 + (y[b] - cy) ** 2
@@ -245,11 +245,13 @@ def _nearest(x, y, b: int, cx: float, cy: float, r2: float, max_gap: int) -> int
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: float,
-               max_gap: int, sums: NDArray[np.float64]) -> None:  # fmt: skip
+def wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: float,
+              max_gap: int, sums: NDArray[np.float64]) -> int:  # fmt: skip
     """n, Σdx, Σdy, Σdx², Σdy², Σdxdy (relative to (cx, cy)) of one wall's run within
-    ``r2`` of the keypoint, leaving out points closer than ``e2``."""
+    ``r2`` of the keypoint, leaving out points closer than ``e2``; returns the index of the
+    run's farthest counted point (``apex`` when none)."""
     sums[:] = 0.0
+    far = apex
     i = _next(x, apex, step, max_gap)
     while i >= 0:
         dx = x[i] - cx
@@ -264,7 +266,9 @@ def _wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: 
             sums[3] += dx * dx
             sums[4] += dy * dy
             sums[5] += dx * dy
+            far = i
         i = _next(x, i, step, max_gap)
+    return far
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -289,10 +293,10 @@ def refine(x: NDArray[np.float64], y: NDArray[np.float64], rows: NDArray[np.floa
         cx = rows[m, M_X]
         cy = rows[m, M_Y]
         rad = cfg.refine_radius
-        apex = _nearest(x, y, int(rows[m, M_BEAM]), cx, cy, rad * rad, cfg.max_gap)
+        apex = nearest(x, y, int(rows[m, M_BEAM]), cx, cy, rad * rad, cfg.max_gap)
         while rad >= 4.0 * cfg.refine_exclude:
-            _wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2, cfg.max_gap, sa)
-            _wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2, cfg.max_gap, sd)
+            wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2, cfg.max_gap, sa)
+            wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2, cfg.max_gap, sd)
             if sa[0] < cfg.min_points or sd[0] < cfg.min_points:
                 break
             ma, a0, a1, mse_a = select_from_sums(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])
