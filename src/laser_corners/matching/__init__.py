@@ -13,14 +13,17 @@ from laser_corners.matching.descriptors import (
     describe,
     describe_points,
 )
-from laser_corners.matching.registration import (
+from laser_corners.matching.batch import (
     BatchResult,
     KeypointBank,
+    register_many,
+    register_pairs,
+)
+from laser_corners.matching.registration import (
     MatchOptions,
     Registration,
     register,
     register_keypoints,
-    register_many,
 )
 
 __all__ = [
@@ -36,4 +39,5 @@ __all__ = [
     "register",
     "register_keypoints",
     "register_many",
+    "register_pairs",
 ]

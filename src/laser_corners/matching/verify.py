@@ -1,0 +1,165 @@
+"""Scan verification of a registration: do the two scans agree under the estimated pose?
+
+A keypoint hypothesis (one match with its orientation, or two matches) fixes an SE(2) pose
+from a handful of points; the scans themselves then say whether it is right. The points of
+scan B, moved into A's sensor frame by the pose, are looked up along A's beams
+(:func:`scan_agreement`, an O(points) numba loop):
+
+* a point is **tested** when it lies inside A's field of view and range interval and A has a
+  valid return on its beam or on one of the two neighbouring beams;
+* it **agrees** when one of those returns is within ``tolerance`` of the point's range
+  (the same surface; the neighbouring beams absorb small rotation errors and grazing walls);
+* it **conflicts** ("seen through") when it is closer than every one of those returns by more
+  than ``tolerance``: A's beams went through the place where B saw a surface;
+* otherwise it is occluded in A (behind A's return) and says nothing.
+
+The check runs both ways (B into A and A into B); the registration passes when, in both
+directions, at least ``min_points`` points were tested, at least ``min_agreement`` of them
+agree and at most ``max_conflict`` of them conflict. The *agreement* of the registration is
+the smaller of the two agreement fractions.
+
+Scans enter the kernels as flat arrays (:func:`scan_arrays`): the ranges (NaN where there is
+no valid return), the geometry ``(angle_min, angle_increment, range_min, range_max)`` and up to
+``max_points`` valid points, evenly spread over the beams.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.scan import LaserScan
+
+__all__ = ["ScanArrays", "beam_of", "scan_agreement", "scan_arrays", "verify_pose"]
+
+ScanArrays = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+"""``(ranges, geometry, points)`` of one scan, as :func:`scan_arrays` returns them."""
+
+
+def scan_arrays(scan: LaserScan, max_points: int = 90) -> ScanArrays:
+    """Flat arrays of ``scan`` for the verification kernels.
+
+    Parameters
+    ----------
+    scan : LaserScan
+        The scan.
+    max_points : int
+        The valid points are evenly thinned to at most this many.
+
+    Returns
+    -------
+    ranges : ndarray, shape (N,)
+        Ranges, NaN where the beam has no valid return.
+    geometry : ndarray, shape (4,)
+        ``angle_min, angle_increment, range_min, range_max``.
+    points : ndarray, shape (P, 2)
+        Valid points (sensor frame), at most ``max_points``.
+    """
+    xy, valid = scan.to_cartesian()
+    pts = xy[valid]
+    if len(pts) > max_points:
+        pts = pts[np.linspace(0, len(pts) - 1, max_points).round().astype(np.int64)]
+    ranges = np.where(valid, scan.ranges, np.nan).astype(np.float64)
+    geom = np.array(
+        [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max], dtype=np.float64
+    )
+    return ranges, geom, np.ascontiguousarray(pts, dtype=np.float64)
+
+
+@nb.njit(cache=True, nogil=True)
+def beam_of(bearing: float, amin: float, ainc: float) -> float:
+    """Fractional beam index of a bearing (any sign of ``ainc``, any wrap of the scan)."""
+    d = bearing - amin
+    d = d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi))  # [0, 2 pi)
+    if ainc < 0.0:
+        d -= 2.0 * math.pi
+    return d / ainc
+
+
+@nb.njit(cache=True, nogil=True)
+def scan_agreement(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
+    tx: float, ty: float, th: float, tol: float, max_conflicts: int,
+) -> tuple[int, int, int]:  # fmt: skip
+    """Points ``pts`` (another scan's frame), moved by ``p' = R(th)·p + t``, looked up along
+    the beams of the scan ``(ranges, geom)``; returns ``(tested, agree, conflict)``.
+
+    Stops early (returning what it counted) once ``conflict`` exceeds ``max_conflicts``.
+    """
+    n = ranges.shape[0]
+    amin, ainc, rmin, rmax = geom[0], geom[1], geom[2], geom[3]
+    c = math.cos(th)
+    s = math.sin(th)
+    tested = 0
+    agree = 0
+    conflict = 0
+    for p in range(pts.shape[0]):
+        x = c * pts[p, 0] - s * pts[p, 1] + tx
+        y = s * pts[p, 0] + c * pts[p, 1] + ty
+        r = math.sqrt(x * x + y * y)
+        if not rmin < r < rmax:
+            continue
+        k = int(math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5))
+        if k < 0 or k >= n:
+            continue
+        best = math.inf
+        nearest = math.inf
+        for j in range(max(k - 1, 0), min(k + 2, n)):
+            rj = ranges[j]
+            if rj == rj:  # not NaN: a valid return
+                best = min(best, abs(rj - r))
+                nearest = min(nearest, rj)
+        if nearest == math.inf:
+            continue
+        tested += 1
+        if best <= tol:
+            agree += 1
+        elif r < nearest - tol:
+            conflict += 1
+            if conflict > max_conflicts:
+                break
+    return tested, agree, conflict
+
+
+@nb.njit(cache=True, nogil=True)
+def _one_way(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
+    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+) -> float:  # fmt: skip
+    """Agreement fraction of ``pts`` in the scan ``(ranges, geom)``; -1 when the check fails."""
+    tol, min_agree, max_conflict, min_points = vopt[1], vopt[2], vopt[3], vopt[4]
+    tested, agree, conflict = scan_agreement(
+        ranges, geom, pts, tx, ty, th, tol, int(max_conflict * pts.shape[0])
+    )
+    if tested < min_points or conflict > max_conflict * tested or agree < min_agree * tested:
+        return -1.0
+    return agree / tested
+
+
+@nb.njit(cache=True, nogil=True)
+def verify_pose(
+    ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_a: NDArray[np.float64],
+    ranges_b: NDArray[np.float64], geom_b: NDArray[np.float64], pts_b: NDArray[np.float64],
+    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+) -> float:  # fmt: skip
+    """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
+
+    ``vopt`` = (enabled, tolerance, min_agreement, max_conflict, min_points). Returns the
+    agreement (the smaller fraction of the two directions) or -1 when the check fails;
+    1.0 when the check is disabled.
+    """
+    if vopt[0] == 0.0:
+        return 1.0
+    ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, vopt)
+    if ab < 0.0:
+        return -1.0
+    # the inverse pose: p_B = Rᵀ·(p_A - t)
+    c = math.cos(th)
+    s = math.sin(th)
+    ba = _one_way(ranges_b, geom_b, pts_a, -(c * tx + s * ty), s * tx - c * ty, -th, vopt)
+    if ba < 0.0:
+        return -1.0
+    return min(ab, ba)
