@@ -20,6 +20,7 @@ from laser_corners.matching.batch import (
     register_pairs,
 )
 from laser_corners.matching.registration import (
+    PLACE_RECOGNITION,
     MatchOptions,
     Registration,
     register,
@@ -28,6 +29,7 @@ from laser_corners.matching.registration import (
 
 __all__ = [
     "DESCRIPTORS",
+    "PLACE_RECOGNITION",
     "BatchResult",
     "DescriptorParams",
     "Descriptors",

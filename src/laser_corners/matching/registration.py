@@ -43,7 +43,7 @@ from laser_corners.matching.verify import ScanArrays, scan_arrays
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan, Pose2D
 
-__all__ = ["MatchOptions", "Registration", "register", "register_keypoints"]
+__all__ = ["PLACE_RECOGNITION", "MatchOptions", "Registration", "register", "register_keypoints"]
 
 DEFAULT_MAX_DISTANCE = {"csc": 0.75, "bsc": 0.3}
 """Default ``MatchOptions.max_distance`` per descriptor kind."""
@@ -114,6 +114,9 @@ class MatchOptions:
         Fewest points tested, both ways [20].
     scan_points : int
         Points per scan used by the check, evenly spread [90].
+    align_iterations : int
+        Gauss-Newton iterations refining the pose on the scans before the check (0: none;
+        the refined pose is the result) [3].
     """
 
     min_inliers: int = 4
@@ -132,11 +135,12 @@ class MatchOptions:
     single_point: bool = True
     max_hypotheses: int = 3
     verify_scan: bool = False
-    scan_tolerance: float = 0.2
+    scan_tolerance: float = 0.1
     min_scan_agreement: float = 0.5
     max_scan_conflict: float = 0.1
     min_scan_points: int = 20
     scan_points: int = 90
+    align_iterations: int = 3
 
     def __post_init__(self) -> None:
         if self.verification not in ("ransac", "clique"):
@@ -165,8 +169,23 @@ class MatchOptions:
                          self.default_sigma**2, self.angle_tolerance,
                          self.max_opening_difference], dtype=np.float64)  # fmt: skip
         vopt = np.array([float(self.verify_scan), self.scan_tolerance, self.min_scan_agreement,
-                         self.max_scan_conflict, self.min_scan_points], dtype=np.float64)  # fmt: skip
+                         self.max_scan_conflict, self.min_scan_points, self.align_iterations],
+                        dtype=np.float64)  # fmt: skip
         return iopt, fopt, vopt
+
+
+PLACE_RECOGNITION = MatchOptions(
+    min_inliers=1,
+    k_nearest=2,
+    max_distance=0.4,
+    max_opening_difference=20.0,
+    max_hypotheses=2,
+    verify_scan=True,
+)
+"""Options for place recognition (one scan against a whole map, ``evaluate loops``): the
+scan check decides, so one inlier is enough; tighter candidate matches (two nearest,
+descriptor distance <= 0.4, opening angles within 20 degrees) keep the cost of the thousands
+of pairs per query low. Descriptor gate for ``csc``; pass ``max_distance`` for ``bsc``."""
 
 
 @dataclass(frozen=True)

@@ -289,7 +289,8 @@ def register_pair(
         best_n = max(best_n, n_sel)
         if n_sel < need:
             continue
-        agreement = verify_pose(a[6], a[7], a[8], b[6], b[7], b[8], tx, ty, th, vopt)
+        agreement, tx, ty, th = verify_pose(a[6], a[7], a[8], b[6], b[7], b[8], tx, ty, th,
+                                            vopt)  # fmt: skip
         if agreement < 0.0:
             status = SCAN_DISAGREES
             continue

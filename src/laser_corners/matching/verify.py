@@ -35,6 +35,9 @@ from laser_corners.scan import LaserScan
 
 __all__ = ["ScanArrays", "beam_of", "scan_agreement", "scan_arrays", "verify_pose"]
 
+PRECHECK = 16
+"""Points of the cheap first look of :func:`verify_pose`."""
+
 ScanArrays = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 """``(ranges, geometry, points)`` of one scan, as :func:`scan_arrays` returns them."""
 
@@ -62,6 +65,9 @@ def scan_arrays(scan: LaserScan, max_points: int = 90) -> ScanArrays:
     pts = xy[valid]
     if len(pts) > max_points:
         pts = pts[np.linspace(0, len(pts) - 1, max_points).round().astype(np.int64)]
+    # interleaved order: any prefix is spread over the whole scan (the cheap first look)
+    stride = max(1, len(pts) // PRECHECK)
+    pts = pts[np.argsort(np.arange(len(pts)) % stride, kind="stable")]
     ranges = np.where(valid, scan.ranges, np.nan).astype(np.float64)
     geom = np.array(
         [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max], dtype=np.float64
@@ -125,18 +131,84 @@ def scan_agreement(
 
 
 @nb.njit(cache=True, nogil=True)
+def _beam_point(ranges: NDArray[np.float64], geom: NDArray[np.float64], k: int) -> tuple[float, float]:
+    phi = geom[0] + k * geom[1]
+    return ranges[k] * math.cos(phi), ranges[k] * math.sin(phi)
+
+
+@nb.njit(cache=True, nogil=True)
+def align(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
+    tx: float, ty: float, th: float, iterations: int, max_d: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Refine ``p' = R(th)·p + t`` of ``pts`` onto the scan ``(ranges, geom)``: Gauss-Newton
+    on point-to-line distances, each moved point paired with the return on its beam (the
+    line through the two neighbouring returns), pairs farther than ``max_d`` (halved at each
+    iteration, not below 0.05 m) left out. Returns the pose unchanged when under-determined."""
+    n = ranges.shape[0]
+    amin, ainc = geom[0], geom[1]
+    h = np.zeros((3, 3))
+    g = np.zeros(3)
+    d_max = max_d
+    for _ in range(iterations):
+        h[:, :] = 0.0
+        g[:] = 0.0
+        c = math.cos(th)
+        s = math.sin(th)
+        used = 0
+        for p in range(pts.shape[0]):
+            bx, by = pts[p, 0], pts[p, 1]
+            x = c * bx - s * by + tx
+            y = s * bx + c * by + ty
+            k = int(math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5))
+            if k < 1 or k >= n - 1:
+                continue
+            r0, r1, r2 = ranges[k - 1], ranges[k], ranges[k + 1]
+            if not (abs(r0 - r1) < 0.2 and abs(r2 - r1) < 0.2):  # NaN fails too
+                continue
+            x0, y0 = _beam_point(ranges, geom, k - 1)
+            x1, y1 = _beam_point(ranges, geom, k)
+            x2, y2 = _beam_point(ranges, geom, k + 1)
+            nx, ny = y0 - y2, x2 - x0
+            norm = math.hypot(nx, ny)
+            if norm == 0.0:
+                continue
+            nx /= norm
+            ny /= norm
+            e = nx * (x - x1) + ny * (y - y1)
+            if abs(e) > d_max:
+                continue
+            # d e / d(tx, ty, th)
+            j = (nx, ny, nx * (-s * bx - c * by) + ny * (c * bx - s * by))
+            for u in range(3):
+                g[u] += j[u] * e
+                for v in range(3):
+                    h[u, v] += j[u] * j[v]
+            used += 1
+        if used < 6 or not abs(np.linalg.det(h)) > 1e-9:
+            break
+        step = np.linalg.solve(h, g)
+        tx -= step[0]
+        ty -= step[1]
+        th -= step[2]
+        d_max = max(0.5 * d_max, 0.05)
+    return tx, ty, th
+
+
+@nb.njit(cache=True, nogil=True)
 def _one_way(
     ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
     tx: float, ty: float, th: float, vopt: NDArray[np.float64],
 ) -> float:  # fmt: skip
-    """Agreement fraction of ``pts`` in the scan ``(ranges, geom)``; -1 when the check fails."""
+    """Share of ``pts`` that agree with the scan ``(ranges, geom)``; -1 when the check fails."""
     tol, min_agree, max_conflict, min_points = vopt[1], vopt[2], vopt[3], vopt[4]
     tested, agree, conflict = scan_agreement(
         ranges, geom, pts, tx, ty, th, tol, int(max_conflict * pts.shape[0])
     )
-    if tested < min_points or conflict > max_conflict * tested or agree < min_agree * tested:
+    share = agree / max(pts.shape[0], 1)
+    if tested < min_points or conflict > max_conflict * tested or share < min_agree:
         return -1.0
-    return agree / tested
+    return share
 
 
 @nb.njit(cache=True, nogil=True)
@@ -144,22 +216,33 @@ def verify_pose(
     ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_a: NDArray[np.float64],
     ranges_b: NDArray[np.float64], geom_b: NDArray[np.float64], pts_b: NDArray[np.float64],
     tx: float, ty: float, th: float, vopt: NDArray[np.float64],
-) -> float:  # fmt: skip
+) -> tuple[float, float, float, float]:  # fmt: skip
     """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
 
-    ``vopt`` = (enabled, tolerance, min_agreement, max_conflict, min_points). Returns the
-    agreement (the smaller fraction of the two directions) or -1 when the check fails;
-    1.0 when the check is disabled.
+    ``vopt`` = (enabled, tolerance, min_agreement, max_conflict, min_points,
+    align_iterations). First a cheap look at the first ``PRECHECK`` points of B (stored
+    evenly spread): fewer than ``min_agreement`` of them within ``3·tolerance`` rejects. Then the
+    pose is refined on A's scan (:func:`align`) and checked both ways. Returns
+    ``(agreement, tx, ty, θ)``: the smaller share of agreeing points of the two directions
+    and the refined pose, or agreement -1 when the check fails; 1.0 and the pose unchanged
+    when the check is disabled.
     """
     if vopt[0] == 0.0:
-        return 1.0
+        return 1.0, tx, ty, th
+    tol = vopt[1]
+    pre = pts_b[:PRECHECK]
+    tested, agree, conflict = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * tol,
+                                             pre.shape[0])  # fmt: skip
+    if agree < vopt[2] * pre.shape[0]:
+        return -1.0, tx, ty, th
+    tx, ty, th = align(ranges_a, geom_a, pts_b, tx, ty, th, int(vopt[5]), 4.0 * tol)
     ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, vopt)
     if ab < 0.0:
-        return -1.0
+        return -1.0, tx, ty, th
     # the inverse pose: p_B = Rᵀ·(p_A - t)
     c = math.cos(th)
     s = math.sin(th)
     ba = _one_way(ranges_b, geom_b, pts_a, -(c * tx + s * ty), s * tx - c * ty, -th, vopt)
     if ba < 0.0:
-        return -1.0
-    return min(ab, ba)
+        return -1.0, tx, ty, th
+    return min(ab, ba), tx, ty, th
