@@ -6,18 +6,18 @@
 See :mod:`laser_corners.matching.registration` for the pipeline and ``docs/matching.md``.
 """
 
+from laser_corners.matching.batch import (
+    BatchResult,
+    KeypointBank,
+    register_many,
+    register_pairs,
+)
 from laser_corners.matching.descriptors import (
     DESCRIPTORS,
     DescriptorParams,
     Descriptors,
     describe,
     describe_points,
-)
-from laser_corners.matching.batch import (
-    BatchResult,
-    KeypointBank,
-    register_many,
-    register_pairs,
 )
 from laser_corners.matching.registration import (
     PLACE_RECOGNITION,

@@ -139,8 +139,9 @@ def candidate_matches(
     if na == 0 or nb_ == 0:
         return 0
     if ratio >= 1.0 and not mutual:
+        k = min(k_nearest, nb_)
         return _nearest_stream(kind, bits_a, vals_a, bits_b, vals_b, inv_bits, open_a, open_b,
-                               max_open, min(k_nearest, nb_), max_distance, na, nb_, out)  # fmt: skip
+                               max_open, k, max_distance, na, nb_, out)  # fmt: skip
     # distances above `bound` are never kept, never decide a ratio test (the second nearest
     # is then beyond d1/ratio) and never win a column of the mutual check against a kept
     # match, so their computation may stop early: the result is that of exact distances

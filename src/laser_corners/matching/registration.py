@@ -109,7 +109,7 @@ class MatchOptions:
     min_scan_agreement : float
         Share of the tested points that must agree, both ways [0.5].
     max_scan_conflict : float
-        Largest share of the tested points seen through, both ways [0.1].
+        Largest share of the tested points seen through, both ways [0.05].
     min_scan_points : int
         Fewest points tested, both ways [20].
     scan_points : int
@@ -137,7 +137,7 @@ class MatchOptions:
     verify_scan: bool = False
     scan_tolerance: float = 0.1
     min_scan_agreement: float = 0.5
-    max_scan_conflict: float = 0.1
+    max_scan_conflict: float = 0.05
     min_scan_points: int = 20
     scan_points: int = 90
     align_iterations: int = 3

@@ -108,7 +108,7 @@ def scan_agreement(
         r = math.sqrt(x * x + y * y)
         if not rmin < r < rmax:
             continue
-        k = int(math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5))
+        k = math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5)
         if k < 0 or k >= n:
             continue
         best = math.inf
@@ -131,7 +131,9 @@ def scan_agreement(
 
 
 @nb.njit(cache=True, nogil=True)
-def _beam_point(ranges: NDArray[np.float64], geom: NDArray[np.float64], k: int) -> tuple[float, float]:
+def _beam_point(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], k: int
+) -> tuple[float, float]:
     phi = geom[0] + k * geom[1]
     return ranges[k] * math.cos(phi), ranges[k] * math.sin(phi)
 
@@ -160,7 +162,7 @@ def align(
             bx, by = pts[p, 0], pts[p, 1]
             x = c * bx - s * by + tx
             y = s * bx + c * by + ty
-            k = int(math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5))
+            k = math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5)
             if k < 1 or k >= n - 1:
                 continue
             r0, r1, r2 = ranges[k - 1], ranges[k], ranges[k + 1]
@@ -231,8 +233,7 @@ def verify_pose(
         return 1.0, tx, ty, th
     tol = vopt[1]
     pre = pts_b[:PRECHECK]
-    tested, agree, conflict = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * tol,
-                                             pre.shape[0])  # fmt: skip
+    _, agree, _ = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * tol, pre.shape[0])
     if agree < vopt[2] * pre.shape[0]:
         return -1.0, tx, ty, th
     tx, ty, th = align(ranges_a, geom_a, pts_b, tx, ty, th, int(vopt[5]), 4.0 * tol)
