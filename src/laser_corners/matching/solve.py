@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from laser_corners.matching.clique import max_clique
 from laser_corners.matching.core import VERIFY_CLIQUE, _wrap, candidate_matches, ransac
-from laser_corners.matching.verify import verify_pose
+from laser_corners.matching.verify import precheck, verify_pose
 
 # status codes of register_pair (the Python layer turns them into reason strings)
 OK = 0
@@ -283,6 +283,9 @@ def register_pair(
     for h in range(nk):
         if counts[h] < need:
             break
+        if not precheck(a[6], a[7], b[8], hyp[h, 0], hyp[h, 1], hyp[h, 2], vopt):
+            status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
+            continue
         n_sel, tx, ty, th = _refine(xa, xb, cov_a, cov_b, oa, ob, m, n, hyp[h, 0], hyp[h, 1],
                                     hyp[h, 2], tol, angle_tol, need, default_var, sel,
                                     pose_cov)  # fmt: skip

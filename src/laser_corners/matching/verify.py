@@ -33,10 +33,20 @@ from numpy.typing import NDArray
 
 from laser_corners.scan import LaserScan
 
-__all__ = ["ScanArrays", "beam_of", "scan_agreement", "scan_arrays", "verify_pose"]
+__all__ = [
+    "ScanArrays",
+    "align",
+    "beam_of",
+    "precheck",
+    "scan_agreement",
+    "scan_arrays",
+    "verify_pose",
+]
 
 PRECHECK = 16
 """Points of the cheap first look of :func:`verify_pose`."""
+PRECHECK_CONFLICTS = 2
+"""Conflicts allowed among them (with the first look's loose tolerance)."""
 
 ScanArrays = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 """``(ranges, geometry, points)`` of one scan, as :func:`scan_arrays` returns them."""
@@ -131,14 +141,6 @@ def scan_agreement(
 
 
 @nb.njit(cache=True, nogil=True)
-def _beam_point(
-    ranges: NDArray[np.float64], geom: NDArray[np.float64], k: int
-) -> tuple[float, float]:
-    phi = geom[0] + k * geom[1]
-    return ranges[k] * math.cos(phi), ranges[k] * math.sin(phi)
-
-
-@nb.njit(cache=True, nogil=True)
 def align(
     ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
     tx: float, ty: float, th: float, iterations: int, max_d: float,
@@ -149,6 +151,7 @@ def align(
     iteration, not below 0.05 m) left out. Returns the pose unchanged when under-determined."""
     n = ranges.shape[0]
     amin, ainc = geom[0], geom[1]
+    ca, sa = math.cos(ainc), math.sin(ainc)
     h = np.zeros((3, 3))
     g = np.zeros(3)
     d_max = max_d
@@ -168,9 +171,12 @@ def align(
             r0, r1, r2 = ranges[k - 1], ranges[k], ranges[k + 1]
             if not (abs(r0 - r1) < 0.2 and abs(r2 - r1) < 0.2):  # NaN fails too
                 continue
-            x0, y0 = _beam_point(ranges, geom, k - 1)
-            x1, y1 = _beam_point(ranges, geom, k)
-            x2, y2 = _beam_point(ranges, geom, k + 1)
+            c1 = math.cos(amin + k * ainc)
+            s1 = math.sin(amin + k * ainc)
+            x1, y1 = r1 * c1, r1 * s1
+            # the neighbouring beams' directions by rotating beam k's by -+ ainc
+            x0, y0 = r0 * (c1 * ca + s1 * sa), r0 * (s1 * ca - c1 * sa)
+            x2, y2 = r2 * (c1 * ca - s1 * sa), r2 * (s1 * ca + c1 * sa)
             nx, ny = y0 - y2, x2 - x0
             norm = math.hypot(nx, ny)
             if norm == 0.0:
@@ -214,6 +220,23 @@ def _one_way(
 
 
 @nb.njit(cache=True, nogil=True)
+def precheck(
+    ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_b: NDArray[np.float64],
+    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+) -> bool:  # fmt: skip
+    """The cheap first look of :func:`verify_pose`: the first ``PRECHECK`` points of B
+    (stored evenly spread) with a tolerance of ``3·tolerance``; fails when fewer than
+    ``min_agreement`` of them agree or more than ``PRECHECK_CONFLICTS`` conflict. True when
+    the check is disabled."""
+    if vopt[0] == 0.0:
+        return True
+    pre = pts_b[:PRECHECK]
+    _, agree, conflict = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * vopt[1],
+                                        PRECHECK_CONFLICTS)  # fmt: skip
+    return agree >= vopt[2] * pre.shape[0] and conflict <= PRECHECK_CONFLICTS
+
+
+@nb.njit(cache=True, nogil=True)
 def verify_pose(
     ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_a: NDArray[np.float64],
     ranges_b: NDArray[np.float64], geom_b: NDArray[np.float64], pts_b: NDArray[np.float64],
@@ -222,8 +245,7 @@ def verify_pose(
     """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
 
     ``vopt`` = (enabled, tolerance, min_agreement, max_conflict, min_points,
-    align_iterations). First a cheap look at the first ``PRECHECK`` points of B (stored
-    evenly spread): fewer than ``min_agreement`` of them within ``3·tolerance`` rejects. Then the
+    align_iterations). First the cheap :func:`precheck`, then the
     pose is refined on A's scan (:func:`align`) and checked both ways. Returns
     ``(agreement, tx, ty, θ)``: the smaller share of agreeing points of the two directions
     and the refined pose, or agreement -1 when the check fails; 1.0 and the pose unchanged
@@ -231,12 +253,9 @@ def verify_pose(
     """
     if vopt[0] == 0.0:
         return 1.0, tx, ty, th
-    tol = vopt[1]
-    pre = pts_b[:PRECHECK]
-    _, agree, _ = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * tol, pre.shape[0])
-    if agree < vopt[2] * pre.shape[0]:
+    if not precheck(ranges_a, geom_a, pts_b, tx, ty, th, vopt):
         return -1.0, tx, ty, th
-    tx, ty, th = align(ranges_a, geom_a, pts_b, tx, ty, th, int(vopt[5]), 4.0 * tol)
+    tx, ty, th = align(ranges_a, geom_a, pts_b, tx, ty, th, int(vopt[5]), 4.0 * vopt[1])
     ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, vopt)
     if ab < 0.0:
         return -1.0, tx, ty, th
