@@ -3,7 +3,11 @@
 >>> from laser_corners.matching import register
 >>> # reg = register(scan_a, scan_b); reg.accepted, reg.n_inliers, reg.pose, reg.cov, reg.inliers
 
-See :mod:`laser_corners.matching.registration` for the pipeline and ``docs/matching.md``.
+See :mod:`laser_corners.matching.registration` for the pipeline,
+:mod:`laser_corners.matching.verify` for the scan check (``MatchOptions(verify_scan=True)``),
+:mod:`laser_corners.matching.batch` for place recognition over many scans
+(:func:`register_many`, :func:`register_pairs`, :data:`PLACE_RECOGNITION`) and
+``docs/matching.md``.
 """
 
 from laser_corners.matching.batch import (
