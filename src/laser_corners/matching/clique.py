@@ -9,7 +9,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.matching.core import _pair_fast, _popcount, _prepare
+from laser_corners.matching.core import _pair_fast, _prepare
+from laser_corners.matching.nearest import _popcount
 
 # exact maximum clique up to this many candidate matches (bitsets of one uint64 word)
 CLIQUE_EXACT_MAX = 64

@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.matching.clique import max_clique
-from laser_corners.matching.core import VERIFY_CLIQUE, _wrap, candidate_matches, ransac
+from laser_corners.matching.core import VERIFY_CLIQUE, _wrap, ransac
+from laser_corners.matching.nearest import candidate_matches
 from laser_corners.matching.verify import precheck, verify_pose
 
 # status codes of register_pair (the Python layer turns them into reason strings)
