@@ -3,7 +3,8 @@
 Usage::
 
     PYTHONPATH=src python benchmarks/registration_accuracy.py [--data ../shared/data/real]
-        [--preset auto] [--out docs/matching-registration.md]
+        [--preset auto] [--out docs/matching-registration.md] [--min-inliers N]
+        [--verify-scan] [--configs csc/ransac,bsc/clique]
 
 For ``fr079.bag`` and ``aces.bag`` the pairs are those of ``<name>.relations`` (ground truth,
 robot frame, mount = identity as in ``evaluate real``), split into local pairs (at most 10
@@ -43,6 +44,12 @@ def main() -> None:
     ap.add_argument("--preset", default="auto")
     ap.add_argument("--min-inliers", type=int, default=MatchOptions().min_inliers)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--verify-scan", action="store_true", help="MatchOptions(verify_scan=True)")
+    ap.add_argument(
+        "--configs",
+        default=",".join(f"{d}/{v}" for d, v in CONFIGS),
+        help="Comma-separated descriptor/verification pairs",
+    )
     args = ap.parse_args()
     root = Path(args.data)
     lines = [
@@ -75,10 +82,12 @@ def main() -> None:
         else:
             subsets = [("consecutive", consecutive_pairs(scans))]
         det = CornerDetector(get_preset(args.preset, scans[0]))
-        for (label, pairs), (desc, ver) in product(subsets, CONFIGS):
+        configs = [tuple(c.split("/")) for c in args.configs.split(",")]
+        for (label, pairs), (desc, ver) in product(subsets, configs):
             if not pairs:
                 continue
-            opts = MatchOptions(verification=ver, min_inliers=args.min_inliers)  # type: ignore[arg-type]
+            opts = MatchOptions(verification=ver, min_inliers=args.min_inliers,  # type: ignore[arg-type]
+                                verify_scan=args.verify_scan)  # fmt: skip
             res = registration_errors(scans, pairs, det, desc, opts, odometry=kind == "rel")
             s = res.summary()
             lines.append(

@@ -12,13 +12,19 @@ from typer.testing import CliRunner
 
 from laser_corners.cli import app
 from laser_corners.errors import InputError, InvalidParamsError, OutputError
-from laser_corners.eval.loop_descriptors import build_bank
-from laser_corners.eval.loop_match import score_query
-from laser_corners.eval.loops import LoopsConfig, evaluate_loops, loop_detectors, precision_recall
+from laser_corners.eval.loops import (
+    LOOPS_MATCH,
+    LoopsConfig,
+    evaluate_loops,
+    loop_bank,
+    loop_detectors,
+    precision_recall,
+)
 from laser_corners.eval.loops_report import check_output_dir, write_loops_report
-from laser_corners.eval.poses import compose
+from laser_corners.eval.poses import compose, invert
 from laser_corners.eval.revisits import candidates, revisits, travel_distance
 from laser_corners.io.arrays import write_scans_npz
+from laser_corners.matching import describe, register_keypoints, register_pairs
 from laser_corners.scan import LaserScan
 from laser_corners.sim import UST_10LX, World
 
@@ -127,18 +133,31 @@ def test_revisit_overlap_any_scan_direction() -> None:
 
 
 # ------------------------------------------------------------------ matcher
-def test_score_query_recovers_the_relative_pose(loop_scans: list[LaserScan]) -> None:
+def test_loop_matcher_recovers_the_relative_pose(loop_scans: list[LaserScan]) -> None:
+    """evaluate loops' pairs go through laser_corners.matching (register_pairs, scan check)."""
     detect = loop_detectors(["paper"], loop_scans[0])["paper"]
     kps = detect(loop_scans)
-    bank = build_bank(loop_scans, kps)
-    q, c = len(loop_scans) - 1, 4  # (3.5, 2, 0) against the scan at (3.4, 2, 0)
-    inliers, rel, _ = score_query(bank, q, np.array([c, 20]))
-    assert inliers[0] >= 4
-    est = compose(loop_scans[c].pose, tuple(rel[0]))  # type: ignore[arg-type]
-    truth = loop_scans[q].pose
+    bank = loop_bank(loop_scans, kps, LoopsConfig())
+    last = len(loop_scans) - 1
+    cands = np.arange(0, last - 20)
+    res = register_pairs(bank, np.full(cands.shape, last), cands, LOOPS_MATCH)
+    k = 4  # (3.5, 2, 0) against the scan at (3.4, 2, 0)
+    assert res.accepted[k] and res.n_inliers[k] >= 4 and res.agreement[k] > 0.8
+    truth = loop_scans[last].pose
     assert truth is not None
-    assert math.hypot(est[0] - truth[0], est[1] - truth[1]) < 0.05
-    assert abs(math.remainder(est[2] - truth[2], math.tau)) < math.radians(1.0)
+    # every accepted registration of this hall is right (the scan check rejects the others)
+    assert res.accepted.sum() >= 3
+    for j in np.flatnonzero(res.accepted):
+        est = compose(loop_scans[cands[j]].pose, invert(tuple(res.poses[j])))  # type: ignore[arg-type]
+        assert math.hypot(est[0] - truth[0], est[1] - truth[1]) < 0.1, j
+        assert abs(math.remainder(est[2] - truth[2], math.tau)) < math.radians(2.0), j
+    # the batch is the pairwise call, pair by pair
+    desc = [describe(s, kp)
+            for s, kp in ((loop_scans[last], kps[last]), (loop_scans[k], kps[k]))]  # fmt: skip
+    single = register_keypoints(kps[last], desc[0], kps[k], desc[1], LOOPS_MATCH,
+                                loop_scans[last], loop_scans[k])  # fmt: skip
+    assert single.accepted and single.n_inliers == res.n_inliers[k]
+    assert np.allclose(single.pose, res.poses[k]) and single.agreement == res.agreement[k]
 
 
 # ------------------------------------------------------------------ end to end
@@ -172,8 +191,8 @@ def test_evaluate_loops_finds_the_known_revisit(loop_scans: list[LaserScan], tmp
 def test_bad_input_and_options(loop_scans: list[LaserScan], tmp_path) -> None:
     with pytest.raises(InvalidParamsError, match="unknown method 'foo'"):
         evaluate_loops(loop_scans[:5], LoopsConfig(methods=("foo",)))
-    with pytest.raises(InvalidParamsError, match="min_inliers"):
-        LoopsConfig(min_inliers=1)
+    with pytest.raises(InvalidParamsError, match="thresholds"):
+        LoopsConfig(thresholds=(0, 2))
     no_pose = [LaserScan(s.ranges, s.angle_min, s.angle_increment, s.range_min, s.range_max)
                for s in loop_scans[:3]]  # fmt: skip
     with pytest.raises(InputError, match="fewer than two scans with a pose"):
@@ -206,12 +225,15 @@ def test_cli_evaluate_loops(loop_scans: list[LaserScan], tmp_path) -> None:
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output
 
 
-def test_matching_backend_finds_the_known_revisit(loop_scans: list[LaserScan]) -> None:
-    config = LoopsConfig(methods=("paper",), min_inliers=4, matcher="matching")
+def test_one_inlier_threshold_and_config_checks(loop_scans: list[LaserScan]) -> None:
+    config = LoopsConfig(methods=("paper",), min_inliers=1)
     result = evaluate_loops(loop_scans, config, "sim")
-    last = len(loop_scans) - 1
     paper = result.methods["paper"]
-    assert paper.best_inliers[last] >= 4 and paper.correct[last]
-    assert paper.position_error[last] < 0.05 and paper.angle_error[last] < math.radians(1)
-    with pytest.raises(InvalidParamsError, match="unknown matcher"):
-        LoopsConfig(matcher="flirt")
+    detected = paper.best_inliers >= 1
+    # detections are accepted registrations only, and in this hall all of them are right
+    assert detected.sum() >= 5 and paper.correct[detected].all()
+    assert np.all(paper.best_candidate[~detected] == -1)
+    with pytest.raises(InvalidParamsError, match="unknown descriptor"):
+        LoopsConfig(descriptor="sift")
+    with pytest.raises(InvalidParamsError, match="min_inliers"):
+        LoopsConfig(min_inliers=0)

@@ -11,7 +11,7 @@ from matching_world import corner_room
 from laser_corners import CornerDetector, LaserScan
 from laser_corners.errors import InvalidParamsError
 from laser_corners.matching import DescriptorParams, describe
-from laser_corners.matching.core import _distance
+from laser_corners.matching.nearest import _distance
 from laser_corners.sim import World
 
 

@@ -53,9 +53,9 @@ def evaluate_loops_command(
 ) -> None:
     """Place recognition with FLIRT's protocol on a log with corrected poses.
 
-    Each scan is registered against every scan outside its window; precision and recall over
-    the inlier threshold, per method, all through one descriptor and matcher
-    (docs/place-recognition.md).
+    Each scan is registered against every scan outside its window with laser_corners.matching
+    (scan check on); precision and recall over the inlier threshold, per method, all through
+    one descriptor and matcher (docs/place-recognition.md).
     """
     # the library is imported after the options are parsed, so that --help stays instant
     from laser_corners.eval.loops import LoopsConfig, evaluate_loops

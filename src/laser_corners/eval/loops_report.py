@@ -82,7 +82,7 @@ def _markdown(result: LoopsResult, rows: list[dict[str, Any]]) -> str:
         f"{result.n_scans} queries, {n_rev} with a revisit; window {cfg.window_travel:g} m of "
         f"travel; revisit: another scan sees >= {100 * cfg.revisit_overlap:g} % of the query's "
         f"points; correct within {cfg.max_position_error:g} m and {cfg.max_angle_error:g} rad; "
-        f"matcher `{cfg.matcher}`.",
+        f"descriptor `{cfg.descriptor}`, `laser_corners.matching` with the scan check.",
         "",
         "| method | kp/scan | T | precision | recall | T at P>=0.98 | recall at P>=0.98 "
         "| correct w/o revisit | pairs | ms/pair | s |",

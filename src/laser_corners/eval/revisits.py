@@ -20,6 +20,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.matching.verify import beam_of
 from laser_corners.scan import LaserScan
 
 __all__ = ["candidates", "revisits", "travel_distance"]
@@ -35,16 +36,6 @@ def travel_distance(poses: NDArray[np.float64]) -> NDArray[np.float64]:
 def candidates(travel: NDArray[np.float64], query: int, window_travel: float) -> NDArray[np.int64]:
     """Scans outside the query's window: at least ``window_travel`` metres of path away."""
     return np.flatnonzero(np.abs(travel - travel[query]) >= window_travel).astype(np.int64)
-
-
-@nb.njit(cache=True, nogil=True)
-def _beam_of(bearing: float, amin: float, ainc: float) -> float:
-    """Fractional beam index of a bearing (any sign of ``ainc``, any wrap of the scan)."""
-    d = bearing - amin
-    d = d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi))  # [0, 2 pi)
-    if ainc < 0.0:
-        d -= 2.0 * math.pi
-    return d / ainc
 
 
 @nb.njit(cache=True, nogil=True, parallel=True)
@@ -75,7 +66,7 @@ def _revisits(
                 my = poses[q, 1] + sq * pts[p, 0] + cq * pts[p, 1] - poses[j, 1]
                 x, y = cj * mx + sj * my, -sj * mx + cj * my
                 r = math.sqrt(x * x + y * y)
-                k = math.floor(_beam_of(math.atan2(y, x), amin, ainc) + 0.5)
+                k = math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5)
                 seen = False
                 if 0 <= k < n_beams and r < rmax:
                     rj = ranges[r_off[j] + k]

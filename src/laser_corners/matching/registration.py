@@ -8,23 +8,26 @@ Pipeline (numba, :mod:`laser_corners.matching.core` and :mod:`~laser_corners.mat
    are at most ``iterations`` of them, else seeded random pairs) or the maximum clique of
    pairwise-consistent matches (FALKO's CCDA: two matches agree when the distance between
    their keypoints in A and in B differ by at most ``tolerance``);
+   Hypotheses also come from one match alone (``single_point``): the rotation is the
+   difference of the two keypoints' orientations (bisectors), the translation follows;
 3. weighted least squares SE(2) (Gauss-Newton on the Mahalanobis residuals with the keypoint
    covariances ``C_a + R C_b Rᵀ``), the final inliers (residual <= ``tolerance``, one match
-   per keypoint) and the pose covariance ``(JᵀWJ)⁻¹``.
+   per keypoint) and the pose covariance ``(JᵀWJ)⁻¹``;
+4. optionally (``verify_scan``) the scans themselves: the refined pose must make the two
+   scans agree (:mod:`laser_corners.matching.verify`); the best ``max_hypotheses``
+   hypotheses are tried in turn.
 
 The pose is that of B's sensor frame in A's frame, ``p_A = R(θ)·p_B + t`` (the convention of
 :func:`laser_corners.eval.repeatability.pair_repeatability`).
 
-For place recognition (one query against thousands of scans) detect and describe every scan
-once, put them in a :class:`KeypointBank` and call :func:`register_many`: one numba call,
-parallel over candidates, with cheap rejects (too few keypoints, too few candidate matches)
-before any geometry.
+For place recognition (one query against thousands of scans) see
+:mod:`laser_corners.matching.batch` (:class:`KeypointBank`, :func:`register_many`,
+:func:`register_pairs`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -35,19 +38,12 @@ from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching.core import VERIFY_CLIQUE, VERIFY_RANSAC
 from laser_corners.matching.descriptors import DescriptorParams, Descriptors, describe
-from laser_corners.matching.solve import register_batch, register_pair
+from laser_corners.matching.solve import register_pair
+from laser_corners.matching.verify import ScanArrays, scan_arrays
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan, Pose2D
 
-__all__ = [
-    "BatchResult",
-    "KeypointBank",
-    "MatchOptions",
-    "Registration",
-    "register",
-    "register_keypoints",
-    "register_many",
-]
+__all__ = ["PLACE_RECOGNITION", "MatchOptions", "Registration", "register", "register_keypoints"]
 
 DEFAULT_MAX_DISTANCE = {"csc": 0.75, "bsc": 0.3}
 """Default ``MatchOptions.max_distance`` per descriptor kind."""
@@ -56,6 +52,7 @@ _REASONS = {
     1: "too few keypoints",
     2: "too few candidate matches",
     3: "too few geometrically consistent matches",
+    4: "the scans disagree with the pose",
 }
 
 
@@ -66,7 +63,8 @@ class MatchOptions:
     Attributes
     ----------
     min_inliers : int
-        Inliers needed to accept a registration [4] (at least 2 are always needed).
+        Inliers needed to accept a registration [4] (at least 2 without ``verify_scan``, 1
+        with it).
     tolerance : float
         Inlier tolerance, metres: largest residual of an inlier and largest disagreement of
         pairwise distances in the clique test [0.1].
@@ -95,6 +93,30 @@ class MatchOptions:
         Largest disagreement, radians, between the rotation of a hypothesis and the rotation
         a match implies by its two keypoint orientations (bisectors); also in the pairwise
         test of the clique. ``math.pi`` or more turns it off [0.5].
+    max_opening_difference : float
+        Largest difference of the opening angles of a candidate match, degrees [180: off].
+    single_point : bool
+        Also make a hypothesis from each match alone (rotation from the two keypoint
+        orientations) [True].
+    max_hypotheses : int
+        Hypotheses refined and, with ``verify_scan``, checked against the scans, best
+        first (distinct poses only) [3].
+    verify_scan : bool
+        Accept only a pose under which the two scans agree
+        (:mod:`laser_corners.matching.verify`; needs the scans) [False].
+    scan_tolerance : float
+        Range agreement of a scan point, metres [0.2].
+    min_scan_agreement : float
+        Share of the tested points that must agree, both ways [0.5].
+    max_scan_conflict : float
+        Largest share of the tested points seen through, both ways [0.05].
+    min_scan_points : int
+        Fewest points tested, both ways [20].
+    scan_points : int
+        Points per scan used by the check, evenly spread [90].
+    align_iterations : int
+        Gauss-Newton iterations refining the pose on the scans before the check (0: none;
+        the refined pose is the result) [3].
     """
 
     min_inliers: int = 4
@@ -109,26 +131,61 @@ class MatchOptions:
     seed: int = 0
     default_sigma: float = 0.03
     angle_tolerance: float = 0.5
+    max_opening_difference: float = 180.0
+    single_point: bool = True
+    max_hypotheses: int = 3
+    verify_scan: bool = False
+    scan_tolerance: float = 0.1
+    min_scan_agreement: float = 0.5
+    max_scan_conflict: float = 0.05
+    min_scan_points: int = 20
+    scan_points: int = 90
+    align_iterations: int = 3
 
     def __post_init__(self) -> None:
         if self.verification not in ("ransac", "clique"):
             raise InvalidParamsError(
                 f"verification must be 'ransac' or 'clique', got {self.verification!r}"
             )
-        if self.k_nearest < 1 or self.iterations < 1 or self.tolerance <= 0:
+        if (self.k_nearest < 1 or self.iterations < 1 or self.tolerance <= 0
+                or self.min_inliers < 1 or self.max_hypotheses < 1 or self.scan_points < 1
+                or self.scan_tolerance <= 0 or not 0 <= self.min_scan_agreement <= 1
+                or not 0 <= self.max_scan_conflict <= 1):  # fmt: skip
             raise InvalidParamsError(f"invalid match options: {self}")
 
-    def _args(self, kind: str) -> tuple:
+    def kernel_options(
+        self, kind: str
+    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+        """The options as the integer, float and scan-check vectors of the numba kernels
+        (:mod:`laser_corners.matching.solve`), for descriptors of ``kind``."""
         verify = VERIFY_CLIQUE if self.verification == "clique" else VERIFY_RANSAC
         max_distance = self.max_distance
         if max_distance is None:
             max_distance = DEFAULT_MAX_DISTANCE[kind]
-        return (
-            self.k_nearest, float(self.ratio), bool(self.mutual), float(max_distance),
-            verify, float(self.tolerance), float(self.min_separation), int(self.iterations),
-            int(self.seed), int(self.min_inliers), float(self.default_sigma) ** 2,
-            float(self.angle_tolerance),
-        )  # fmt: skip
+        iopt = np.array([self.k_nearest, int(self.mutual), verify, self.iterations, self.seed,
+                         self.min_inliers, int(self.single_point), self.max_hypotheses],
+                        dtype=np.int64)  # fmt: skip
+        fopt = np.array([self.ratio, max_distance, self.tolerance, self.min_separation,
+                         self.default_sigma**2, self.angle_tolerance,
+                         self.max_opening_difference], dtype=np.float64)  # fmt: skip
+        vopt = np.array([float(self.verify_scan), self.scan_tolerance, self.min_scan_agreement,
+                         self.max_scan_conflict, self.min_scan_points, self.align_iterations],
+                        dtype=np.float64)  # fmt: skip
+        return iopt, fopt, vopt
+
+
+PLACE_RECOGNITION = MatchOptions(
+    min_inliers=1,
+    k_nearest=2,
+    max_distance=0.4,
+    max_opening_difference=20.0,
+    max_hypotheses=2,
+    verify_scan=True,
+)
+"""Options for place recognition (one scan against a whole map, ``evaluate loops``): the
+scan check decides, so one inlier is enough; tighter candidate matches (two nearest,
+descriptor distance <= 0.4, opening angles within 20 degrees) keep the cost of the thousands
+of pairs per query low. Descriptor gate for ``csc``; pass ``max_distance`` for ``bsc``."""
 
 
 @dataclass(frozen=True)
@@ -151,6 +208,9 @@ class Registration:
         Inlier pairs (index in A's keypoints, index in B's keypoints).
     n_candidates : int
         Candidate matches before the geometric verification.
+    agreement : float
+        With ``verify_scan``: the share of tested scan points that agree (the smaller of the
+        two directions); 1.0 without the check; 0.0 when not accepted.
     """
 
     accepted: bool
@@ -160,6 +220,7 @@ class Registration:
     cov: NDArray[np.float64]
     inliers: NDArray[np.int64]
     n_candidates: int = 0
+    agreement: float = 0.0
 
 
 def _check_pair(kp: Keypoints, desc: Descriptors, name: str) -> None:
@@ -171,16 +232,21 @@ def _check_pair(kp: Keypoints, desc: Descriptors, name: str) -> None:
         )
 
 
-def _kp_args(k: Keypoints) -> tuple:
+NO_SCAN: ScanArrays = (np.zeros(0), np.zeros(4), np.zeros((0, 2)))
+"""Scan arrays of a side without a scan (the scan check must be off)."""
+
+
+def side_arrays(k: Keypoints, d: Descriptors, scan: ScanArrays = NO_SCAN) -> tuple:
+    """One scan as the kernels' side tuple (:mod:`laser_corners.matching.solve`)."""
     return (
-        np.ascontiguousarray(k.xy),
-        np.ascontiguousarray(k.cov),
+        np.ascontiguousarray(k.xy, dtype=np.float64),
+        np.ascontiguousarray(k.cov, dtype=np.float64),
         np.ascontiguousarray(k.orientation, dtype=np.float64),
+        np.ascontiguousarray(k.opening_angle_deg, dtype=np.float64),
+        np.ascontiguousarray(d.bits),
+        np.ascontiguousarray(d.values),
+        *scan,
     )
-
-
-def _desc_args(d: Descriptors) -> tuple:
-    return (np.ascontiguousarray(d.bits), np.ascontiguousarray(d.values))
 
 
 def register_keypoints(
@@ -189,6 +255,8 @@ def register_keypoints(
     kp_b: Keypoints,
     desc_b: Descriptors,
     options: MatchOptions | None = None,
+    scan_a: LaserScan | None = None,
+    scan_b: LaserScan | None = None,
 ) -> Registration:
     """Register keypoints B to keypoints A (each in its own sensor frame).
 
@@ -200,11 +268,19 @@ def register_keypoints(
         Their descriptors, of the same kind and size.
     options : MatchOptions, optional
         Matcher options.
+    scan_a, scan_b : LaserScan, optional
+        The scans of the keypoints; needed by ``options.verify_scan``.
 
     Returns
     -------
     Registration
-        Unaccepted (with a reason) when there are too few keypoints, matches or inliers.
+        Unaccepted (with a reason) when there are too few keypoints, matches or inliers, or
+        when the scans disagree with every hypothesis.
+
+    Raises
+    ------
+    InvalidScanError
+        Mismatched keypoints and descriptors, or ``verify_scan`` without both scans.
     """
     opt = options or MatchOptions()
     _check_pair(kp_a, desc_a, "A")
@@ -215,14 +291,19 @@ def register_keypoints(
         or (desc_a.values.shape[1] != desc_b.values.shape[1])
     ):
         raise InvalidScanError("register_keypoints: descriptors of A and B differ in kind or size")
+    scans = [NO_SCAN, NO_SCAN]
+    if opt.verify_scan:
+        if not (isinstance(scan_a, LaserScan) and isinstance(scan_b, LaserScan)):
+            raise InvalidScanError("register_keypoints: verify_scan needs scan_a and scan_b")
+        scans = [scan_arrays(scan_a, opt.scan_points), scan_arrays(scan_b, opt.scan_points)]
     pose = np.zeros(3)
     pose_cov = np.full((3, 3), np.nan)
     inl = np.empty((max(min(len(kp_a), len(kp_b)), 1), 2), dtype=np.int64)
     inv_bits = 1.0 / desc_a.n_bits if desc_a.n_bits else 0.0
-    status, n_inl, n_cand = register_pair(
-        desc_a.kind_code, inv_bits,
-        *_kp_args(kp_a), *_desc_args(desc_a), *_kp_args(kp_b), *_desc_args(desc_b),
-        *opt._args(desc_a.kind), pose, pose_cov, inl,
+    status, n_inl, n_cand, agreement = register_pair(
+        desc_a.kind_code, inv_bits, side_arrays(kp_a, desc_a, scans[0]),
+        side_arrays(kp_b, desc_b, scans[1]), *opt.kernel_options(desc_a.kind), pose, pose_cov,
+        inl,
     )  # fmt: skip
     if status != 0:
         return Registration(
@@ -231,7 +312,7 @@ def register_keypoints(
         )  # fmt: skip
     return Registration(
         True, "", int(n_inl), (float(pose[0]), float(pose[1]), float(pose[2])), pose_cov,
-        inl[:n_inl].copy(), int(n_cand),
+        inl[:n_inl].copy(), int(n_cand), float(agreement),
     )  # fmt: skip
 
 
@@ -256,7 +337,7 @@ def register(
     descriptor : {"csc", "bsc"} or DescriptorParams
         Descriptor (see :mod:`laser_corners.matching.descriptors`).
     options : MatchOptions, optional
-        Matcher options.
+        Matcher options (``MatchOptions(verify_scan=True)`` adds the scan check).
 
     Returns
     -------
@@ -282,118 +363,4 @@ def register(
     kp_b = det.detect(scan_b)
     d_a = describe(scan_a, kp_a, descriptor)
     d_b = describe(scan_b, kp_b, descriptor)
-    return register_keypoints(kp_a, d_a, kp_b, d_b, options)
-
-
-@dataclass
-class KeypointBank:
-    """Keypoints and descriptors of many scans in flat arrays, for :func:`register_many`.
-
-    Build it once per log with :meth:`from_lists`; candidate ``c`` owns rows
-    ``offsets[c]:offsets[c+1]``.
-    """
-
-    kind: str
-    n_bits: int
-    xy: NDArray[np.float64]
-    cov: NDArray[np.float64]
-    orientation: NDArray[np.float64]
-    bits: NDArray[np.uint64]
-    values: NDArray[np.float64]
-    offsets: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, np.int64))
-
-    def __len__(self) -> int:
-        return int(self.offsets.shape[0] - 1)
-
-    @classmethod
-    def from_lists(
-        cls, keypoints: Sequence[Keypoints], descriptors: Sequence[Descriptors]
-    ) -> KeypointBank:
-        """Concatenate per-scan keypoints and descriptors (all of one descriptor kind)."""
-        if len(keypoints) != len(descriptors) or not descriptors:
-            raise InvalidScanError("KeypointBank: need as many descriptor sets as keypoint sets")
-        kinds = {d.kind for d in descriptors}
-        if len(kinds) != 1:
-            raise InvalidScanError(f"KeypointBank: mixed descriptor kinds {sorted(kinds)}")
-        for i, (k, d) in enumerate(zip(keypoints, descriptors, strict=True)):
-            if len(k) != len(d):
-                raise InvalidScanError(
-                    f"KeypointBank: scan {i} has {len(k)} keypoints, {len(d)} descriptors"
-                )
-        counts = np.array([len(k) for k in keypoints], dtype=np.int64)
-        offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        return cls(
-            descriptors[0].kind,
-            descriptors[0].n_bits,
-            np.ascontiguousarray(np.concatenate([k.xy for k in keypoints])),
-            np.ascontiguousarray(np.concatenate([k.cov for k in keypoints])),
-            np.ascontiguousarray(
-                np.concatenate([k.orientation for k in keypoints]), dtype=np.float64
-            ),
-            np.ascontiguousarray(np.concatenate([d.bits for d in descriptors])),
-            np.ascontiguousarray(np.concatenate([d.values for d in descriptors])),
-            offsets,
-        )
-
-
-@dataclass(frozen=True)
-class BatchResult:
-    """Results of :func:`register_many`, one entry per candidate asked for.
-
-    Attributes
-    ----------
-    candidates : ndarray, int64
-        Candidate indices into the bank.
-    accepted : ndarray of bool
-    n_inliers : ndarray, int64
-    poses : ndarray, shape (C, 3)
-        Pose of the candidate's sensor frame in the query's frame (zeros if not accepted).
-    covs : ndarray, shape (C, 3, 3)
-    """
-
-    candidates: NDArray[np.int64]
-    accepted: NDArray[np.bool_]
-    n_inliers: NDArray[np.int64]
-    poses: NDArray[np.float64]
-    covs: NDArray[np.float64]
-
-
-def register_many(
-    kp_a: Keypoints,
-    desc_a: Descriptors,
-    bank: KeypointBank,
-    candidates: NDArray[np.int64] | Sequence[int] | None = None,
-    options: MatchOptions | None = None,
-) -> BatchResult:
-    """Register every candidate scan of ``bank`` to the query (A) in one numba call.
-
-    Parallel over candidates (all cores numba is allowed). The common reject (too few
-    candidate matches) costs the descriptor distance matrix only, M_a x M_b distances.
-    ``poses[c]`` is the pose of candidate c's sensor frame in the query's frame; use
-    ``n_inliers`` as the score (place recognition: the candidate with the most inliers).
-    """
-    opt = options or MatchOptions()
-    _check_pair(kp_a, desc_a, "the query")
-    if desc_a.kind != bank.kind:
-        raise InvalidScanError(
-            f"register_many: query descriptors are {desc_a.kind}, bank {bank.kind}"
-        )
-    which = (np.arange(len(bank), dtype=np.int64) if candidates is None
-             else np.ascontiguousarray(candidates, dtype=np.int64))  # fmt: skip
-    if which.size and (which.min() < 0 or which.max() >= len(bank)):
-        raise InvalidScanError(f"register_many: candidate index out of range 0..{len(bank) - 1}")
-    c = which.shape[0]
-    status = np.zeros(c, dtype=np.int64)
-    n_inl = np.zeros(c, dtype=np.int64)
-    poses = np.zeros((c, 3))
-    covs = np.full((c, 3, 3), np.nan)
-    inv_bits = 1.0 / bank.n_bits if bank.n_bits else 0.0
-    register_batch(
-        1 if bank.kind == "csc" else 0, inv_bits,
-        *_kp_args(kp_a), *_desc_args(desc_a),
-        bank.xy, bank.cov, bank.orientation, bank.bits, bank.values, bank.offsets, which,
-        *opt._args(bank.kind), status, n_inl, poses, covs,
-    )  # fmt: skip
-    accepted = status == 0
-    poses[~accepted] = 0.0
-    return BatchResult(which, accepted, n_inl, poses, covs)
+    return register_keypoints(kp_a, d_a, kp_b, d_b, options, scan_a, scan_b)

@@ -1,8 +1,17 @@
 """numba kernels: weighted least-squares SE(2) and the whole pairwise registration.
 
-:func:`register_pair` is the per-pair pipeline (candidate matches -> verification -> WLS ->
-final inliers); :func:`register_batch` runs it for one query against many candidates in one
-call, in parallel over the candidates (``numba.prange``).
+:func:`register_pair` is the per-pair pipeline (candidate matches -> hypotheses -> WLS ->
+final inliers -> scan verification); :func:`register_batch` runs it for any list of
+(query, candidate) pairs of two keypoint banks in one call, in parallel over the pairs
+(``numba.prange``).
+
+A *side* (one scan) is the tuple ``(xy, cov, orientation, opening, bits, values, ranges,
+geometry, points)``; a *bank* (many scans) is ``(xy, cov, orientation, opening, bits, values,
+offsets, ranges, range_offsets, geometry, points, point_offsets)``. Integer options ``iopt`` =
+(k_nearest, mutual, verification, iterations, seed, min_inliers, single, max_hypotheses);
+float options ``fopt`` = (ratio, max_distance, tolerance, min_separation, default_var,
+angle_tolerance, max_opening_difference); scan options ``vopt`` as
+:func:`laser_corners.matching.verify.verify_pose`.
 """
 
 from __future__ import annotations
@@ -13,19 +22,17 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.matching.core import (
-    VERIFY_CLIQUE,
-    _wrap,
-    candidate_matches,
-    max_clique,
-    ransac,
-)
+from laser_corners.matching.clique import max_clique
+from laser_corners.matching.core import VERIFY_CLIQUE, _wrap, ransac
+from laser_corners.matching.nearest import candidate_matches
+from laser_corners.matching.verify import precheck, verify_pose
 
 # status codes of register_pair (the Python layer turns them into reason strings)
 OK = 0
 FEW_KEYPOINTS = 1
 FEW_CANDIDATES = 2
 FEW_INLIERS = 3
+SCAN_DISAGREES = 4
 
 
 @nb.njit(cache=True, nogil=True)
@@ -161,115 +168,169 @@ def _rotation_support(
 
 
 @nb.njit(cache=True, nogil=True)
-def register_pair(
-    kind: int, inv_bits: float,
-    xa: NDArray[np.float64], cov_a: NDArray[np.float64], oa: NDArray[np.float64],
-    bits_a: NDArray[np.uint64], vals_a: NDArray[np.float64],
-    xb: NDArray[np.float64], cov_b: NDArray[np.float64], ob: NDArray[np.float64],
-    bits_b: NDArray[np.uint64], vals_b: NDArray[np.float64],
-    k_nearest: int, ratio: float, mutual: bool, max_distance: float,
-    verify: int, tol: float, min_sep: float, iterations: int, seed: int,
-    min_inliers: int, default_var: float, angle_tol: float,
-    pose: NDArray[np.float64], pose_cov: NDArray[np.float64], inliers: NDArray[np.int64],
-) -> tuple[int, int, int]:  # fmt: skip
-    """Register B to A; returns ``(status, n_inliers, n_candidates)``.
+def _clique_pose(
+    xa: NDArray[np.float64], xb: NDArray[np.float64], cov_a: NDArray[np.float64],
+    cov_b: NDArray[np.float64], oa: NDArray[np.float64], ob: NDArray[np.float64],
+    m: NDArray[np.int64], sel: NDArray[np.int64], n_sel: int, default_var: float,
+    pose_cov: NDArray[np.float64],
+) -> tuple[float, float, float]:  # fmt: skip
+    """Pose of a clique: WLS from the rotation of its two farthest-apart matches (one match:
+    the rotation of its keypoint orientations)."""
+    p0 = sel[0]
+    if n_sel < 2:
+        th = oa[m[p0, 0]] - ob[m[p0, 1]]
+        c = math.cos(th)
+        s = math.sin(th)
+        bx = xb[m[p0, 1], 0]
+        by = xb[m[p0, 1], 1]
+        return xa[m[p0, 0], 0] - (c * bx - s * by), xa[m[p0, 0], 1] - (s * bx + c * by), th
+    q0 = sel[1]
+    best = -1.0
+    for u in range(n_sel):
+        for v in range(u + 1, n_sel):
+            d = math.hypot(xa[m[sel[u], 0], 0] - xa[m[sel[v], 0], 0],
+                           xa[m[sel[u], 0], 1] - xa[m[sel[v], 0], 1])  # fmt: skip
+            if d > best:
+                best = d
+                p0 = sel[u]
+                q0 = sel[v]
+    th = math.atan2(xa[m[q0, 0], 1] - xa[m[p0, 0], 1], xa[m[q0, 0], 0] - xa[m[p0, 0], 0])
+    th -= math.atan2(xb[m[q0, 1], 1] - xb[m[p0, 1], 1], xb[m[q0, 1], 0] - xb[m[p0, 1], 0])
+    return wls_pose(xa, xb, cov_a, cov_b, m, sel, n_sel, 0.0, 0.0, th, default_var, pose_cov)
 
-    ``pose`` (3) receives (tx, ty, θ) of B in A, ``pose_cov`` (3, 3) its covariance,
-    ``inliers`` (at least min(M_a, M_b) rows, 2 columns) the inlier pairs. Cheap rejects
-    first: fewer than max(2, min_inliers) keypoints on either side, then fewer candidate
-    matches than that.
-    """
-    need = max(2, min_inliers)
-    na = xa.shape[0]
-    nb_ = xb.shape[0]
-    if na < need or nb_ < need:
-        return 1, 0, 0
-    m = np.empty((na * max(k_nearest, 1), 2), dtype=np.int64)
-    n = candidate_matches(
-        kind, bits_a, vals_a, bits_b, vals_b, inv_bits, k_nearest, ratio, mutual,
-        max_distance, m,
-    )  # fmt: skip
-    if n < need:
-        return 2, 0, n
-    # cheap reject: inliers imply one rotation, so at least `need` matches must agree on the
-    # rotation given by their keypoint orientations (bisectors) within angle_tol
-    if angle_tol < math.pi and _rotation_support(oa, ob, m, n, angle_tol) < need:
-        return 3, 0, n
-    sel = np.empty(n, dtype=np.int64)
-    if verify == VERIFY_CLIQUE:
-        n_sel = max_clique(xa, xb, m, n, tol, min_sep, sel, oa, ob, angle_tol)
-        if n_sel < need:
-            return 3, n_sel, n
-        # initial pose from the clique's two farthest-apart matches
-        p0 = sel[0]
-        q0 = sel[1]
-        best = -1.0
-        for u in range(n_sel):
-            for v in range(u + 1, n_sel):
-                d = math.hypot(xa[m[sel[u], 0], 0] - xa[m[sel[v], 0], 0],
-                               xa[m[sel[u], 0], 1] - xa[m[sel[v], 0], 1])  # fmt: skip
-                if d > best:
-                    best = d
-                    p0 = sel[u]
-                    q0 = sel[v]
-        th = math.atan2(xa[m[q0, 0], 1] - xa[m[p0, 0], 1], xa[m[q0, 0], 0] - xa[m[p0, 0], 0])
-        th -= math.atan2(xb[m[q0, 1], 1] - xb[m[p0, 1], 1], xb[m[q0, 1], 0] - xb[m[p0, 1], 0])
-        tx, ty, th = wls_pose(xa, xb, cov_a, cov_b, m, sel, n_sel,
-                              0.0, 0.0, th, default_var, pose_cov)  # fmt: skip
-    else:
-        tx, ty, th, cnt = ransac(xa, xb, m, n, tol, min_sep, iterations, seed, oa, ob, angle_tol)
-        if cnt < need:
-            return 3, cnt, n
-    # final inliers and two WLS rounds (the second on the inliers of the first)
+
+@nb.njit(cache=True, nogil=True)
+def _refine(
+    xa: NDArray[np.float64], xb: NDArray[np.float64], cov_a: NDArray[np.float64],
+    cov_b: NDArray[np.float64], oa: NDArray[np.float64], ob: NDArray[np.float64],
+    m: NDArray[np.int64], n: int, tx: float, ty: float, th: float, tol: float,
+    angle_tol: float, need: int, default_var: float, sel: NDArray[np.int64],
+    pose_cov: NDArray[np.float64],
+) -> tuple[int, float, float, float]:  # fmt: skip
+    """Final inliers and two WLS rounds (the second on the inliers of the first); returns
+    ``(n_inliers, tx, ty, θ)`` (``sel`` holds the inliers). With one inlier the WLS cannot
+    fix the rotation: the pose stays, ``pose_cov`` is infinite."""
     for _ in range(2):
         n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
         if n_sel < need:
-            return 3, n_sel, n
-        tx, ty, th = wls_pose(
-            xa, xb, cov_a, cov_b, m, sel, n_sel, tx, ty, th, default_var, pose_cov
-        )
+            return n_sel, tx, ty, th
+        tx, ty, th = wls_pose(xa, xb, cov_a, cov_b, m, sel, n_sel, tx, ty, th, default_var,
+                              pose_cov)  # fmt: skip
     n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
-    if n_sel < need:
-        return 3, n_sel, n
-    pose[0] = tx
-    pose[1] = ty
-    pose[2] = th
-    for q in range(n_sel):
-        inliers[q, 0] = m[sel[q], 0]
-        inliers[q, 1] = m[sel[q], 1]
-    return 0, n_sel, n
+    return n_sel, tx, ty, th
+
+
+@nb.njit(cache=True, nogil=True)
+def _hypotheses(
+    a: tuple, b: tuple, m: NDArray[np.int64], n: int, iopt: NDArray[np.int64],
+    fopt: NDArray[np.float64], sel: NDArray[np.int64], hyp: NDArray[np.float64],
+    counts: NDArray[np.int64], pose_cov: NDArray[np.float64],
+) -> int:  # fmt: skip
+    """The verification's pose hypotheses, best first (RANSAC: up to ``max_hypotheses``;
+    clique: one); returns how many."""
+    xa, cov_a, oa = a[0], a[1], a[2]
+    xb, cov_b, ob = b[0], b[1], b[2]
+    tol, min_sep, default_var, angle_tol = fopt[2], fopt[3], fopt[4], fopt[5]
+    if iopt[2] == VERIFY_CLIQUE:
+        n_sel = max_clique(xa, xb, m, n, tol, min_sep, sel, oa, ob, angle_tol)
+        if n_sel == 0:
+            return 0
+        tx, ty, th = _clique_pose(xa, xb, cov_a, cov_b, oa, ob, m, sel, n_sel, default_var,
+                                  pose_cov)  # fmt: skip
+        hyp[0, 0], hyp[0, 1], hyp[0, 2] = tx, ty, th
+        counts[0] = n_sel
+        return 1
+    return ransac(xa, xb, m, n, tol, min_sep, iopt[3], iopt[4], oa, ob, angle_tol,
+                  iopt[6] != 0, hyp, counts)  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True)
+def register_pair(
+    kind: int, inv_bits: float, a: tuple, b: tuple, iopt: NDArray[np.int64],
+    fopt: NDArray[np.float64], vopt: NDArray[np.float64], pose: NDArray[np.float64],
+    pose_cov: NDArray[np.float64], inliers: NDArray[np.int64],
+) -> tuple[int, int, int, float]:  # fmt: skip
+    """Register side B to side A; returns ``(status, n_inliers, n_candidates, agreement)``.
+
+    ``pose`` (3) receives (tx, ty, θ) of B in A, ``pose_cov`` (3, 3) its covariance,
+    ``inliers`` (at least min(M_a, M_b) rows, 2 columns) the inlier pairs. Cheap rejects
+    first: too few keypoints on either side, then too few candidate matches, then too few
+    matches agreeing on a rotation. The hypotheses are then refined (WLS) and, with the scan
+    check on, verified against the scans, best first; the first that passes is the result.
+    """
+    xa, cov_a, oa, open_a, bits_a, vals_a = a[0], a[1], a[2], a[3], a[4], a[5]
+    xb, cov_b, ob, open_b, bits_b, vals_b = b[0], b[1], b[2], b[3], b[4], b[5]
+    ratio, max_distance, tol, default_var, angle_tol = fopt[0], fopt[1], fopt[2], fopt[4], fopt[5]
+    need = max(1 if vopt[0] != 0.0 else 2, iopt[5])
+    na = xa.shape[0]
+    nb_ = xb.shape[0]
+    if na < need or nb_ < need:
+        return FEW_KEYPOINTS, 0, 0, 0.0
+    m = np.empty((na * max(iopt[0], 1), 2), dtype=np.int64)
+    n = candidate_matches(kind, bits_a, vals_a, bits_b, vals_b, inv_bits, iopt[0], ratio,
+                          iopt[1] != 0, max_distance, m, open_a, open_b, fopt[6])  # fmt: skip
+    if n < need:
+        return FEW_CANDIDATES, 0, n, 0.0
+    # inliers imply one rotation, so at least `need` matches must agree on the rotation
+    # given by their keypoint orientations (bisectors) within angle_tol
+    if angle_tol < math.pi and _rotation_support(oa, ob, m, n, angle_tol) < need:
+        return FEW_INLIERS, 0, n, 0.0
+    sel = np.empty(n, dtype=np.int64)
+    hyp = np.empty((max(iopt[7], 1), 3))
+    counts = np.zeros(max(iopt[7], 1), dtype=np.int64)
+    nk = _hypotheses(a, b, m, n, iopt, fopt, sel, hyp, counts, pose_cov)
+    status = FEW_INLIERS
+    best_n = 0
+    for h in range(nk):
+        if counts[h] < need:
+            break
+        if not precheck(a[6], a[7], b[8], hyp[h, 0], hyp[h, 1], hyp[h, 2], vopt):
+            status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
+            continue
+        n_sel, tx, ty, th = _refine(xa, xb, cov_a, cov_b, oa, ob, m, n, hyp[h, 0], hyp[h, 1],
+                                    hyp[h, 2], tol, angle_tol, need, default_var, sel,
+                                    pose_cov)  # fmt: skip
+        best_n = max(best_n, n_sel)
+        if n_sel < need:
+            continue
+        agreement, tx, ty, th = verify_pose(a[6], a[7], a[8], b[6], b[7], b[8], tx, ty, th,
+                                            vopt)  # fmt: skip
+        if agreement < 0.0:
+            status = SCAN_DISAGREES
+            continue
+        pose[0], pose[1], pose[2] = tx, ty, th
+        for q in range(n_sel):
+            inliers[q, 0] = m[sel[q], 0]
+            inliers[q, 1] = m[sel[q], 1]
+        return OK, n_sel, n, agreement
+    return status, best_n if status == FEW_INLIERS else 0, n, 0.0
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _side(bank: tuple, s: int) -> tuple:
+    """Scan ``s`` of a bank as a side."""
+    lo, hi = bank[6][s], bank[6][s + 1]
+    r0, r1 = bank[8][s], bank[8][s + 1]
+    p0, p1 = bank[11][s], bank[11][s + 1]
+    return (bank[0][lo:hi], bank[1][lo:hi], bank[2][lo:hi], bank[3][lo:hi], bank[4][lo:hi],
+            bank[5][lo:hi], bank[7][r0:r1], bank[9][s], bank[10][p0:p1])  # fmt: skip
 
 
 @nb.njit(cache=True, parallel=True)
 def register_batch(
-    kind: int, inv_bits: float,
-    xa: NDArray[np.float64], cov_a: NDArray[np.float64], oa: NDArray[np.float64],
-    bits_a: NDArray[np.uint64], vals_a: NDArray[np.float64],
-    xb: NDArray[np.float64], cov_b: NDArray[np.float64], ob: NDArray[np.float64],
-    bits_b: NDArray[np.uint64], vals_b: NDArray[np.float64],
-    offsets: NDArray[np.int64], which: NDArray[np.int64],
-    k_nearest: int, ratio: float, mutual: bool, max_distance: float,
-    verify: int, tol: float, min_sep: float, iterations: int, seed: int,
-    min_inliers: int, default_var: float, angle_tol: float,
-    status: NDArray[np.int64], n_inliers: NDArray[np.int64], poses: NDArray[np.float64],
-    pose_covs: NDArray[np.float64],
+    kind: int, inv_bits: float, bank_a: tuple, bank_b: tuple, qa: NDArray[np.int64],
+    cb: NDArray[np.int64], iopt: NDArray[np.int64], fopt: NDArray[np.float64],
+    vopt: NDArray[np.float64], status: NDArray[np.int64], n_inliers: NDArray[np.int64],
+    poses: NDArray[np.float64], pose_covs: NDArray[np.float64], agreement: NDArray[np.float64],
 ) -> None:  # fmt: skip
-    """:func:`register_pair` of A against the candidates ``which`` of a bank.
-
-    The bank's keypoints of candidate c are rows ``offsets[c]:offsets[c+1]`` of ``xb``,
-    ``cov_b``, ``bits_b``, ``vals_b``. Outputs are indexed like ``which``.
-    """
-    for t in nb.prange(which.shape[0]):
-        c = which[t]
-        lo = offsets[c]
-        hi = offsets[c + 1]
-        inl = np.empty((max(min(xa.shape[0], hi - lo), 1), 2), dtype=np.int64)
-        bb = bits_b[lo:hi]
-        vb = vals_b[lo:hi]
-        st, k, _ = register_pair(
-            kind, inv_bits, xa, cov_a, oa, bits_a, vals_a, xb[lo:hi], cov_b[lo:hi], ob[lo:hi],
-            bb, vb, k_nearest, ratio, mutual, max_distance, verify, tol, min_sep, iterations,
-            seed, min_inliers, default_var, angle_tol, poses[t], pose_covs[t], inl,
-        )  # fmt: skip
+    """:func:`register_pair` of scan ``qa[t]`` of ``bank_a`` (A) and scan ``cb[t]`` of
+    ``bank_b`` (B) for every t, in parallel; outputs are indexed by t."""
+    for t in nb.prange(qa.shape[0]):
+        a = _side(bank_a, qa[t])
+        b = _side(bank_b, cb[t])
+        inl = np.empty((max(min(a[0].shape[0], b[0].shape[0]), 1), 2), dtype=np.int64)
+        st, k, _, agr = register_pair(kind, inv_bits, a, b, iopt, fopt, vopt, poses[t],
+                                      pose_covs[t], inl)  # fmt: skip
         status[t] = st
         n_inliers[t] = k
+        agreement[t] = agr

@@ -1,0 +1,268 @@
+"""Scan verification of a registration: do the two scans agree under the estimated pose?
+
+A keypoint hypothesis (one match with its orientation, or two matches) fixes an SE(2) pose
+from a handful of points; the scans themselves then say whether it is right. The points of
+scan B, moved into A's sensor frame by the pose, are looked up along A's beams
+(:func:`scan_agreement`, an O(points) numba loop):
+
+* a point is **tested** when it lies inside A's field of view and range interval and A has a
+  valid return on its beam or on one of the two neighbouring beams;
+* it **agrees** when one of those returns is within ``tolerance`` of the point's range
+  (the same surface; the neighbouring beams absorb small rotation errors and grazing walls);
+* it **conflicts** ("seen through") when it is closer than every one of those returns by more
+  than ``tolerance``: A's beams went through the place where B saw a surface;
+* otherwise it is occluded in A (behind A's return) and says nothing.
+
+The check runs both ways (B into A and A into B); the registration passes when, in both
+directions, at least ``min_points`` points were tested, at least ``min_agreement`` of them
+agree and at most ``max_conflict`` of them conflict. The *agreement* of the registration is
+the smaller of the two agreement fractions.
+
+Scans enter the kernels as flat arrays (:func:`scan_arrays`): the ranges (NaN where there is
+no valid return), the geometry ``(angle_min, angle_increment, range_min, range_max)`` and up to
+``max_points`` valid points, evenly spread over the beams.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.scan import LaserScan
+
+__all__ = [
+    "ScanArrays",
+    "align",
+    "beam_of",
+    "precheck",
+    "scan_agreement",
+    "scan_arrays",
+    "verify_pose",
+]
+
+PRECHECK = 16
+"""Points of the cheap first look of :func:`verify_pose`."""
+PRECHECK_CONFLICTS = 2
+"""Conflicts allowed among them (with the first look's loose tolerance)."""
+
+ScanArrays = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
+"""``(ranges, geometry, points)`` of one scan, as :func:`scan_arrays` returns them."""
+
+
+def scan_arrays(scan: LaserScan, max_points: int = 90) -> ScanArrays:
+    """Flat arrays of ``scan`` for the verification kernels.
+
+    Parameters
+    ----------
+    scan : LaserScan
+        The scan.
+    max_points : int
+        The valid points are evenly thinned to at most this many.
+
+    Returns
+    -------
+    ranges : ndarray, shape (N,)
+        Ranges, NaN where the beam has no valid return.
+    geometry : ndarray, shape (4,)
+        ``angle_min, angle_increment, range_min, range_max``.
+    points : ndarray, shape (P, 2)
+        Valid points (sensor frame), at most ``max_points``.
+    """
+    xy, valid = scan.to_cartesian()
+    pts = xy[valid]
+    if len(pts) > max_points:
+        pts = pts[np.linspace(0, len(pts) - 1, max_points).round().astype(np.int64)]
+    # interleaved order: any prefix is spread over the whole scan (the cheap first look)
+    stride = max(1, len(pts) // PRECHECK)
+    pts = pts[np.argsort(np.arange(len(pts)) % stride, kind="stable")]
+    ranges = np.where(valid, scan.ranges, np.nan).astype(np.float64)
+    geom = np.array(
+        [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max], dtype=np.float64
+    )
+    return ranges, geom, np.ascontiguousarray(pts, dtype=np.float64)
+
+
+@nb.njit(cache=True, nogil=True)
+def beam_of(bearing: float, amin: float, ainc: float) -> float:
+    """Fractional beam index of a bearing (any sign of ``ainc``, any wrap of the scan)."""
+    d = bearing - amin
+    d = d - 2.0 * math.pi * math.floor(d / (2.0 * math.pi))  # [0, 2 pi)
+    if ainc < 0.0:
+        d -= 2.0 * math.pi
+    return d / ainc
+
+
+@nb.njit(cache=True, nogil=True)
+def scan_agreement(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
+    tx: float, ty: float, th: float, tol: float, max_conflicts: int,
+) -> tuple[int, int, int]:  # fmt: skip
+    """Points ``pts`` (another scan's frame), moved by ``p' = R(th)·p + t``, looked up along
+    the beams of the scan ``(ranges, geom)``; returns ``(tested, agree, conflict)``.
+
+    Stops early (returning what it counted) once ``conflict`` exceeds ``max_conflicts``.
+    """
+    n = ranges.shape[0]
+    amin, ainc, rmin, rmax = geom[0], geom[1], geom[2], geom[3]
+    c = math.cos(th)
+    s = math.sin(th)
+    tested = 0
+    agree = 0
+    conflict = 0
+    for p in range(pts.shape[0]):
+        x = c * pts[p, 0] - s * pts[p, 1] + tx
+        y = s * pts[p, 0] + c * pts[p, 1] + ty
+        r = math.sqrt(x * x + y * y)
+        if not rmin < r < rmax:
+            continue
+        k = math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5)
+        if k < 0 or k >= n:
+            continue
+        best = math.inf
+        nearest = math.inf
+        for j in range(max(k - 1, 0), min(k + 2, n)):
+            rj = ranges[j]
+            if rj == rj:  # not NaN: a valid return
+                best = min(best, abs(rj - r))
+                nearest = min(nearest, rj)
+        if nearest == math.inf:
+            continue
+        tested += 1
+        if best <= tol:
+            agree += 1
+        elif r < nearest - tol:
+            conflict += 1
+            if conflict > max_conflicts:
+                break
+    return tested, agree, conflict
+
+
+@nb.njit(cache=True, nogil=True)
+def align(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
+    tx: float, ty: float, th: float, iterations: int, max_d: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Refine ``p' = R(th)·p + t`` of ``pts`` onto the scan ``(ranges, geom)``: Gauss-Newton
+    on point-to-line distances, each moved point paired with the return on its beam (the
+    line through the two neighbouring returns), pairs farther than ``max_d`` (halved at each
+    iteration, not below 0.05 m) left out. Returns the pose unchanged when under-determined."""
+    n = ranges.shape[0]
+    amin, ainc = geom[0], geom[1]
+    ca, sa = math.cos(ainc), math.sin(ainc)
+    h = np.zeros((3, 3))
+    g = np.zeros(3)
+    d_max = max_d
+    for _ in range(iterations):
+        h[:, :] = 0.0
+        g[:] = 0.0
+        c = math.cos(th)
+        s = math.sin(th)
+        used = 0
+        for p in range(pts.shape[0]):
+            bx, by = pts[p, 0], pts[p, 1]
+            x = c * bx - s * by + tx
+            y = s * bx + c * by + ty
+            k = math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5)
+            if k < 1 or k >= n - 1:
+                continue
+            r0, r1, r2 = ranges[k - 1], ranges[k], ranges[k + 1]
+            if not (abs(r0 - r1) < 0.2 and abs(r2 - r1) < 0.2):  # NaN fails too
+                continue
+            c1 = math.cos(amin + k * ainc)
+            s1 = math.sin(amin + k * ainc)
+            x1, y1 = r1 * c1, r1 * s1
+            # the neighbouring beams' directions by rotating beam k's by -+ ainc
+            x0, y0 = r0 * (c1 * ca + s1 * sa), r0 * (s1 * ca - c1 * sa)
+            x2, y2 = r2 * (c1 * ca - s1 * sa), r2 * (s1 * ca + c1 * sa)
+            nx, ny = y0 - y2, x2 - x0
+            norm = math.hypot(nx, ny)
+            if norm == 0.0:
+                continue
+            nx /= norm
+            ny /= norm
+            e = nx * (x - x1) + ny * (y - y1)
+            if abs(e) > d_max:
+                continue
+            # d e / d(tx, ty, th)
+            j = (nx, ny, nx * (-s * bx - c * by) + ny * (c * bx - s * by))
+            for u in range(3):
+                g[u] += j[u] * e
+                for v in range(3):
+                    h[u, v] += j[u] * j[v]
+            used += 1
+        if used < 6 or not abs(np.linalg.det(h)) > 1e-9:
+            break
+        step = np.linalg.solve(h, g)
+        tx -= step[0]
+        ty -= step[1]
+        th -= step[2]
+        d_max = max(0.5 * d_max, 0.05)
+    return tx, ty, th
+
+
+@nb.njit(cache=True, nogil=True)
+def _one_way(
+    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
+    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+) -> float:  # fmt: skip
+    """Share of ``pts`` that agree with the scan ``(ranges, geom)``; -1 when the check fails."""
+    tol, min_agree, max_conflict, min_points = vopt[1], vopt[2], vopt[3], vopt[4]
+    tested, agree, conflict = scan_agreement(
+        ranges, geom, pts, tx, ty, th, tol, int(max_conflict * pts.shape[0])
+    )
+    share = agree / max(pts.shape[0], 1)
+    if tested < min_points or conflict > max_conflict * tested or share < min_agree:
+        return -1.0
+    return share
+
+
+@nb.njit(cache=True, nogil=True)
+def precheck(
+    ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_b: NDArray[np.float64],
+    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+) -> bool:  # fmt: skip
+    """The cheap first look of :func:`verify_pose`: the first ``PRECHECK`` points of B
+    (stored evenly spread) with a tolerance of ``3·tolerance``; fails when fewer than
+    ``min_agreement`` of them agree or more than ``PRECHECK_CONFLICTS`` conflict. True when
+    the check is disabled."""
+    if vopt[0] == 0.0:
+        return True
+    pre = pts_b[:PRECHECK]
+    _, agree, conflict = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * vopt[1],
+                                        PRECHECK_CONFLICTS)  # fmt: skip
+    return agree >= vopt[2] * pre.shape[0] and conflict <= PRECHECK_CONFLICTS
+
+
+@nb.njit(cache=True, nogil=True)
+def verify_pose(
+    ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_a: NDArray[np.float64],
+    ranges_b: NDArray[np.float64], geom_b: NDArray[np.float64], pts_b: NDArray[np.float64],
+    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
+
+    ``vopt`` = (enabled, tolerance, min_agreement, max_conflict, min_points,
+    align_iterations). First the cheap :func:`precheck`, then the
+    pose is refined on A's scan (:func:`align`) and checked both ways. Returns
+    ``(agreement, tx, ty, θ)``: the smaller share of agreeing points of the two directions
+    and the refined pose, or agreement -1 when the check fails; 1.0 and the pose unchanged
+    when the check is disabled.
+    """
+    if vopt[0] == 0.0:
+        return 1.0, tx, ty, th
+    if not precheck(ranges_a, geom_a, pts_b, tx, ty, th, vopt):
+        return -1.0, tx, ty, th
+    tx, ty, th = align(ranges_a, geom_a, pts_b, tx, ty, th, int(vopt[5]), 4.0 * vopt[1])
+    ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, vopt)
+    if ab < 0.0:
+        return -1.0, tx, ty, th
+    # the inverse pose: p_B = Rᵀ·(p_A - t)
+    c = math.cos(th)
+    s = math.sin(th)
+    ba = _one_way(ranges_b, geom_b, pts_a, -(c * tx + s * ty), s * tx - c * ty, -th, vopt)
+    if ba < 0.0:
+        return -1.0, tx, ty, th
+    return min(ab, ba), tx, ty, th
