@@ -59,8 +59,8 @@ def evaluate_loops_command(
     """
     # the library is imported after the options are parsed, so that --help stays instant
     from laser_corners.eval.loops import LoopsConfig, evaluate_loops
-    from laser_corners.eval.loops_report import check_output_dir, loops_rows, write_loops_report
     from laser_corners.eval.real import load_scans
+    from laser_corners.viz.loops_report import check_output_dir, loops_rows, write_loops_report
 
     console = Console(stderr=True)
     t0 = time.perf_counter()

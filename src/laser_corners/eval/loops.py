@@ -168,7 +168,7 @@ class MethodLoops:
 @dataclass
 class LoopsResult:
     """Everything :func:`evaluate_loops` computed (written by
-    :func:`laser_corners.eval.loops_report.write_loops_report`)."""
+    :func:`laser_corners.viz.loops_report.write_loops_report`)."""
 
     source: str
     config: LoopsConfig

@@ -14,9 +14,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from laser_corners.errors import OutputError
 from laser_corners.eval.loops import LoopsResult
+from laser_corners.viz.loops import plot_precision_recall
 
 __all__ = ["check_output_dir", "loops_rows", "write_loops_report"]
 
@@ -110,13 +112,6 @@ def write_loops_report(result: LoopsResult, output: Path) -> dict[str, Path]:
     dict of str to Path
         The files written, by short name.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from laser_corners.viz.loops import plot_precision_recall
-
     output = check_output_dir(output)
     paths: dict[str, Path] = {}
     path = output / "loops.json"
@@ -145,10 +140,9 @@ def write_loops_report(result: LoopsResult, output: Path) -> dict[str, Path]:
     path = output / "queries.npz"
     np.savez_compressed(path, **arrays)
     paths["queries.npz"] = path
-    fig, ax = plt.subplots(figsize=(6, 5))
-    plot_precision_recall(ax, curves, result.config.min_inliers, title=result.source)
+    fig = Figure(figsize=(6, 5))  # no pyplot state, the user's backend untouched
+    plot_precision_recall(fig.add_subplot(), curves, result.config.min_inliers, title=result.source)
     path = output / "precision_recall.png"
     fig.savefig(path, dpi=150, bbox_inches="tight")
-    plt.close(fig)
     paths["precision_recall.png"] = path
     return paths
