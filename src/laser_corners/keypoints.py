@@ -31,6 +31,7 @@ KEYPOINT_DTYPE = np.dtype(
     ]
 )
 """Record layout of :meth:`Keypoints.to_records` (one row per keypoint)."""
+_PER_KEYPOINT = KEYPOINT_DTYPE.names[2:-3]
 
 
 @dataclass(frozen=True)
@@ -92,16 +93,8 @@ class Keypoints:
         if cov.shape != (m, 2, 2):
             raise ValueError(f"Keypoints.cov has shape {cov.shape}, expected ({m}, 2, 2)")
         object.__setattr__(self, "cov", cov)
-        for name, dtype in (
-            ("beam_index", np.int64),
-            ("opening_angle_deg", np.float64),
-            ("orientation", np.float64),
-            ("n_scales", np.int64),
-            ("rmse", np.float64),
-            ("n_merged", np.int64),
-            ("scale_index", np.int64),
-        ):
-            arr = np.asarray(getattr(self, name), dtype=dtype).reshape(-1)
+        for name in _PER_KEYPOINT:  # the record fields between xy and the covariance
+            arr = np.asarray(getattr(self, name), dtype=KEYPOINT_DTYPE[name]).reshape(-1)
             if arr.shape[0] != m:
                 raise ValueError(f"Keypoints.{name} has {arr.shape[0]} entries, xy has {m}")
             object.__setattr__(self, name, arr)
@@ -169,7 +162,7 @@ class Keypoints:
         out = np.empty(len(self), dtype=KEYPOINT_DTYPE)
         out["x"] = self.xy[:, 0]
         out["y"] = self.xy[:, 1]
-        for name in KEYPOINT_DTYPE.names[2:-3]:
+        for name in _PER_KEYPOINT:
             out[name] = getattr(self, name)
         out["cov_xx"] = self.cov[:, 0, 0]
         out["cov_xy"] = self.cov[:, 0, 1]
