@@ -31,7 +31,9 @@ from laser_corners.detector import CornerDetector
 from laser_corners.errors import InvalidParamsError
 from laser_corners.eval.baselines import SplitAndMergeDetector
 from laser_corners.eval.falko_like import FalkoLikeDetector
+from laser_corners.io import KeypointWriter
 from laser_corners.keypoints import Keypoints
+from laser_corners.pipeline import detect_recording
 from laser_corners.presets import PRESETS, get_preset
 from laser_corners.scan import LaserScan
 
@@ -112,27 +114,41 @@ def method_factories(names: Iterable[str]) -> dict[str, MethodFactory]:
     return out
 
 
+class _Collected(KeypointWriter):
+    """A writer that keeps every scan's keypoints in memory, in scan order."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.found: list[Keypoints] = []
+
+    def write(self, scan_index: int, scan: LaserScan, keypoints: Keypoints) -> None:
+        super().write(scan_index, scan, keypoints)
+        self.found.append(keypoints)
+
+
 def detect_all(
     detector: Detects,
     scans: Sequence[LaserScan],
     step: Callable[[int, int], None] | None = None,
     chunk: int = 500,
 ) -> list[Keypoints]:
-    """Run ``detector`` on every scan, in chunks, reporting ``step(done, total)`` after each.
+    """Run ``detector`` on every scan through the pipeline's detect loop, in order.
 
-    Scans of one chunk that share a geometry go through ``detect_many`` together; a chunk that
-    mixes geometries is detected scan by scan (``detect_many`` needs one geometry).
+    :func:`laser_corners.pipeline.detect_recording` cuts the scans into chunks of one geometry
+    (``detect_many`` for each) and reports ``step(done, total)`` after each chunk.
+
+    Raises
+    ------
+    KeyboardInterrupt
+        Ctrl-C during the loop (an evaluation has no partial result to keep).
     """
     scans = list(scans)
-    out: list[Keypoints] = []
-    for start in range(0, len(scans), chunk):
-        part = scans[start : start + chunk]
-        geometry = {(s.n_beams, s.angle_min, s.angle_increment, s.range_min, s.range_max)
-                    for s in part}  # fmt: skip
-        if len(geometry) <= 1:
-            out.extend(detector.detect_many(part))
-        else:
-            out.extend(detector.detect(s) for s in part)
-        if step is not None:
-            step(len(out), len(scans))
-    return out
+    collected = _Collected()
+    report = None if step is None else (lambda run: step(run.n_scans, len(scans)))
+    summary = detect_recording(
+        scans, detector, collected, report, every=chunk,  # type: ignore[arg-type]
+        threads=None, chunk_scans=chunk, prefetch=False,
+    )  # fmt: skip
+    if summary.interrupted:
+        raise KeyboardInterrupt
+    return collected.found
