@@ -7,11 +7,11 @@ parameters; through the Jacobian of the intersection, the covariance of a scale'
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
+
+from laser_corners.noise import second_difference_sigma
 
 __all__ = [
     "centred_sums",
@@ -163,23 +163,6 @@ def noise_floor(px: float, py: float, y_on_x: bool, c1: float, sigma2: float) ->
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def scan_range_noise(x: NDArray[np.float64], y: NDArray[np.float64], max_jump: float) -> float:
-    """Range-noise sigma of a scan from the median absolute second difference of its ranges.
-
-    Same estimator as :func:`laser_corners.eval.noise.estimate_range_noise` (MAD·1.4826/√6
-    over triples without gaps or jumps above ``max_jump``), on Cartesian points.
-    """
-    n = x.shape[0]
-    r = np.sqrt(x * x + y * y)
-    vals = np.empty(max(n - 2, 0))
-    m = 0
-    for i in range(1, n - 1):
-        a = r[i - 1]
-        b = r[i]
-        c = r[i + 1]
-        if math.isfinite(a) and math.isfinite(b) and math.isfinite(c):
-            if abs(b - a) < max_jump and abs(c - b) < max_jump:
-                vals[m] = abs(a - 2.0 * b + c)
-                m += 1
-    if m < 10:
-        return 0.0
-    return 1.482602218505602 * np.median(vals[:m]) / math.sqrt(6.0)
+    """Range-noise sigma of a scan given as points (NaN: a gap): the estimator of
+    :func:`laser_corners.noise.estimate_range_noise` on the points' ranges."""
+    return second_difference_sigma(np.sqrt(x * x + y * y), max_jump)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
+from numpy.typing import NDArray
 
 from laser_corners.scan import LaserScan
 
-__all__ = ["estimate_range_noise"]
+__all__ = ["estimate_range_noise", "second_difference_sigma"]
 
 _MAD_TO_SIGMA = 1.482602218505602  # 1 / Phi^-1(3/4): MAD of a Gaussian -> its sigma
 
@@ -43,10 +45,26 @@ def estimate_range_noise(scan: LaserScan, max_jump: float = 0.2) -> float:
     >>> round(estimate_range_noise(scan), 2)
     0.02
     """
-    r = np.where(scan.valid, scan.ranges, np.nan)
-    d1 = np.diff(r)
-    d2 = d1[1:] - d1[:-1]
-    usable = np.isfinite(d2) & (np.abs(d1[1:]) < max_jump) & (np.abs(d1[:-1]) < max_jump)
-    if np.count_nonzero(usable) < 10:
+    return float(second_difference_sigma(np.where(scan.valid, scan.ranges, np.nan), max_jump))
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def second_difference_sigma(r: NDArray[np.float64], max_jump: float) -> float:
+    """The estimator of :func:`estimate_range_noise` on ranges in beam order (NaN: a gap).
+
+    Also called from numba code (:mod:`laser_corners.covariance`, on the ranges of the scan's
+    points).
+    """
+    n = r.shape[0]
+    vals = np.empty(max(n - 2, 0))
+    m = 0
+    for i in range(1, n - 1):
+        back = r[i] - r[i - 1]
+        ahead = r[i + 1] - r[i]
+        d2 = ahead - back
+        if math.isfinite(d2) and abs(ahead) < max_jump and abs(back) < max_jump:
+            vals[m] = abs(d2)
+            m += 1
+    if m < 10:
         return 0.0
-    return float(_MAD_TO_SIGMA * np.median(np.abs(d2[usable])) / math.sqrt(6.0))
+    return _MAD_TO_SIGMA * np.median(vals[:m]) / math.sqrt(6.0)
