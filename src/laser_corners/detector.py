@@ -341,11 +341,9 @@ class CornerDetector:
         if not scans:
             return []
         first = scans[0]
-        geometry = (first.n_beams, first.angle_min, first.angle_increment,
-                    first.range_min, first.range_max)  # fmt: skip
+        geometry = first.geometry
         for i, scan in enumerate(scans):
-            if (scan.n_beams, scan.angle_min, scan.angle_increment,
-                    scan.range_min, scan.range_max) != geometry:  # fmt: skip
+            if scan.geometry != geometry:
                 raise InvalidScanError(
                     f"detect_many: scan {i} has a different geometry from scan 0; "
                     "call detect() per scan instead"

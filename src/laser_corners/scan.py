@@ -167,6 +167,14 @@ class LaserScan:
         return int(self.ranges.shape[0])
 
     @property
+    def geometry(self) -> tuple[int, float, float, float, float]:
+        """``(n_beams, angle_min, angle_increment, range_min, range_max)``: scans with equal
+        geometry share beam angles and validity limits (one ``detect_many`` call, one preset
+        adaptation)."""
+        return (self.n_beams, self.angle_min, self.angle_increment, self.range_min,
+                self.range_max)  # fmt: skip
+
+    @property
     def angles(self) -> NDArray[np.float64]:
         """Beam angles in radians, computed from ``len(ranges)`` (not from an ``angle_max``)."""
         return self.angle_min + self.angle_increment * np.arange(self.n_beams, dtype=np.float64)

@@ -53,9 +53,7 @@ class Chunk:
 
 def same_geometry(a: LaserScan, b: LaserScan) -> bool:
     """Whether two scans can go through one ``detect_many`` call."""
-    return (a.n_beams, a.angle_min, a.angle_increment, a.range_min, a.range_max) == (
-        b.n_beams, b.angle_min, b.angle_increment, b.range_min, b.range_max
-    )  # fmt: skip
+    return a.geometry == b.geometry
 
 
 def chunked(

@@ -216,8 +216,7 @@ class CornerNodeCore:
         """
         start = time.perf_counter()
         scan = scan_from_msg(msg)
-        geometry = (scan.n_beams, scan.angle_min, scan.angle_increment,
-                    scan.range_min, scan.range_max)  # fmt: skip
+        geometry = scan.geometry
         if geometry != self._geometry:
             params = self.config.detector_params(scan)
             if params != self.detector.params:
