@@ -352,13 +352,14 @@ class CornerDetector:
         cos_a, sin_a = self._trig(first)
         rows = np.empty((len(scans), first.n_beams, NM))
         counts = np.zeros(len(scans), dtype=np.int64)
+        xs = np.empty(ranges.shape)  # the scans' points, kept for the covariances
+        ys = np.empty(ranges.shape)
         detect_batch(ranges, cos_a, sin_a, first.range_min, first.range_max, self._config,
-                     rows, counts)  # fmt: skip
+                     xs, ys, rows, counts)  # fmt: skip
         spacing = abs(first.angle_increment)
         out = []
         for s, scan in enumerate(scans):
-            x, y = self._scan_xy(scan)
-            points = (x, y, spacing)
+            points = (xs[s], ys[s], spacing)
             out.append(_keypoints_from_rows(rows[s, : counts[s]], scan.stamp, scan.frame_id,
                                             points, *self._cov_args))  # fmt: skip
         return out

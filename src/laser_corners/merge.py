@@ -330,20 +330,11 @@ def finish(x: NDArray[np.float64], y: NDArray[np.float64], cand: NDArray[np.floa
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def detect_one(ranges, cos_a, sin_a, range_min: float, range_max: float,
-               packed: NDArray[np.float64], rows: NDArray[np.float64]) -> int:  # fmt: skip
-    """One scan's ranges -> keypoint rows; returns their count."""
-    n = ranges.shape[0]
-    return detect_into(ranges, cos_a, sin_a, range_min, range_max, packed, np.empty(n),
-                       np.empty(n), rows)  # fmt: skip
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
 def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
                 packed: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64],
                 rows: NDArray[np.float64]) -> int:  # fmt: skip
-    """:func:`detect_one` that also hands back the scan's points in ``x``, ``y`` (one call
-    for the detector's per-scan path, which keeps them for the covariances)."""
+    """One scan's ranges -> keypoint rows (returns their count), handing back the scan's points
+    in ``x``, ``y`` (the detector keeps them for the covariances)."""
     polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
     return detect_xy(x, y, packed, rows)
 
@@ -359,8 +350,10 @@ def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
 def detect_batch(ranges, cos_a, sin_a, range_min: float, range_max: float,
-                 packed: NDArray[np.float64], rows: NDArray[np.float64],
-                 counts: NDArray[np.int64]) -> None:  # fmt: skip
-    """Detect keypoints in every row of ``ranges`` (S, N), in parallel over scans."""
+                 packed: NDArray[np.float64], xs: NDArray[np.float64], ys: NDArray[np.float64],
+                 rows: NDArray[np.float64], counts: NDArray[np.int64]) -> None:  # fmt: skip
+    """Detect keypoints in every row of ``ranges`` (S, N), in parallel over scans; the scans'
+    points go to ``xs``, ``ys`` (S, N)."""
     for s in nb.prange(ranges.shape[0]):
-        counts[s] = detect_one(ranges[s], cos_a, sin_a, range_min, range_max, packed, rows[s])
+        counts[s] = detect_into(ranges[s], cos_a, sin_a, range_min, range_max, packed, xs[s],
+                                ys[s], rows[s])  # fmt: skip
