@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
@@ -10,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.scan import Pose2D
+from laser_corners.scan import Pose2D, rotation, transform_points
 
 __all__ = ["KEYPOINT_DTYPE", "Keypoints"]
 
@@ -179,10 +178,9 @@ class Keypoints:
 
         Use the sensor pose in a map frame to get map-frame keypoints.
         """
-        px, py, theta = pose
-        c, s = math.cos(theta), math.sin(theta)
-        rot = np.array([[c, -s], [s, c]])
-        xy = self.xy @ rot.T + np.array([px, py])
+        theta = pose[2]
+        rot = rotation(theta)
+        xy = transform_points(self.xy, pose)
         orientation = np.angle(np.exp(1j * (self.orientation + theta)))
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "cov"}
         values.update(xy=xy, orientation=orientation, frame_id=frame_id)

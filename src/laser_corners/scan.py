@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidScanError
 
-__all__ = ["LaserScan", "Pose2D"]
+__all__ = ["LaserScan", "Pose2D", "rotation", "transform_points"]
 
 # largest (n_beams - 1) * |angle_increment|: a full turn, plus a tolerance for increments
 # rounded to float32 by drivers
@@ -18,6 +18,18 @@ _MAX_FIELD_OF_VIEW = 2.0 * math.pi * (1.0 + 1e-4)
 
 Pose2D = tuple[float, float, float]
 """A planar pose ``(x, y, theta)`` in metres and radians."""
+
+
+def rotation(theta: float) -> NDArray[np.float64]:
+    """The 2x2 rotation matrix of angle ``theta`` (radians)."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def transform_points(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float64]:
+    """Points ``xy`` (M, 2) moved by the rigid transform ``pose = (x, y, theta)``: sensor-frame
+    points to the frame the sensor pose is given in."""
+    return xy @ rotation(pose[2]).T + np.array([pose[0], pose[1]])
 
 
 def _finite_float(name: str, value: object) -> float:

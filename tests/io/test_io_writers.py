@@ -19,8 +19,9 @@ from laser_corners.io import (
     open_keypoint_writer,
     open_scans,
 )
-from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS, map_xy
+from laser_corners.io.writers import MAP_COLUMNS, TABLE_COLUMNS
 from laser_corners.pipeline import detect_recording
+from laser_corners.scan import transform_points
 
 
 def _scans_withrandom_keypoints(n: int) -> list[tuple[LaserScan, Keypoints]]:
@@ -181,4 +182,4 @@ def test_map_xy_is_keypoints_transformed_bit_for_bit() -> None:
     for seed in range(20):
         keypoints = random_keypoints(1 + seed, seed=seed)
         pose = tuple(float(v) for v in rng.uniform(-50.0, 50.0, 3))
-        assert np.array_equal(map_xy(keypoints.xy, pose), keypoints.transformed(pose).xy)
+        assert np.array_equal(transform_points(keypoints.xy, pose), keypoints.transformed(pose).xy)

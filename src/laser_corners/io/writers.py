@@ -25,14 +25,13 @@ import numpy as np
 from laser_corners.errors import OutputError, first_line
 from laser_corners.io.base import KeypointWriter, PartialOutput
 from laser_corners.keypoints import Keypoints
-from laser_corners.scan import LaserScan, Pose2D
+from laser_corners.scan import LaserScan, transform_points
 
 __all__ = [
     "TABLE_COLUMNS",
     "CsvKeypointWriter",
     "KeypointWriter",
     "ParquetKeypointWriter",
-    "map_xy",
 ]
 
 TABLE_COLUMNS: tuple[str, ...] = (
@@ -42,14 +41,6 @@ TABLE_COLUMNS: tuple[str, ...] = (
 """Columns of the CSV/Parquet keypoint tables (``map_x, map_y`` follow when poses are known)."""
 MAP_COLUMNS: tuple[str, ...] = ("map_x", "map_y")
 _INT_COLUMNS = frozenset({"scan_index", "beam_index", "n_scales", "n_merged"})
-
-
-def map_xy(xy: np.ndarray, pose: Pose2D) -> np.ndarray:
-    """Keypoint positions ``xy`` moved by the sensor pose: ``Keypoints.transformed(pose).xy``
-    with the same arithmetic (bit for bit), without building the other columns."""
-    px, py, theta = pose
-    c, s = math.cos(theta), math.sin(theta)
-    return xy @ np.array([[c, -s], [s, c]]).T + np.array([px, py])
 
 
 class _TableWriter(KeypointWriter):
@@ -90,7 +81,7 @@ class _TableWriter(KeypointWriter):
             }
             if self.with_map:
                 if scan.pose is not None:
-                    mapped = map_xy(keypoints.xy, scan.pose)
+                    mapped = transform_points(keypoints.xy, scan.pose)
                     block["map_x"], block["map_y"] = mapped[:, 0], mapped[:, 1]
                 else:
                     block["map_x"] = block["map_y"] = np.full(m, math.nan)
@@ -133,7 +124,7 @@ class _TableWriter(KeypointWriter):
             block["cov_yy"] = cov[:, 1, 1]
             if self.with_map:
                 mapped = [
-                    map_xy(k.xy, pose)
+                    transform_points(k.xy, pose)
                     if (pose := scans[i].pose) is not None
                     else np.full((len(k), 2), math.nan)
                     for i, k in zip(with_rows, found, strict=True)

@@ -26,14 +26,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from laser_corners.detector import CornerDetector
 from laser_corners.errors import InputError, MissingDependencyError, OutputError, first_line
 from laser_corners.io import KeypointWriter
 from laser_corners.keypoints import Keypoints
 from laser_corners.pipeline import ParamsChoice, Recording, detect_recording, open_recording
-from laser_corners.scan import LaserScan, Pose2D
+from laser_corners.scan import LaserScan, transform_points
 
 __all__ = [
     "APPLICATION_ID",
@@ -134,11 +133,6 @@ def open_recording_stream(
     return recording
 
 
-def _rotate(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float64]:
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    return xy @ np.array([[c, s], [-s, c]]) + np.array([pose[0], pose[1]])
-
-
 def _log_keypoints(rr: Any, recording: Any, path: str, keypoints: Keypoints) -> None:
     if not len(keypoints):
         return
@@ -187,7 +181,7 @@ class _RerunWriter(KeypointWriter):
             self.n_with_pose += 1
             recording.log(
                 "map/scan",
-                rr.Points2D(_rotate(points, scan.pose), colors=_SCAN_COLOR, radii=radii),
+                rr.Points2D(transform_points(points, scan.pose), colors=_SCAN_COLOR, radii=radii),
             )
             _log_keypoints(rr, recording, "map/keypoints", keypoints.transformed(scan.pose))
             heading = (ARROW_LENGTH * math.cos(scan.pose[2]), ARROW_LENGTH * math.sin(scan.pose[2]))
