@@ -10,7 +10,15 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidScanError
 
-__all__ = ["LaserScan", "Pose2D", "rotation", "transform_points"]
+__all__ = [
+    "LaserScan",
+    "Pose2D",
+    "compose",
+    "invert",
+    "relative_pose",
+    "rotation",
+    "transform_points",
+]
 
 # largest (n_beams - 1) * |angle_increment|: a full turn, plus a tolerance for increments
 # rounded to float32 by drivers
@@ -30,6 +38,34 @@ def transform_points(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float6
     """Points ``xy`` (M, 2) moved by the rigid transform ``pose = (x, y, theta)``: sensor-frame
     points to the frame the sensor pose is given in."""
     return xy @ rotation(pose[2]).T + np.array([pose[0], pose[1]])
+
+
+def compose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """``a ⊕ b``: the pose ``b`` (given in the frame of ``a``) in ``a``'s parent frame; the
+    angle wrapped to [-π, π]."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (
+        a[0] + c * b[0] - s * b[1],
+        a[1] + s * b[0] + c * b[1],
+        math.remainder(a[2] + b[2], math.tau),
+    )
+
+
+def invert(a: Pose2D) -> Pose2D:
+    """``⊖ a``: the inverse rigid transform."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], math.remainder(-a[2], math.tau))
+
+
+def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """``⊖ a ⊕ b``: the pose ``b`` expressed in the frame of ``a``.
+
+    Examples
+    --------
+    >>> [round(v, 6) for v in relative_pose((1.0, 0.0, math.pi / 2), (1.0, 2.0, math.pi / 2))]
+    [2.0, 0.0, 0.0]
+    """
+    return compose(invert(a), b)
 
 
 def _finite_float(name: str, value: object) -> float:

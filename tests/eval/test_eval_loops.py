@@ -20,11 +20,10 @@ from laser_corners.eval.loops import (
     loop_detectors,
     precision_recall,
 )
-from laser_corners.eval.poses import compose, invert
 from laser_corners.eval.revisits import candidates, revisits, travel_distance
 from laser_corners.io.arrays import write_scans_npz
 from laser_corners.matching import describe, register_keypoints, register_pairs
-from laser_corners.scan import LaserScan
+from laser_corners.scan import LaserScan, compose, invert
 from laser_corners.sim import UST_10LX, World
 from laser_corners.viz.loops_report import check_output_dir, write_loops_report
 

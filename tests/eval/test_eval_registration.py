@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from laser_corners.eval.poses import relative_pose
 from laser_corners.eval.registration import consecutive_pairs, registration_errors
+from laser_corners.scan import relative_pose
 from laser_corners.sim import World
 
 

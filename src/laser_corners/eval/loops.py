@@ -31,7 +31,6 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.eval.methods import detect_all, method_factories
-from laser_corners.eval.poses import compose, invert
 from laser_corners.eval.revisits import candidates, revisits, travel_distance
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching import (
@@ -42,7 +41,7 @@ from laser_corners.matching import (
     register_pairs,
 )
 from laser_corners.matching.descriptors import DESCRIPTORS
-from laser_corners.scan import LaserScan
+from laser_corners.scan import LaserScan, compose, invert
 
 __all__ = [
     "DEFAULT_METHODS",

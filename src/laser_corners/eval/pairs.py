@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from laser_corners.eval.poses import Relation, compose, invert, relative_pose
-from laser_corners.scan import LaserScan, Pose2D
+from laser_corners.eval.poses import Relation
+from laser_corners.scan import LaserScan, Pose2D, compose, invert, relative_pose
 
 __all__ = [
     "Pair",

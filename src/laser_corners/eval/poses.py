@@ -23,41 +23,11 @@ from laser_corners.scan import LaserScan, Pose2D
 __all__ = [
     "Relation",
     "Trajectory",
-    "compose",
     "interpolate_poses",
-    "invert",
     "read_relations",
     "read_tum",
-    "relative_pose",
     "with_poses",
 ]
-
-
-def compose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """``a ⊕ b``: the pose ``b`` (given in the frame of ``a``) in ``a``'s parent frame."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (
-        a[0] + c * b[0] - s * b[1],
-        a[1] + s * b[0] + c * b[1],
-        math.remainder(a[2] + b[2], math.tau),
-    )
-
-
-def invert(a: Pose2D) -> Pose2D:
-    """``⊖ a``: the inverse rigid transform."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], math.remainder(-a[2], math.tau))
-
-
-def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """``⊖ a ⊕ b``: the pose ``b`` expressed in the frame of ``a``.
-
-    Examples
-    --------
-    >>> [round(v, 6) for v in relative_pose((1.0, 0.0, math.pi / 2), (1.0, 2.0, math.pi / 2))]
-    [2.0, 0.0, 0.0]
-    """
-    return compose(invert(a), b)
 
 
 def _yaw(qx: NDArray[np.float64], qy: NDArray[np.float64], qz: NDArray[np.float64],

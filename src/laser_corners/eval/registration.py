@@ -18,14 +18,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.detector import CornerDetector
-from laser_corners.eval.poses import relative_pose
 from laser_corners.matching import (
     DescriptorParams,
     MatchOptions,
     describe,
     register_keypoints,
 )
-from laser_corners.scan import LaserScan, Pose2D
+from laser_corners.scan import LaserScan, Pose2D, relative_pose
 
 __all__ = ["RegistrationErrors", "consecutive_pairs", "registration_errors"]
 

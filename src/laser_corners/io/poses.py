@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.scan import Pose2D
+from laser_corners.scan import Pose2D, compose
 
 __all__ = [
     "POSE_TOLERANCE_S",
@@ -29,7 +29,6 @@ __all__ = [
     "PoseTrack",
     "StreamingTrack",
     "Transform",
-    "compose",
     "frame_name",
     "interp_at",
     "yaw_from_quaternion",
@@ -47,13 +46,6 @@ Transform = tuple[str, str, Pose2D]
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     """Yaw (rotation about z) of a unit quaternion, radians."""
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def compose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """The planar transform ``a`` followed by ``b`` (``b`` expressed in ``a``'s frame)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    theta = math.atan2(math.sin(a[2] + b[2]), math.cos(a[2] + b[2]))
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], theta)
 
 
 def frame_name(name: str) -> str:
