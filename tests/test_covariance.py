@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -71,3 +72,19 @@ def test_covariance_columns_in_csv_and_parquet(tmp_path) -> None:  # type: ignor
     assert float(rows[0]["cov_xy"]) == kps.cov[0, 0, 1]
     table = pq.read_table(tmp_path / "k.parquet").to_pydict()
     assert table["cov_yy"][:1] == [kps.cov[0, 1, 1]] and len(table["cov_yy"]) == 2 * len(kps)
+
+
+def test_covariance_neighbourhoods_step_over_dropouts_like_the_detector() -> None:
+    # a dropped beam beside the corner: with max_gap_beams = 2 the detector bridges it, and so
+    # must the covariance's neighbourhoods (a run cut at the gap leaves a one-point wall)
+    rng = np.random.default_rng(5)
+    scan = corner_scan(corner=(3.0, 1.0), noise_sigma=0.005, rng=rng)
+    det = CornerDetector(DetectorParams(max_gap_beams=2))
+    whole = det.detect(scan)
+    assert len(whole) == 1
+    ranges = scan.ranges.copy()
+    ranges[int(whole.beam_index[0]) + 2] = np.nan
+    holed = det.detect(replace(scan, ranges=ranges))
+    assert len(holed) == 1
+    trace_whole, trace_holed = np.trace(whole.cov[0]), np.trace(holed.cov[0])
+    assert 0.7 < trace_holed / trace_whole < 1.4

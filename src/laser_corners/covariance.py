@@ -58,7 +58,7 @@ from laser_corners.fit_covariance import (
     scale_covariance,
     scan_range_noise,
 )
-from laser_corners.merge import nearest, wall_sums
+from laser_corners.merge import nearest, walk_step, wall_sums
 
 __all__ = [
     "APEX_FACTOR",
@@ -81,18 +81,17 @@ happen to be small, so the fits' own residual variance under-states the keypoint
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _bound(x: NDArray[np.float64], y: NDArray[np.float64], j: int, step: int, r2: float) -> int:
-    """Last index of the run of valid points from p_j within sqrt(r2) of it (detector rule)."""
-    n = x.shape[0]
-    i = j + step
-    m = 0.0
-    while 0 <= i < n and math.isfinite(x[i]):
-        d2 = (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2
-        m = max(m, d2)
-        if m > r2:
-            break
-        i += step
-    return i - step
+def _bound(
+    x: NDArray[np.float64], y: NDArray[np.float64], j: int, step: int, r2: float, max_gap: int
+) -> int:
+    """Last index of the run of valid points from p_j within sqrt(r2) of it, stepping over at
+    most ``max_gap`` dropped beams (the detector's neighbourhood rule)."""
+    last = j
+    i = walk_step(x, j, step, max_gap)
+    while i >= 0 and (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2 <= r2:
+        last = i
+        i = walk_step(x, i, step, max_gap)
+    return last
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -201,8 +200,8 @@ def keypoint_covariances(
             k0 = max(scale_index[t], 0)
             for k in range(k0, min(k0 + max(n_scales[t], 1), scales.shape[0])):
                 r2 = scales[k] * scales[k]
-                s = _bound(x, y, j, -1, r2)
-                e = _bound(x, y, j, 1, r2)
+                s = _bound(x, y, j, -1, r2, max_gap)
+                e = _bound(x, y, j, 1, r2, max_gap)
                 if j - s + 1 >= 3 and e - j + 1 >= 3:
                     if scale_covariance(x, y, s, j, e, cx, cy, sigma2, acc):
                         used += 1

@@ -7,6 +7,8 @@ parameters; through the Jacobian of the intersection, the covariance of a scale'
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
@@ -69,12 +71,15 @@ def line_fit_covariance(
 def centred_sums(
     x: NDArray[np.float64], y: NDArray[np.float64], lo: int, hi: int, cx: float, cy: float
 ) -> tuple[float, float, float, float, float, float]:
-    """n, Σx, Σy, Σx², Σy², Σxy of points lo..hi (inclusive) relative to (cx, cy)."""
+    """n, Σx, Σy, Σx², Σy², Σxy of the valid points lo..hi (inclusive; dropped beams, NaN,
+    are skipped) relative to (cx, cy)."""
     n = 0.0
     sx = sy = sxx = syy = sxy = 0.0
     for i in range(lo, hi + 1):
         dx = x[i] - cx
         dy = y[i] - cy
+        if not math.isfinite(dx):
+            continue
         n += 1.0
         sx += dx
         sy += dy
