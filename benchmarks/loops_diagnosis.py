@@ -14,9 +14,9 @@ asks three questions per method, with the library's own matcher and scan check:
    Printed: recall among the verifiable queries.
 2. **Misses that a looser matcher recovers.** For each verifiable query the method missed,
    the query is registered against its verifiable candidates with every keypoint pair as a
-   candidate match (descriptor and opening gates off, 30 hypotheses): when that still finds
-   no correct pose, the two scans share no keypoint the hypotheses could use, i.e. the miss is
-   the keypoints' coverage, not the descriptor or the matcher's limits.
+   candidate match (descriptor and opening gates off, :data:`LOOSE`): when that still finds
+   no correct pose, no keypoint pair of the two scans gives a pose the scan check accepts,
+   i.e. the miss is the keypoints' coverage, not the descriptor or the matcher's limits.
 3. **Wrong detections.** For each wrong detection at the default threshold: whether any
    accepted registration of that query (against all its candidates) was correct, i.e. whether
    a better choice among the candidates could have fixed it, or the true place was never found.
@@ -53,8 +53,9 @@ from laser_corners.matching.verify import verify_pose
 from laser_corners.scan import LaserScan, relative_pose
 
 LOOSE = {"max_distance": 100.0, "k_nearest": 64, "max_opening_difference": 180.0,
-         "max_hypotheses": 30}  # fmt: skip
-"""Matcher options of question 2: every keypoint pair is a candidate match."""
+         "max_hypotheses": 300, "iterations": 3000}  # fmt: skip
+"""Matcher options of question 2: every keypoint pair is a candidate match, and up to 300
+pose hypotheses (3000 RANSAC draws) go to the scan check."""
 
 
 @nb.njit(cache=True, parallel=True)
@@ -127,8 +128,8 @@ def diagnose(scans: list[LaserScan], result: LoopsResult) -> None:
               f"; recall {(found & rev).sum() / n_rev:.3f}, among the verifiable "
               f"{(found & verifiable).sum() / n_ver:.3f}")  # fmt: skip
         print(f"  verifiable but missed: {missed.size}; a correct pose with every keypoint "
-              f"pair as a match: {recovered} (the rest: no shared keypoint to build it "
-              "from)")  # fmt: skip
+              f"pair as a match: {recovered} (the rest: no keypoint pair gives a pose the "
+              "scan check accepts)")  # fmt: skip
         print(f"  wrong detections: {wrong.size}; with a correct accepted registration among "
               f"the candidates: {fixable}")  # fmt: skip
 
