@@ -19,18 +19,10 @@ from laser_corners.eval.grid import Grid
 from laser_corners.eval.observability import ObservabilityMap, observability_map
 from laser_corners.eval.pairs import pairs_from_poses, pairs_from_relations
 from laser_corners.eval.persistent import persistent_features
-from laser_corners.eval.poses import (
-    Trajectory,
-    compose,
-    interpolate_poses,
-    invert,
-    read_relations,
-    read_tum,
-    relative_pose,
-)
+from laser_corners.eval.poses import Trajectory, interpolate_poses, read_relations, read_tum
 from laser_corners.eval.repeatability import pair_repeatability, repeatability
 from laser_corners.eval.visibility import points_in_view
-from laser_corners.scan import LaserScan
+from laser_corners.scan import LaserScan, compose, invert, relative_pose
 from laser_corners.sim import corner_scan
 
 
@@ -314,7 +306,6 @@ def test_observability_block_culling_matches_the_per_point_test(occlusion: bool)
     [
         "laser_corners.eval.falko_like",
         "laser_corners.eval.association",
-        "laser_corners.eval.poses",
         "laser_corners.eval.methods",
         "laser_corners.eval.no_return",
     ],

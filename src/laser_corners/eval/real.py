@@ -55,6 +55,7 @@ from laser_corners.eval.real_phases import (
 from laser_corners.eval.repeatability import RepeatabilityResult
 from laser_corners.io import open_scans
 from laser_corners.params import DetectorParams
+from laser_corners.pipeline.recording import no_scan_error
 from laser_corners.presets import get_preset
 from laser_corners.scan import LaserScan
 
@@ -127,7 +128,7 @@ def load_scans(
     source = open_scans(path, topic=topic)
     scans = list(islice(iter(source), max_scans))
     if not scans:
-        raise InputError(f"{path}: no scans")
+        raise no_scan_error(source)
     if trajectory is not None:
         traj = read_tum(trajectory)
         stamps = [s.stamp if s.stamp is not None else math.nan for s in scans]
