@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from laser_corners.neighbourhood import (
     PAD,
     block_boxes,
+    counts,
     extend,
     links,
     padded,
@@ -228,8 +229,12 @@ def candidates(
                 start[st - (n_sent - 1 - i) * m] = s_start[i]
                 stop[st - (n_sent - 1 - i) * m] = s_stop[i]
         else:
-            na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, many)
-            nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, many)
+            if many:  # store the running maxima, for within()
+                na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
+                nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, True)
+            else:
+                na, na_a, na_b = counts(j, -1, px, py, r2[st], r2_a, r2_b)
+                nd, nd_a, nd_b = counts(j, 1, px, py, r2[st], r2_a, r2_b)
             for k, ca, cd in ((st, na, nd), (st - m, na_b, nd_b), (st - 2 * m, na_a, nd_a)):
                 if k >= 0:
                     start[k] = j - ca

@@ -5,9 +5,12 @@ For every scale R_k the arrival (departure) neighbourhood of p_j is the run of p
 ``max_gap_beams``, a run of more than that many gaps) or the scan's end. Two walks compute it
 exactly, for all scales in one pass per side:
 
-* :func:`reach`, for scans with a few dozen points within the largest scale: point by point,
-  four steps per iteration, branch-free; it stores the running maximum of the squared
-  distance, counted per scale afterwards (:func:`within`) or on the way (three sentinels);
+* :func:`counts`, for scans with a few dozen points within the largest scale and at most
+  three sentinel scales: the distances of :data:`W` points at a time (vectorised), three
+  bit masks of the points farther than each radius, the count from the first set bit;
+* :func:`reach`, with more sentinels: point by point, four steps per iteration,
+  branch-free; it stores the running maximum of the squared distance, counted per scale
+  afterwards (:func:`within`);
 * :func:`walk`, for dense scans and gap bridging: skips aligned blocks of 8, 64, 512 or 4096
   beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
   O(blocks + points near the radii) instead of O(points within R).
@@ -22,11 +25,13 @@ import math
 
 import numba as nb
 import numpy as np
+from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 from numpy.typing import NDArray
 
 __all__ = [
     "PAD",
     "block_boxes",
+    "counts",
     "extend",
     "links",
     "padded",
@@ -39,7 +44,8 @@ __all__ = [
 
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
-PAD = 4  # +inf entries before and after the padded coordinates of :func:`reach`
+W = 16  # points per chunk of :func:`counts` (16: fastest of 8-64 on the benchmark sets)
+PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -272,6 +278,62 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
         m = m3
         steps += 4
         i += 4 * step
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _far_masks(px: NDArray[np.float64], py: NDArray[np.float64], base: int, xj: float,
+               yj: float, r2_a: float, r2_b: float, r2_c: float) -> tuple:  # fmt: skip
+    """Bit t set where the point ``base + t`` (t < :data:`W`) is farther than sqrt(``r2_a``),
+    sqrt(``r2_b``), sqrt(``r2_c``) from (xj, yj): three masks, one vectorised pass."""
+    wx = px[base : base + W]  # views: contiguous loads (no index wrap-around per element)
+    wy = py[base : base + W]
+    ma = 0
+    mb = 0
+    mc = 0
+    for t in range(W):
+        d2 = (wx[t] - xj) ** 2 + (wy[t] - yj) ** 2
+        ma |= np.int64(d2 > r2_a) << t
+        mb |= np.int64(d2 > r2_b) << t
+        mc |= np.int64(d2 > r2_c) << t
+    return ma, mb, mc
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def counts(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
+           r2_max: float, r2_a: float, r2_b: float) -> tuple:  # fmt: skip
+    """What :func:`reach` returns without ``store``: the numbers of leading steps from p_j
+    towards ``step`` within sqrt(``r2_max``), sqrt(``r2_a``) and sqrt(``r2_b``) (each at most
+    ``r2_max``), :data:`W` points at a time.
+
+    A count is the index of the first point farther than the radius (a gap or the scan's end
+    is +inf in ``px``, ``py`` from :func:`padded`), which is where the running maximum of
+    :func:`reach` first exceeds it: the lowest set bit of a mask (departure), the highest
+    (arrival, whose chunk ends next to p_j). Same comparisons of the same squared distances,
+    so the same counts; a chunk is loaded only while every point so far is within the
+    largest radius (the padding, :data:`PAD` >= :data:`W`, stops it at the scan's ends).
+    """
+    c = j + PAD
+    xj = px[c]
+    yj = py[c]
+    ca = -1
+    cb = -1
+    done = 0
+    while True:
+        base = c + 1 + done if step > 0 else c - W - done
+        ma, mb, mc = _far_masks(px, py, base, xj, yj, r2_a, r2_b, r2_max)
+        if step > 0:
+            za, zb, zc = trailing_zeros(ma), trailing_zeros(mb), trailing_zeros(mc)
+        else:  # bit W-1 is the point next to p_j
+            za = leading_zeros(ma) - (64 - W)
+            zb = leading_zeros(mb) - (64 - W)
+            zc = leading_zeros(mc) - (64 - W)
+        if ca < 0 and ma != 0:
+            ca = done + za
+        if cb < 0 and mb != 0:
+            cb = done + zb
+        if mc != 0:
+            return done + zc, ca, cb
+        done += W
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
