@@ -6,8 +6,9 @@ For every scale R_k the arrival (departure) neighbourhood of p_j is the run of p
 exactly, for all scales in one pass per side:
 
 * :func:`counts`, for scans with a few dozen points within the largest scale and at most
-  three sentinel scales: the distances of :data:`W` points at a time (vectorised), three
-  bit masks of the points farther than each radius, the count from the first set bit;
+  three sentinel scales: the distances of :data:`~laser_corners.simd.W` points at a time,
+  three bit masks of the points farther than each radius
+  (:func:`~laser_corners.simd.far_masks`), the count from the first set bit;
 * :func:`reach`, with more sentinels: point by point, four steps per iteration,
   branch-free; it stores the running maximum of the squared distance, counted per scale
   afterwards (:func:`within`);
@@ -28,6 +29,8 @@ import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 from numpy.typing import NDArray
 
+from laser_corners.simd import W, far_masks
+
 __all__ = [
     "PAD",
     "block_boxes",
@@ -44,7 +47,6 @@ __all__ = [
 
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
-W = 16  # points per chunk of :func:`counts` (16: fastest of 8-64 on the benchmark sets)
 PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
 
 
@@ -281,24 +283,6 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _far_masks(px: NDArray[np.float64], py: NDArray[np.float64], base: int, xj: float,
-               yj: float, r2_a: float, r2_b: float, r2_c: float) -> tuple:  # fmt: skip
-    """Bit t set where the point ``base + t`` (t < :data:`W`) is farther than sqrt(``r2_a``),
-    sqrt(``r2_b``), sqrt(``r2_c``) from (xj, yj): three masks, one vectorised pass."""
-    wx = px[base : base + W]  # views: contiguous loads (no index wrap-around per element)
-    wy = py[base : base + W]
-    ma = 0
-    mb = 0
-    mc = 0
-    for t in range(W):
-        d2 = (wx[t] - xj) ** 2 + (wy[t] - yj) ** 2
-        ma |= np.int64(d2 > r2_a) << t
-        mb |= np.int64(d2 > r2_b) << t
-        mc |= np.int64(d2 > r2_c) << t
-    return ma, mb, mc
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def counts(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
            r2_max: float, r2_a: float, r2_b: float) -> tuple:  # fmt: skip
     """What :func:`reach` returns without ``store``: the numbers of leading steps from p_j
@@ -320,7 +304,7 @@ def counts(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
     done = 0
     while True:
         base = c + 1 + done if step > 0 else c - W - done
-        ma, mb, mc = _far_masks(px, py, base, xj, yj, r2_a, r2_b, r2_max)
+        ma, mb, mc = far_masks(px, py, base, xj, yj, r2_a, r2_b, r2_max)
         if step > 0:
             za, zb, zc = trailing_zeros(ma), trailing_zeros(mb), trailing_zeros(mc)
         else:  # bit W-1 is the point next to p_j
