@@ -65,7 +65,7 @@ def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e:
     )
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def full_test(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
