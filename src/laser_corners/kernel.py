@@ -269,7 +269,7 @@ def candidates(
         _store(cand, j, passed, res, cfg.min_consecutive, max_cd2)
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, min_points: int,
                  loose_mse: float, max_cos2: float, want_all: bool, rm: tuple) -> None:  # fmt: skip
     """Screen the scales of p_j other than the sentinels (already in ``screened``).
@@ -308,7 +308,7 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
         screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2)
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelConfig,
                  limits, passed, res, table) -> None:  # fmt: skip
     """The exact test (:func:`~laser_corners.scale_tests.full_test`) of the screened scales
@@ -346,7 +346,7 @@ def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelCon
                 table[j, k, 2] = 1.0
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _store(cand, j, passed, res, min_consecutive, max_cd2) -> None:
     """The winning run of p_j (if any) into its candidate row."""
     k0, length, cx, cy = best_run(passed, res, min_consecutive, max_cd2)
