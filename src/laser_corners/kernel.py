@@ -246,7 +246,8 @@ def candidates(
             if not dense and k < st - 2 * m:
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])
-            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2,
+                                 cfg.max_gap > 0)  # fmt: skip
             hit |= screened[k]
         if not hit:
             continue
@@ -305,7 +306,8 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
             hi_d = stop[above] - j if above >= 0 else far
             start[k] = j - extend(j, -1, px, py, lo_a, hi_a, r2[k])
             stop[k] = j + extend(j, 1, px, py, lo_d, hi_d, r2[k])
-        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2)
+        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2,
+                             mode == 0)  # fmt: skip
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -35,20 +35,28 @@ def _sums(ps: NDArray[np.float64], a: int, b: int) -> tuple:
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e: int,
-           min_points: int, loose_mse: float, max_cos2: float) -> bool:  # fmt: skip
+           min_points: int, loose_mse: float, max_cos2: float, bridged: bool) -> bool:  # fmt: skip
     """Necessary condition for a scale to pass, without divisions (a hair permissive).
 
     The RMSE tests of eqs. 8-9 as D <= max_rmse² · n · spread (D = Sxx·Syy - Sxy², spread =
     the kept model's Sxx or Syy) and |cos| of the angle between the undirected lines, whose
     directions are (Sxx, Sxy) for y|x and (Sxy, Syy) for x|y, at most ``max_cos2``.
-    ``inv[c]`` is 1/c (a table: no division per call).
+    ``inv[c]`` is 1/c (a table: no division per call). Without gap bridging (``bridged``
+    False) a neighbourhood holds no gap, so its point count is its index span (no loads,
+    no conversion); with it, the count comes from the prefix sums.
     """
-    na, sx, sy, sxx, syy, sxy = _sums(ps, s, j)
-    nd, tx, ty, txx, tyy, txy = _sums(ps, j, e)
+    if bridged:
+        na = int(ps[j + 1, 5] - ps[s, 5])
+        nd = int(ps[e + 1, 5] - ps[j, 5])
+    else:
+        na = j - s + 1
+        nd = e - j + 1
     if na < min_points or nd < min_points:
         return False
-    axx, ayy, axy = centred_moments(inv[int(na)], sx, sy, sxx, syy, sxy)
-    dxx, dyy, dxy = centred_moments(inv[int(nd)], tx, ty, txx, tyy, txy)
+    _, sx, sy, sxx, syy, sxy = _sums(ps, s, j)
+    _, tx, ty, txx, tyy, txy = _sums(ps, j, e)
+    axx, ayy, axy = centred_moments(inv[na], sx, sy, sxx, syy, sxy)
+    dxx, dyy, dxy = centred_moments(inv[nd], tx, ty, txx, tyy, txy)
     a_yx = axx >= ayy
     d_yx = dxx >= dyy
     a_spread = axx if a_yx else ayy
