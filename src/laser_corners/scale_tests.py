@@ -23,13 +23,15 @@ __all__ = ["best_run", "full_test", "keep_runs", "screen"]
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sums(ps: NDArray[np.float64], a: int, b: int) -> tuple:
     """Count and sums of x, y, x², y², xy over the valid points of indices [a, b]."""
+    lo = np.uint64(a)  # unsigned: no wrap-around code per access (a >= 0)
+    hi = np.uint64(b + 1)
     return (
-        ps[b + 1, 5] - ps[a, 5],
-        ps[b + 1, 0] - ps[a, 0],
-        ps[b + 1, 1] - ps[a, 1],
-        ps[b + 1, 2] - ps[a, 2],
-        ps[b + 1, 3] - ps[a, 3],
-        ps[b + 1, 4] - ps[a, 4],
+        ps[hi, 5] - ps[lo, 5],
+        ps[hi, 0] - ps[lo, 0],
+        ps[hi, 1] - ps[lo, 1],
+        ps[hi, 2] - ps[lo, 2],
+        ps[hi, 3] - ps[lo, 3],
+        ps[hi, 4] - ps[lo, 4],
     )
 
 
