@@ -47,12 +47,14 @@ __all__ = [
 
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
+ROW = 6  # values per index in the flat prefix sums of :func:`prepare`
 PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
-    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count)."""
+    """Validity, centroid, prefix sums of x, y, x², y², xy and the valid-point count: a flat
+    array, :data:`ROW` values per index i = 0..N (the sums over indices < i), at ROW·i."""
     n = x.shape[0]
     valid = np.empty(n, dtype=np.bool_)
     ox = 0.0
@@ -68,20 +70,22 @@ def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
     if n_valid > 0:
         ox /= n_valid
         oy /= n_valid
-    ps = np.zeros((n + 1, 6))  # one row per index: a neighbourhood's sums in one cache line
+    ps = np.empty((n + 1) * ROW)  # flat, ROW values per index (a row at ROW * i)
+    ps[:ROW] = 0.0
     for i in range(n):
+        r = ROW * i
         if valid[i]:
             xi = x[i] - ox
             yi = y[i] - oy
-            ps[i + 1, 0] = ps[i, 0] + xi
-            ps[i + 1, 1] = ps[i, 1] + yi
-            ps[i + 1, 2] = ps[i, 2] + xi * xi
-            ps[i + 1, 3] = ps[i, 3] + yi * yi
-            ps[i + 1, 4] = ps[i, 4] + xi * yi
-            ps[i + 1, 5] = ps[i, 5] + 1.0
+            ps[r + ROW + 0] = ps[r + 0] + xi
+            ps[r + ROW + 1] = ps[r + 1] + yi
+            ps[r + ROW + 2] = ps[r + 2] + xi * xi
+            ps[r + ROW + 3] = ps[r + 3] + yi * yi
+            ps[r + ROW + 4] = ps[r + 4] + xi * yi
+            ps[r + ROW + 5] = ps[r + 5] + 1.0
         else:
             for c in range(6):
-                ps[i + 1, c] = ps[i, c]
+                ps[r + ROW + c] = ps[r + c]
     return valid, ox, oy, ps
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
+from laser_corners.neighbourhood import ROW
 
 __all__ = ["best_run", "full_test", "keep_runs", "screen"]
 
@@ -23,15 +24,15 @@ __all__ = ["best_run", "full_test", "keep_runs", "screen"]
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sums(ps: NDArray[np.float64], a: int, b: int) -> tuple:
     """Count and sums of x, y, x², y², xy over the valid points of indices [a, b]."""
-    lo = np.uint64(a)  # unsigned: no wrap-around code per access (a >= 0)
-    hi = np.uint64(b + 1)
-    return (
-        ps[hi, 5] - ps[lo, 5],
-        ps[hi, 0] - ps[lo, 0],
-        ps[hi, 1] - ps[lo, 1],
-        ps[hi, 2] - ps[lo, 2],
-        ps[hi, 3] - ps[lo, 3],
-        ps[hi, 4] - ps[lo, 4],
+    lo = ROW * a  # the flat layout of neighbourhood.prepare
+    hi = ROW * (b + 1)
+    return (  # unsigned indices: no wrap-around code per access (a >= 0)
+        ps[np.uint64(hi + 5)] - ps[np.uint64(lo + 5)],
+        ps[np.uint64(hi)] - ps[np.uint64(lo)],
+        ps[np.uint64(hi + 1)] - ps[np.uint64(lo + 1)],
+        ps[np.uint64(hi + 2)] - ps[np.uint64(lo + 2)],
+        ps[np.uint64(hi + 3)] - ps[np.uint64(lo + 3)],
+        ps[np.uint64(hi + 4)] - ps[np.uint64(lo + 4)],
     )
 
 
@@ -48,8 +49,8 @@ def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e:
     no conversion); with it, the count comes from the prefix sums.
     """
     if bridged:
-        na = int(ps[j + 1, 5] - ps[s, 5])
-        nd = int(ps[e + 1, 5] - ps[j, 5])
+        na = int(_sums(ps, s, j)[0])
+        nd = int(_sums(ps, j, e)[0])
     else:
         na = j - s + 1
         nd = e - j + 1
