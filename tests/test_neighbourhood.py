@@ -1,6 +1,7 @@
-"""The neighbourhood walks agree with each other: :func:`counts` (bit masks, W points at a
-time) against :func:`reach` (running maximum, point by point), on every point of scans with
-gaps, runs longer than a chunk and radii equal to a point's distance."""
+"""The neighbourhood walks agree with each other: :func:`counts` and :func:`extend` (bit
+masks, W points at a time) against :func:`reach` and :func:`within` (running maximum, point
+by point), on every point of scans with gaps, runs longer than a chunk and radii equal to a
+point's distance."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from laser_corners.neighbourhood import PAD, counts, padded, reach
+from laser_corners.neighbourhood import PAD, counts, extend, padded, reach, within
 from laser_corners.simd import W
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -21,11 +22,17 @@ def both_walks(x: np.ndarray, y: np.ndarray, radii: tuple[float, float, float]) 
     py = padded(y, valid)
     r2_a, r2_b, r2_max = (r * r if r > 0 else -1.0 for r in radii)
     running_max = np.empty(x.shape[0] + PAD)
+    far = px.shape[0]
     for j in np.flatnonzero(valid):
         for step in (-1, 1):
-            expected = reach(int(j), step, px, py, r2_max, r2_a, r2_b, running_max, False)
+            expected = reach(int(j), step, px, py, r2_max, r2_a, r2_b, running_max, True)
             got = counts(int(j), step, px, py, r2_max, r2_a, r2_b)
             assert got == expected, (int(j), step, got, expected)
+            # extend: the count of the middle radius from those of the smaller and larger one
+            steps, lo, mid = expected
+            assert within(running_max, steps, r2_b) == mid
+            for hi in (steps, far):
+                assert extend(int(j), step, px, py, lo, hi, r2_b) == mid, (int(j), step, hi)
 
 
 @FAST

@@ -347,17 +347,24 @@ def extend(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64], 
 
     Equal to :func:`within` on the running maxima: the first ``lo`` distances are at most
     the smaller radius, so the running maximum at a later step is within sqrt(``r2``)
-    exactly when every distance up to it is.
+    exactly when every distance up to it is. :data:`~laser_corners.simd.W` points at a time
+    with :func:`~laser_corners.simd.far_masks`, as :func:`counts` (the first ``lo`` steps
+    are valid points, so the chunks stay within the padding).
     """
     c = j + PAD
     xj = px[c]
     yj = py[c]
-    count = lo
-    i = c + step * (lo + 1)
-    while count < hi and (px[i] - xj) ** 2 + (py[i] - yj) ** 2 <= r2:
-        count += 1
-        i += step
-    return count
+    if lo >= hi:
+        return lo
+    done = lo
+    while done < hi:  # W points at a time, as counts()
+        base = c + 1 + done if step > 0 else c - W - done
+        mask = far_masks(px, py, base, xj, yj, r2, r2, r2)[0]
+        if mask != 0:
+            z = trailing_zeros(mask) if step > 0 else leading_zeros(mask) - (64 - W)
+            return min(done + z, hi)
+        done += W
+    return hi
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
