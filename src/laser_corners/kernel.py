@@ -286,12 +286,15 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
     rm_a, rm_d, na, nd, px, py, mode = rm
     top = r2.shape[0] - 1
     far = px.shape[0]  # more steps than any walk takes (it stops at the padding)
+    r = st % m  # (st - k) % m, counted down with k (no division per scale)
     for k in range(top + 1):
-        if k <= st and (st - k) % m == 0:
-            continue  # a sentinel
         # the nearest sentinels above (none above st) and below k
-        above = k + (st - k) % m if k < st else -1
+        above = k + r if k < st else -1
         below = above - m if k < st else st
+        sentinel = k <= st and r == 0
+        r = r - 1 if r > 0 else m - 1
+        if sentinel:
+            continue
         near = want_all or (above >= 0 and screened[above]) or (below >= 0 and screened[below])
         screened[k] = False
         if not near:
