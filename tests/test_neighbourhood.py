@@ -18,8 +18,7 @@ FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthChe
 def both_walks(x: np.ndarray, y: np.ndarray, radii: tuple[float, float, float]) -> None:
     """Assert the same three counts from both walks, both sides, for every valid point."""
     valid = np.isfinite(x) & np.isfinite(y)
-    px = padded(x, valid)
-    py = padded(y, valid)
+    px, py = padded(x, y, valid)
     r2_a, r2_b, r2_max = (r * r if r > 0 else -1.0 for r in radii)
     running_max = np.empty(x.shape[0] + PAD)
     far = px.shape[0]

@@ -196,10 +196,7 @@ def candidates(
     start = np.empty(n_scales, dtype=np.int64)
     stop = np.empty(n_scales, dtype=np.int64)
     inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
-    px = padded(x, valid)
-    py = padded(y, valid)
-    rm_a = np.empty(n + PAD)
-    rm_d = np.empty(n + PAD)
+    px, py = padded(x, y, valid)
     screened = np.zeros(n_scales, dtype=np.bool_)
     passed = np.zeros(n_scales, dtype=np.bool_)
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
@@ -210,6 +207,8 @@ def candidates(
     r2_a = r2[st - 2 * m] if st - 2 * m >= 0 else -1.0
     r2_b = r2[st - m] if st - m >= 0 else -1.0
     many = st - 3 * m >= 0
+    rm_a = np.empty(n + PAD if many else 0)  # running maxima (with more than three sentinels)
+    rm_d = np.empty(n + PAD if many else 0)
     n_sent = st // m + 1
     r2_sent = r2[st - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
     s_start = np.empty(n_sent, dtype=np.int64)

@@ -228,14 +228,21 @@ def walk(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """``x`` with gaps and :data:`PAD` entries before and after set to +inf (far from all)."""
+def padded(x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_]) -> tuple:
+    """``x``, ``y`` with gaps and :data:`PAD` entries before and after set to +inf (far from
+    all points), in one pass."""
     n = x.shape[0]
-    out = np.full(n + 2 * PAD, math.inf)
+    px = np.empty(n + 2 * PAD)
+    py = np.empty(n + 2 * PAD)
+    px[:PAD] = math.inf
+    py[:PAD] = math.inf
+    px[n + PAD :] = math.inf
+    py[n + PAD :] = math.inf
     for i in range(n):
-        if valid[i]:
-            out[i + PAD] = x[i]
-    return out
+        ok = valid[i]
+        px[i + PAD] = x[i] if ok else math.inf
+        py[i + PAD] = y[i] if ok else math.inf
+    return px, py
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
