@@ -6,9 +6,10 @@ Phases, each a small ``@njit`` function composed here:
    coordinates are shifted by the scan's centroid, prefix sums of x, y, x², y², xy and of the
    valid-point count (every fit costs O(1));
 2. :mod:`~laser_corners.neighbourhood`: the neighbourhood bounds of a point for every scale,
-   one outward walk per side (:func:`~laser_corners.neighbourhood.reach`, or the
-   block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans and gap
-   bridging);
+   one outward walk per side (:func:`~laser_corners.neighbourhood.counts`, 16 points at a
+   time with bit masks; :func:`~laser_corners.neighbourhood.reach` with more than three
+   sentinels; the block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans
+   and gap bridging);
 3. :func:`~laser_corners.scale_tests.screen`: a division-free necessary condition of the
    RMSE tests (eqs. 8-9) and of the angle test; scales that fail it fail the full test;
 4. :func:`~laser_corners.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
@@ -213,7 +214,7 @@ def candidates(
     r2_sent = r2[st - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
     s_start = np.empty(n_sent, dtype=np.int64)
     s_stop = np.empty(n_sent, dtype=np.int64)
-    na = nd = -1  # step counts of the reach walks (dense: unused)
+    na = nd = -1  # step counts of the walks to the top sentinel (dense: unused)
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -276,9 +277,9 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
 
     Every run of m consecutive scales holds a sentinel and lies between two failing ones,
     so only scales next to a passing sentinel (within m-1) can be in a run; the others are
-    not screened (unless ``want_all``). ``rm`` holds the running maxima and step counts of
-    both :func:`~laser_corners.neighbourhood.reach` walks, the padded coordinates and the
-    mode: 0, the bounds are already in ``start``, ``stop``; 1, from the running maxima
+    not screened (unless ``want_all``). ``rm`` holds the running maxima (mode 1) and step
+    counts of both walks, the padded coordinates and the mode: 0, the bounds are already in
+    ``start``, ``stop``; 1, from the running maxima
     (:func:`~laser_corners.neighbourhood.within`); 2, from the bounds of the sentinels next
     to the scale (:func:`~laser_corners.neighbourhood.extend`).
     """
