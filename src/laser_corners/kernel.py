@@ -215,6 +215,8 @@ def candidates(
     s_start = np.empty(n_sent, dtype=np.int64)
     s_stop = np.empty(n_sent, dtype=np.int64)
     na = nd = -1  # step counts of the walks to the top sentinel (dense: unused)
+    ahead = False
+    cur = (0, 0, 0, 0, 0, 0)
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -232,9 +234,13 @@ def candidates(
             if many:  # store the running maxima, for within()
                 na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
                 nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, True)
-            else:
-                na, na_a, na_b = counts(j, -1, px, py, r2[st], r2_a, r2_b)
-                nd, nd_a, nd_b = counts(j, 1, px, py, r2[st], r2_a, r2_b)
+            else:  # the walks of p_j+1 now, overlapping the screens of p_j
+                if not ahead:
+                    cur = _walks(j, px, py, r2[st], r2_a, r2_b)
+                na, na_a, na_b, nd, nd_a, nd_b = cur
+                ahead = j + 1 < n and valid[j + 1]
+                if ahead:
+                    cur = _walks(j + 1, px, py, r2[st], r2_a, r2_b)
             for k, ca, cd in ((st, na, nd), (st - m, na_b, nd_b), (st - 2 * m, na_a, nd_a)):
                 if k >= 0:
                     start[k] = j - ca
@@ -268,6 +274,14 @@ def candidates(
             continue
         _test_scales(x, y, ps, ox, oy, j, start, stop, screened, cfg, limits, passed, res, table)
         _store(cand, j, passed, res, cfg.min_consecutive, max_cd2)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _walks(j: int, px, py, r2_max: float, r2_a: float, r2_b: float) -> tuple:
+    """Both :func:`~laser_corners.neighbourhood.counts` walks of p_j: arrival, departure."""
+    na, na_a, na_b = counts(j, -1, px, py, r2_max, r2_a, r2_b)
+    nd, nd_a, nd_b = counts(j, 1, px, py, r2_max, r2_a, r2_b)
+    return na, na_a, na_b, nd, nd_a, nd_b
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
