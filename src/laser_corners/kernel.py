@@ -6,9 +6,10 @@ Phases, each a small ``@njit`` function composed here:
    coordinates are shifted by the scan's centroid, prefix sums of x, y, x², y², xy and of the
    valid-point count (every fit costs O(1));
 2. :mod:`~laser_corners.neighbourhood`: the neighbourhood bounds of a point for every scale,
-   one outward walk per side (:func:`~laser_corners.neighbourhood.reach`, or the
-   block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans and gap
-   bridging);
+   one outward walk per side (:func:`~laser_corners.neighbourhood.counts`, 16 points at a
+   time with bit masks; :func:`~laser_corners.neighbourhood.reach` with more than three
+   sentinels; the block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans
+   and gap bridging);
 3. :func:`~laser_corners.scale_tests.screen`: a division-free necessary condition of the
    RMSE tests (eqs. 8-9) and of the angle test; scales that fail it fail the full test;
 4. :func:`~laser_corners.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
@@ -40,6 +41,7 @@ from numpy.typing import NDArray
 from laser_corners.neighbourhood import (
     PAD,
     block_boxes,
+    counts,
     extend,
     links,
     padded,
@@ -195,10 +197,7 @@ def candidates(
     start = np.empty(n_scales, dtype=np.int64)
     stop = np.empty(n_scales, dtype=np.int64)
     inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
-    px = padded(x, valid)
-    py = padded(y, valid)
-    rm_a = np.empty(n + PAD)
-    rm_d = np.empty(n + PAD)
+    px, py = padded(x, y, valid)
     screened = np.zeros(n_scales, dtype=np.bool_)
     passed = np.zeros(n_scales, dtype=np.bool_)
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
@@ -209,11 +208,15 @@ def candidates(
     r2_a = r2[st - 2 * m] if st - 2 * m >= 0 else -1.0
     r2_b = r2[st - m] if st - m >= 0 else -1.0
     many = st - 3 * m >= 0
+    rm_a = np.empty(n + PAD if many else 0)  # running maxima (with more than three sentinels)
+    rm_d = np.empty(n + PAD if many else 0)
     n_sent = st // m + 1
     r2_sent = r2[st - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
     s_start = np.empty(n_sent, dtype=np.int64)
     s_stop = np.empty(n_sent, dtype=np.int64)
-    na = nd = -1  # step counts of the reach walks (dense: unused)
+    na = nd = -1  # step counts of the walks to the top sentinel (dense: unused)
+    ahead = False
+    cur = (0, 0, 0, 0, 0, 0)
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -228,8 +231,16 @@ def candidates(
                 start[st - (n_sent - 1 - i) * m] = s_start[i]
                 stop[st - (n_sent - 1 - i) * m] = s_stop[i]
         else:
-            na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, many)
-            nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, many)
+            if many:  # store the running maxima, for within()
+                na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
+                nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, True)
+            else:  # the walks of p_j+1 now, overlapping the screens of p_j
+                if not ahead:
+                    cur = _walks(j, px, py, r2[st], r2_a, r2_b)
+                na, na_a, na_b, nd, nd_a, nd_b = cur
+                ahead = j + 1 < n and valid[j + 1]
+                if ahead:
+                    cur = _walks(j + 1, px, py, r2[st], r2_a, r2_b)
             for k, ca, cd in ((st, na, nd), (st - m, na_b, nd_b), (st - 2 * m, na_a, nd_a)):
                 if k >= 0:
                     start[k] = j - ca
@@ -241,7 +252,8 @@ def candidates(
             if not dense and k < st - 2 * m:
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])
-            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2)
+            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2,
+                                 cfg.max_gap > 0)  # fmt: skip
             hit |= screened[k]
         if not hit:
             continue
@@ -264,28 +276,39 @@ def candidates(
         _store(cand, j, passed, res, cfg.min_consecutive, max_cd2)
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _walks(j: int, px, py, r2_max: float, r2_a: float, r2_b: float) -> tuple:
+    """Both :func:`~laser_corners.neighbourhood.counts` walks of p_j: arrival, departure."""
+    na, na_a, na_b = counts(j, -1, px, py, r2_max, r2_a, r2_b)
+    nd, nd_a, nd_b = counts(j, 1, px, py, r2_max, r2_a, r2_b)
+    return na, na_a, na_b, nd, nd_a, nd_b
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, min_points: int,
                  loose_mse: float, max_cos2: float, want_all: bool, rm: tuple) -> None:  # fmt: skip
     """Screen the scales of p_j other than the sentinels (already in ``screened``).
 
     Every run of m consecutive scales holds a sentinel and lies between two failing ones,
     so only scales next to a passing sentinel (within m-1) can be in a run; the others are
-    not screened (unless ``want_all``). ``rm`` holds the running maxima and step counts of
-    both :func:`~laser_corners.neighbourhood.reach` walks, the padded coordinates and the
-    mode: 0, the bounds are already in ``start``, ``stop``; 1, from the running maxima
+    not screened (unless ``want_all``). ``rm`` holds the running maxima (mode 1) and step
+    counts of both walks, the padded coordinates and the mode: 0, the bounds are already in
+    ``start``, ``stop``; 1, from the running maxima
     (:func:`~laser_corners.neighbourhood.within`); 2, from the bounds of the sentinels next
     to the scale (:func:`~laser_corners.neighbourhood.extend`).
     """
     rm_a, rm_d, na, nd, px, py, mode = rm
     top = r2.shape[0] - 1
     far = px.shape[0]  # more steps than any walk takes (it stops at the padding)
+    r = st % m  # (st - k) % m, counted down with k (no division per scale)
     for k in range(top + 1):
-        if k <= st and (st - k) % m == 0:
-            continue  # a sentinel
         # the nearest sentinels above (none above st) and below k
-        above = k + (st - k) % m if k < st else -1
+        above = k + r if k < st else -1
         below = above - m if k < st else st
+        sentinel = k <= st and r == 0
+        r = r - 1 if r > 0 else m - 1
+        if sentinel:
+            continue
         near = want_all or (above >= 0 and screened[above]) or (below >= 0 and screened[below])
         screened[k] = False
         if not near:
@@ -300,10 +323,11 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
             hi_d = stop[above] - j if above >= 0 else far
             start[k] = j - extend(j, -1, px, py, lo_a, hi_a, r2[k])
             stop[k] = j + extend(j, 1, px, py, lo_d, hi_d, r2[k])
-        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2)
+        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2,
+                             mode == 0)  # fmt: skip
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelConfig,
                  limits, passed, res, table) -> None:  # fmt: skip
     """The exact test (:func:`~laser_corners.scale_tests.full_test`) of the screened scales
@@ -341,7 +365,7 @@ def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelCon
                 table[j, k, 2] = 1.0
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _store(cand, j, passed, res, min_consecutive, max_cd2) -> None:
     """The winning run of p_j (if any) into its candidate row."""
     k0, length, cx, cy = best_run(passed, res, min_consecutive, max_cd2)

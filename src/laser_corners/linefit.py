@@ -77,7 +77,7 @@ def fit_x_on_y(
     return alpha0, alpha1, rmse
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def centred_moments(
     inv_n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float
 ) -> tuple[float, float, float]:
@@ -139,7 +139,7 @@ def fit_from_sums(
     return model, c0, c1, math.sqrt(mse)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def intersect(
     model_a: int, a0: float, a1: float, model_b: int, b0: float, b1: float
 ) -> tuple[float, float, bool]:
@@ -178,7 +178,7 @@ def intersect(
     return a0 + a1 * y, y, True
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, error_model="numpy", inline="always")
 def line_direction(model: int, c1: float) -> tuple[float, float]:
     """Unit direction vector of a fitted line (sign arbitrary)."""
     if model == Y_ON_X:

@@ -5,9 +5,13 @@ For every scale R_k the arrival (departure) neighbourhood of p_j is the run of p
 ``max_gap_beams``, a run of more than that many gaps) or the scan's end. Two walks compute it
 exactly, for all scales in one pass per side:
 
-* :func:`reach`, for scans with a few dozen points within the largest scale: point by point,
-  four steps per iteration, branch-free; it stores the running maximum of the squared
-  distance, counted per scale afterwards (:func:`within`) or on the way (three sentinels);
+* :func:`counts`, for scans with a few dozen points within the largest scale and at most
+  three sentinel scales: the distances of :data:`~laser_corners.simd.W` points at a time,
+  three bit masks of the points farther than each radius
+  (:func:`~laser_corners.simd.far_masks`), the count from the first set bit;
+* :func:`reach`, with more sentinels: point by point, four steps per iteration,
+  branch-free; it stores the running maximum of the squared distance, counted per scale
+  afterwards (:func:`within`);
 * :func:`walk`, for dense scans and gap bridging: skips aligned blocks of 8, 64, 512 or 4096
   beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
   O(blocks + points near the radii) instead of O(points within R).
@@ -22,11 +26,15 @@ import math
 
 import numba as nb
 import numpy as np
+from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 from numpy.typing import NDArray
+
+from laser_corners.simd import W, far_masks
 
 __all__ = [
     "PAD",
     "block_boxes",
+    "counts",
     "extend",
     "links",
     "padded",
@@ -39,12 +47,14 @@ __all__ = [
 
 _LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
-PAD = 4  # +inf entries before and after the padded coordinates of :func:`reach`
+ROW = 6  # values per index in the flat prefix sums of :func:`prepare`
+PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
-    """Validity, centroid, prefix sums (N+1, 6: x, y, x², y², xy, count)."""
+    """Validity, centroid, prefix sums of x, y, x², y², xy and the valid-point count: a flat
+    array, :data:`ROW` values per index i = 0..N (the sums over indices < i), at ROW·i."""
     n = x.shape[0]
     valid = np.empty(n, dtype=np.bool_)
     ox = 0.0
@@ -60,20 +70,22 @@ def prepare(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple:
     if n_valid > 0:
         ox /= n_valid
         oy /= n_valid
-    ps = np.zeros((n + 1, 6))  # one row per index: a neighbourhood's sums in one cache line
+    ps = np.empty((n + 1) * ROW)  # flat, ROW values per index (a row at ROW * i)
+    ps[:ROW] = 0.0
     for i in range(n):
+        r = ROW * i
         if valid[i]:
             xi = x[i] - ox
             yi = y[i] - oy
-            ps[i + 1, 0] = ps[i, 0] + xi
-            ps[i + 1, 1] = ps[i, 1] + yi
-            ps[i + 1, 2] = ps[i, 2] + xi * xi
-            ps[i + 1, 3] = ps[i, 3] + yi * yi
-            ps[i + 1, 4] = ps[i, 4] + xi * yi
-            ps[i + 1, 5] = ps[i, 5] + 1.0
+            ps[r + ROW + 0] = ps[r + 0] + xi
+            ps[r + ROW + 1] = ps[r + 1] + yi
+            ps[r + ROW + 2] = ps[r + 2] + xi * xi
+            ps[r + ROW + 3] = ps[r + 3] + yi * yi
+            ps[r + ROW + 4] = ps[r + 4] + xi * yi
+            ps[r + ROW + 5] = ps[r + 5] + 1.0
         else:
             for c in range(6):
-                ps[i + 1, c] = ps[i, c]
+                ps[r + ROW + c] = ps[r + c]
     return valid, ox, oy, ps
 
 
@@ -216,14 +228,21 @@ def walk(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def padded(x: NDArray[np.float64], valid: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """``x`` with gaps and :data:`PAD` entries before and after set to +inf (far from all)."""
+def padded(x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_]) -> tuple:
+    """``x``, ``y`` with gaps and :data:`PAD` entries before and after set to +inf (far from
+    all points), in one pass."""
     n = x.shape[0]
-    out = np.full(n + 2 * PAD, math.inf)
+    px = np.empty(n + 2 * PAD)
+    py = np.empty(n + 2 * PAD)
+    px[:PAD] = math.inf
+    py[:PAD] = math.inf
+    px[n + PAD :] = math.inf
+    py[n + PAD :] = math.inf
     for i in range(n):
-        if valid[i]:
-            out[i + PAD] = x[i]
-    return out
+        ok = valid[i]
+        px[i + PAD] = x[i] if ok else math.inf
+        py[i + PAD] = y[i] if ok else math.inf
+    return px, py
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -275,6 +294,44 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def counts(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
+           r2_max: float, r2_a: float, r2_b: float) -> tuple:  # fmt: skip
+    """What :func:`reach` returns without ``store``: the numbers of leading steps from p_j
+    towards ``step`` within sqrt(``r2_max``), sqrt(``r2_a``) and sqrt(``r2_b``) (each at most
+    ``r2_max``), :data:`W` points at a time.
+
+    A count is the index of the first point farther than the radius (a gap or the scan's end
+    is +inf in ``px``, ``py`` from :func:`padded`), which is where the running maximum of
+    :func:`reach` first exceeds it: the lowest set bit of a mask (departure), the highest
+    (arrival, whose chunk ends next to p_j). Same comparisons of the same squared distances,
+    so the same counts; a chunk is loaded only while every point so far is within the
+    largest radius (the padding, :data:`PAD` >= :data:`W`, stops it at the scan's ends).
+    """
+    c = j + PAD
+    xj = px[c]
+    yj = py[c]
+    ca = -1
+    cb = -1
+    done = 0
+    while True:
+        base = c + 1 + done if step > 0 else c - W - done
+        ma, mb, mc = far_masks(px, py, base, xj, yj, r2_a, r2_b, r2_max)
+        if step > 0:
+            za, zb, zc = trailing_zeros(ma), trailing_zeros(mb), trailing_zeros(mc)
+        else:  # bit W-1 is the point next to p_j
+            za = leading_zeros(ma) - (64 - W)
+            zb = leading_zeros(mb) - (64 - W)
+            zc = leading_zeros(mc) - (64 - W)
+        if ca < 0 and ma != 0:
+            ca = done + za
+        if cb < 0 and mb != 0:
+            cb = done + zb
+        if mc != 0:
+            return done + zc, ca, cb
+        done += W
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def within(running_max: NDArray[np.float64], steps: int, r2: float) -> int:
     """Number of leading steps of a :func:`reach` walk within sqrt(``r2``): a branch-free
     binary search (the running maximum is non-decreasing)."""
@@ -297,17 +354,24 @@ def extend(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64], 
 
     Equal to :func:`within` on the running maxima: the first ``lo`` distances are at most
     the smaller radius, so the running maximum at a later step is within sqrt(``r2``)
-    exactly when every distance up to it is.
+    exactly when every distance up to it is. :data:`~laser_corners.simd.W` points at a time
+    with :func:`~laser_corners.simd.far_masks`, as :func:`counts` (the first ``lo`` steps
+    are valid points, so the chunks stay within the padding).
     """
     c = j + PAD
     xj = px[c]
     yj = py[c]
-    count = lo
-    i = c + step * (lo + 1)
-    while count < hi and (px[i] - xj) ** 2 + (py[i] - yj) ** 2 <= r2:
-        count += 1
-        i += step
-    return count
+    if lo >= hi:
+        return lo
+    done = lo
+    while done < hi:  # W points at a time, as counts()
+        base = c + 1 + done if step > 0 else c - W - done
+        mask = far_masks(px, py, base, xj, yj, r2, r2, r2)[0]
+        if mask != 0:
+            z = trailing_zeros(mask) if step > 0 else leading_zeros(mask) - (64 - W)
+            return min(done + z, hi)
+        done += W
+    return hi
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
+from laser_corners.neighbourhood import ROW
 
 __all__ = ["best_run", "full_test", "keep_runs", "screen"]
 
@@ -23,32 +24,42 @@ __all__ = ["best_run", "full_test", "keep_runs", "screen"]
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sums(ps: NDArray[np.float64], a: int, b: int) -> tuple:
     """Count and sums of x, y, x², y², xy over the valid points of indices [a, b]."""
-    return (
-        ps[b + 1, 5] - ps[a, 5],
-        ps[b + 1, 0] - ps[a, 0],
-        ps[b + 1, 1] - ps[a, 1],
-        ps[b + 1, 2] - ps[a, 2],
-        ps[b + 1, 3] - ps[a, 3],
-        ps[b + 1, 4] - ps[a, 4],
+    lo = ROW * a  # the flat layout of neighbourhood.prepare
+    hi = ROW * (b + 1)
+    return (  # unsigned indices: no wrap-around code per access (a >= 0)
+        ps[np.uint64(hi + 5)] - ps[np.uint64(lo + 5)],
+        ps[np.uint64(hi)] - ps[np.uint64(lo)],
+        ps[np.uint64(hi + 1)] - ps[np.uint64(lo + 1)],
+        ps[np.uint64(hi + 2)] - ps[np.uint64(lo + 2)],
+        ps[np.uint64(hi + 3)] - ps[np.uint64(lo + 3)],
+        ps[np.uint64(hi + 4)] - ps[np.uint64(lo + 4)],
     )
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e: int,
-           min_points: int, loose_mse: float, max_cos2: float) -> bool:  # fmt: skip
+           min_points: int, loose_mse: float, max_cos2: float, bridged: bool) -> bool:  # fmt: skip
     """Necessary condition for a scale to pass, without divisions (a hair permissive).
 
     The RMSE tests of eqs. 8-9 as D <= max_rmse² · n · spread (D = Sxx·Syy - Sxy², spread =
     the kept model's Sxx or Syy) and |cos| of the angle between the undirected lines, whose
     directions are (Sxx, Sxy) for y|x and (Sxy, Syy) for x|y, at most ``max_cos2``.
-    ``inv[c]`` is 1/c (a table: no division per call).
+    ``inv[c]`` is 1/c (a table: no division per call). Without gap bridging (``bridged``
+    False) a neighbourhood holds no gap, so its point count is its index span (no loads,
+    no conversion); with it, the count comes from the prefix sums.
     """
-    na, sx, sy, sxx, syy, sxy = _sums(ps, s, j)
-    nd, tx, ty, txx, tyy, txy = _sums(ps, j, e)
+    if bridged:
+        na = int(_sums(ps, s, j)[0])
+        nd = int(_sums(ps, j, e)[0])
+    else:
+        na = j - s + 1
+        nd = e - j + 1
     if na < min_points or nd < min_points:
         return False
-    axx, ayy, axy = centred_moments(inv[int(na)], sx, sy, sxx, syy, sxy)
-    dxx, dyy, dxy = centred_moments(inv[int(nd)], tx, ty, txx, tyy, txy)
+    _, sx, sy, sxx, syy, sxy = _sums(ps, s, j)
+    _, tx, ty, txx, tyy, txy = _sums(ps, j, e)
+    axx, ayy, axy = centred_moments(inv[na], sx, sy, sxx, syy, sxy)
+    dxx, dyy, dxy = centred_moments(inv[nd], tx, ty, txx, tyy, txy)
     a_yx = axx >= ayy
     d_yx = dxx >= dyy
     a_spread = axx if a_yx else ayy
@@ -65,7 +76,7 @@ def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e:
     )
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def full_test(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
