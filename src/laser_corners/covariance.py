@@ -58,7 +58,7 @@ from laser_corners.fit_covariance import (
     scale_covariance,
     scan_range_noise,
 )
-from laser_corners.merge import nearest, walk_step, wall_sums
+from laser_corners.merge import nearest, wall_sums
 
 __all__ = [
     "APEX_FACTOR",
@@ -86,11 +86,22 @@ def _bound(
 ) -> int:
     """Last index of the run of valid points from p_j within sqrt(r2) of it, stepping over at
     most ``max_gap`` dropped beams (the detector's neighbourhood rule)."""
+    n = x.shape[0]
+    xj, yj = x[j], y[j]
     last = j
-    i = walk_step(x, j, step, max_gap)
-    while i >= 0 and (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2 <= r2:
-        last = i
-        i = walk_step(x, i, step, max_gap)
+    gaps = 0
+    i = j + step
+    while 0 <= i < n:
+        if math.isfinite(x[i]):
+            if (x[i] - xj) ** 2 + (y[i] - yj) ** 2 > r2:
+                break
+            last = i
+            gaps = 0
+        else:
+            gaps += 1
+            if gaps > max_gap:
+                break
+        i += step
     return last
 
 

@@ -212,7 +212,7 @@ def merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.flo
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def walk_step(x: NDArray[np.float64], i: int, step: int, max_gap: int) -> int:
+def _next(x: NDArray[np.float64], i: int, step: int, max_gap: int) -> int:
     """Next index of a walk from ``i`` towards ``step`` across at most ``max_gap`` gaps
     (-1 when the walk ends: scan end or a longer run of gaps)."""
     n = x.shape[0]
@@ -232,7 +232,7 @@ def nearest(x, y, b: int, cx: float, cy: float, r2: float, max_gap: int) -> int:
     apex = b
     best = (x[b] - cx) ** 2 + (y[b] - cy) ** 2
     for step in (-1, 1):
-        i = walk_step(x, b, step, max_gap)
+        i = _next(x, b, step, max_gap)
         while i >= 0:
             d2 = (x[i] - cx) ** 2 + (y[i] - cy) ** 2
             if d2 > r2:
@@ -240,7 +240,7 @@ def nearest(x, y, b: int, cx: float, cy: float, r2: float, max_gap: int) -> int:
             if d2 < best:
                 best = d2
                 apex = i
-            i = walk_step(x, i, step, max_gap)
+            i = _next(x, i, step, max_gap)
     return apex
 
 
@@ -252,7 +252,7 @@ def wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: f
     run's farthest counted point (``apex`` when none)."""
     sums[:] = 0.0
     far = apex
-    i = walk_step(x, apex, step, max_gap)
+    i = _next(x, apex, step, max_gap)
     while i >= 0:
         dx = x[i] - cx
         dy = y[i] - cy
@@ -267,7 +267,7 @@ def wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: f
             sums[4] += dy * dy
             sums[5] += dx * dy
             far = i
-        i = walk_step(x, i, step, max_gap)
+        i = _next(x, i, step, max_gap)
     return far
 
 
