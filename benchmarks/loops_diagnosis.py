@@ -50,7 +50,7 @@ from laser_corners.eval.real import load_scans
 from laser_corners.eval.revisits import travel_distance
 from laser_corners.matching import KeypointBank, register_pairs
 from laser_corners.matching.verify import verify_pose
-from laser_corners.scan import LaserScan, relative_pose
+from laser_corners.scan import LaserScan, pose_error, relative_pose
 
 LOOSE = {"max_distance": 100.0, "k_nearest": 64, "max_opening_difference": 180.0,
          "max_hypotheses": 300, "iterations": 3000}  # fmt: skip
@@ -92,8 +92,7 @@ def _correct_any(
     res = register_pairs(bank, np.full(cands.shape[0], query), cands, options)  # type: ignore[arg-type]
     for t in np.flatnonzero(res.accepted):
         true = relative_pose(scans[query].pose, scans[int(cands[t])].pose)  # type: ignore[arg-type]
-        err_th = abs(math.remainder(res.poses[t, 2] - true[2], math.tau))
-        err_xy = math.hypot(res.poses[t, 0] - true[0], res.poses[t, 1] - true[1])
+        err_xy, err_th = pose_error(tuple(res.poses[t]), true)  # type: ignore[arg-type]
         if err_xy <= config.max_position_error and err_th <= config.max_angle_error:
             return True
     return False

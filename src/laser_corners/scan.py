@@ -15,6 +15,7 @@ __all__ = [
     "Pose2D",
     "compose",
     "invert",
+    "pose_error",
     "relative_pose",
     "rotation",
     "transform_points",
@@ -55,6 +56,14 @@ def invert(a: Pose2D) -> Pose2D:
     """``⊖ a``: the inverse rigid transform."""
     c, s = math.cos(a[2]), math.sin(a[2])
     return (-c * a[0] - s * a[1], s * a[0] - c * a[1], math.remainder(-a[2], math.tau))
+
+
+def pose_error(est: Pose2D, truth: Pose2D) -> tuple[float, float]:
+    """Position error (metres) and absolute angle error (radians, in [0, π]) of ``est``."""
+    return (
+        math.hypot(est[0] - truth[0], est[1] - truth[1]),
+        abs(math.remainder(est[2] - truth[2], math.tau)),
+    )
 
 
 def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:

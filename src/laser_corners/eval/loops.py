@@ -41,7 +41,7 @@ from laser_corners.matching import (
     register_pairs,
 )
 from laser_corners.matching.descriptors import DESCRIPTORS
-from laser_corners.scan import LaserScan, compose, invert
+from laser_corners.scan import LaserScan, compose, invert, pose_error
 
 __all__ = [
     "DEFAULT_METHODS",
@@ -318,8 +318,7 @@ def _evaluate_method(
             c = int(cand[k])
             est = compose(scans[c].pose, invert(tuple(res.poses[b0 + k])))  # type: ignore[arg-type]
             best_c[q], best_n[q] = c, res.n_inliers[b0 + k]
-            err_xy[q] = math.hypot(est[0] - poses[q, 0], est[1] - poses[q, 1])
-            err_th[q] = abs(math.remainder(est[2] - poses[q, 2], math.tau))
+            err_xy[q], err_th[q] = pose_error(est, scans[q].pose)  # type: ignore[arg-type]
         progress(stage, block.stop, n)
     seconds["match"] = time.perf_counter() - t0
     correct = (err_xy <= config.max_position_error) & (err_th <= config.max_angle_error)

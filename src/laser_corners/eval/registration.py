@@ -24,7 +24,7 @@ from laser_corners.matching import (
     describe,
     register_keypoints,
 )
-from laser_corners.scan import LaserScan, Pose2D, relative_pose
+from laser_corners.scan import LaserScan, Pose2D, pose_error, relative_pose
 
 __all__ = ["RegistrationErrors", "consecutive_pairs", "registration_errors"]
 
@@ -96,13 +96,6 @@ def consecutive_pairs(scans: Sequence[LaserScan], step: int = 1) -> list[tuple[i
     return out
 
 
-def _err(est: Pose2D, truth: Pose2D) -> tuple[float, float]:
-    return (
-        math.hypot(est[0] - truth[0], est[1] - truth[1]),
-        abs(math.remainder(est[2] - truth[2], math.tau)),
-    )
-
-
 def registration_errors(
     scans: Sequence[LaserScan],
     pairs: Sequence[tuple[int, int, Pose2D]],
@@ -146,8 +139,8 @@ def registration_errors(
         acc[k] = reg.accepted
         n_inl[k] = reg.n_inliers
         if reg.accepted:
-            trans[k], rot[k] = _err(reg.pose, truth)
+            trans[k], rot[k] = pose_error(reg.pose, truth)
         pa, pb = scans[i].pose, scans[j].pose
         if odometry and pa is not None and pb is not None:
-            otrans[k], orot[k] = _err(relative_pose(pa, pb), truth)
+            otrans[k], orot[k] = pose_error(relative_pose(pa, pb), truth)
     return RegistrationErrors(acc, trans, rot, otrans, orot, n_inl, 1e3 * elapsed / max(n, 1))
