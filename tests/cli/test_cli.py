@@ -186,13 +186,15 @@ def test_malformed_log_lines_are_reported_in_the_summary(tmp_path: Path) -> None
 
 
 def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
-    # a plain-text CARMEN log of ten copies of intel-corrected: a few seconds of reading,
-    # so the interrupt lands mid-run however fast the detector is
+    # a plain-text CARMEN log of twenty copies of intel-corrected: several seconds of reading
+    # (about 7,000 scans/s), so an interrupt one second after the output is opened lands
+    # mid-run however fast the detector is (the CSV writer's buffer may not have been
+    # flushed yet: what it holds must be kept too)
     with gzip.open(real_file("intel-corrected.clf.gz"), "rt") as handle:
         text = handle.read()
-    log = tmp_path / "intel10.clf"
-    log.write_text(text * 10)
-    n_scans = 10 * sum(1 for line in text.splitlines() if line.startswith("ROBOTLASER1"))
+    log = tmp_path / "intel20.clf"
+    log.write_text(text * 20)
+    n_scans = 20 * sum(1 for line in text.splitlines() if line.startswith("ROBOTLASER1"))
     out = tmp_path / "intel.csv"
     process = subprocess.Popen(
         [*CLI, "detect", str(log), "-o", str(out), "--preset", "auto"],
@@ -200,10 +202,10 @@ def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
     )  # fmt: skip
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and process.poll() is None:
-        partial = list(tmp_path.glob("intel.*.partial.csv"))  # the name until it is complete
-        if partial and len(partial[0].read_text().splitlines()) > 1:
+        if list(tmp_path.glob("intel.*.partial.csv")):  # the name until it is complete
             break
         time.sleep(0.02)
+    time.sleep(1.0)
     assert process.poll() is None, "the run ended before it could be interrupted"
     process.send_signal(signal.SIGINT)
     stdout, stderr = process.communicate(timeout=60)
