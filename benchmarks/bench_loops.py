@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numba
@@ -69,7 +68,9 @@ def main() -> None:
     for n_threads in sorted({1, threads}):
         numba.set_num_threads(n_threads)
         for check in (True, False):
-            opt = replace(PLACE_RECOGNITION, verify_scan=check, min_inliers=1 if check else 2)
+            opt = PLACE_RECOGNITION.with_overrides(
+                {"verify_scan": check, "min_inliers": 1 if check else 2}
+            )
             wall, cpu, pairs, status = _time(bank, queries, travel, opt)
             share = " / ".join(f"{v / pairs:.3f}" for v in status)
             print(f"{n_threads} | {check} | {1e3 * wall / pairs:.4f} | {1e3 * cpu / pairs:.4f} "

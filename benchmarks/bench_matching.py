@@ -19,13 +19,9 @@ import numba
 import numpy as np
 
 from laser_corners import CornerDetector
-from laser_corners.covariance import (
-    APEX_FACTOR,
-    COV_FLOOR,
-    SCALE_RUN_FACTOR,
-    keypoint_covariances,
-)
+from laser_corners.covariance import keypoint_covariances
 from laser_corners.eval.real import load_scans
+from laser_corners.kernel import kernel_config
 from laser_corners.matching import KeypointBank, MatchOptions, describe, register_many
 from laser_corners.presets import get_preset
 
@@ -54,16 +50,13 @@ def main() -> None:
           f"preset {args.preset}")  # fmt: skip
 
     xy = [s.to_cartesian()[0] for s in scans]
-    p = det.params
-    scales = np.asarray(p.scales, dtype=np.float64)
+    config = kernel_config(det.params)
 
     def covs() -> None:
         for s, k, pts in zip(scans, kps, xy, strict=True):
             keypoint_covariances(
                 np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), k.xy,
-                k.beam_index, k.scale_index, k.n_scales, scales, s.angle_increment,
-                APEX_FACTOR, COV_FLOOR, SCALE_RUN_FACTOR, p.refine_radius, p.refine_exclude,
-                p.min_points, p.max_fit_rmse,
+                k.beam_index, k.scale_index, k.n_scales, s.angle_increment, config,
             )  # fmt: skip
 
     covs()

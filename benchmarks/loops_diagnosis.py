@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numba as nb
@@ -46,9 +45,11 @@ from laser_corners.eval.loops import (
     loop_bank,
     loop_detectors,
 )
+from laser_corners.eval.methods import DEFAULT_METHODS
 from laser_corners.eval.real import load_scans
 from laser_corners.eval.revisits import travel_distance
 from laser_corners.matching import KeypointBank, register_pairs
+from laser_corners.matching.kernel_args import Bank, KernelOptions
 from laser_corners.matching.verify import verify_pose
 from laser_corners.scan import LaserScan, pose_error, relative_pose
 
@@ -60,11 +61,12 @@ pose hypotheses (3000 RANSAC draws) go to the scan check."""
 
 @nb.njit(cache=True, parallel=True)
 def _verifiable(
-    bank: tuple, poses: NDArray[np.float64], travel: NDArray[np.float64], window: float,
-    vopt: NDArray[np.float64], out: NDArray[np.bool_],
+    bank: Bank, poses: NDArray[np.float64], travel: NDArray[np.float64], window: float,
+    options: KernelOptions, out: NDArray[np.bool_],
 ) -> None:  # fmt: skip
     """``out[q, c]``: candidate c passes the scan check at the true pose of c in q."""
-    ranges, r_off, geom, pts, p_off = bank[7], bank[8], bank[9], bank[10], bank[11]
+    ranges, r_off, geom = bank.ranges, bank.range_offsets, bank.geometry
+    pts, p_off = bank.points, bank.point_offsets
     n = poses.shape[0]
     for q in nb.prange(n):
         cq, sq = math.cos(poses[q, 2]), math.sin(poses[q, 2])
@@ -77,7 +79,7 @@ def _verifiable(
             agreement, _, _, _ = verify_pose(
                 ranges[r_off[q] : r_off[q + 1]], geom[q], pts[p_off[q] : p_off[q + 1]],
                 ranges[r_off[c] : r_off[c + 1]], geom[c], pts[p_off[c] : p_off[c + 1]],
-                cq * dx + sq * dy, -sq * dx + cq * dy, poses[c, 2] - poses[q, 2], vopt,
+                cq * dx + sq * dy, -sq * dx + cq * dy, poses[c, 2] - poses[q, 2], options,
             )  # fmt: skip
             out[q, c] = agreement >= 0.0
 
@@ -105,12 +107,12 @@ def diagnose(scans: list[LaserScan], result: LoopsResult) -> None:
     travel = travel_distance(poses)
     rev = result.has_revisit
     detectors = loop_detectors(list(result.methods), scans[0])
-    vopt = cfg.match.kernel_options("csc")[2]
-    loose = replace(cfg.match, **LOOSE)
+    check = cfg.match.kernel_options("csc")
+    loose = cfg.match.with_overrides(LOOSE)
     for name, m in result.methods.items():
         bank = loop_bank(scans, detectors[name](scans), cfg)
         ok_pairs = np.zeros((len(scans), len(scans)), dtype=np.bool_)
-        _verifiable(bank.arrays(), poses, travel, cfg.window_travel, vopt, ok_pairs)
+        _verifiable(bank.arrays(), poses, travel, cfg.window_travel, check, ok_pairs)
         verifiable = rev & ok_pairs.any(axis=1)
         found = m.correct & (m.best_inliers >= cfg.min_inliers)
         missed = np.flatnonzero(verifiable & ~found)
@@ -136,15 +138,17 @@ def diagnose(scans: list[LaserScan], result: LoopsResult) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("log", type=Path)
-    parser.add_argument("--methods", default="paper,auto,split-and-merge,falko-like")
-    parser.add_argument("--option", action="append", default=[], metavar="NAME=VALUE")
+    parser.add_argument("--methods", default=",".join(DEFAULT_METHODS))
+    parser.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
+                        help="a MatchOptions field, e.g. max_distance=0.5")  # fmt: skip
     parser.add_argument("--summary-only", action="store_true")
     args = parser.parse_args()
     scans, _ = load_scans(args.log, None, None)
     scans = [s for s in scans if s.pose is not None]
-    match = LoopsConfig().match
-    changes = {k: type(getattr(match, k))(v) for k, v in (o.split("=", 1) for o in args.option)}
-    config = LoopsConfig(methods=tuple(args.methods.split(",")), match=replace(match, **changes))
+    config = LoopsConfig().with_overrides(
+        [f"methods={args.methods}", *(f"match.{o}" for o in args.option)]
+    )
+    changes = args.option
     result = evaluate_loops(scans, config, args.log.name)
     for name, row in result.summary()["methods"].items():
         print(f"{name}: precision {row['precision']:.3f} recall {row['recall']:.3f} at T = "

@@ -58,6 +58,7 @@ from laser_corners.fit_covariance import (
     scale_covariance,
     scan_range_noise,
 )
+from laser_corners.kernel import unpack
 from laser_corners.merge import nearest, wall_sums
 
 __all__ = [
@@ -151,16 +152,11 @@ def keypoint_covariances(
     beam_index: NDArray[np.int64],
     scale_index: NDArray[np.int64],
     n_scales: NDArray[np.int64],
-    scales: NDArray[np.float64],
     angle_increment: float,
-    apex_factor: float,
-    floor: float,
-    run_factor: float,
-    refine_radius: float = 0.0,
-    refine_exclude: float = 0.0,
-    min_points: int = 3,
-    max_rmse: float = math.inf,
-    max_gap: int = 0,
+    config: NDArray[np.float64],
+    apex_factor: float = APEX_FACTOR,
+    floor: float = COV_FLOOR,
+    run_factor: float = SCALE_RUN_FACTOR,
 ) -> NDArray[np.float64]:
     """Covariance (M, 2, 2) of every keypoint (module docstring, steps 1-4).
 
@@ -172,20 +168,22 @@ def keypoint_covariances(
         Keypoints.
     beam_index, scale_index, n_scales : ndarray, shape (M,)
         Supporting point p_j, first scale k0 and length of the winning run of each keypoint.
-    scales : ndarray, shape (K,)
-        The radii R_k.
     angle_increment : float
         Beam spacing, radians.
+    config : ndarray
+        The detector's parameters from :func:`~laser_corners.kernel.kernel_config`: the
+        radii R_k (``scales``), ``max_gap_beams`` (the wall runs step over that many dropped
+        beams) and the refinement options: when ``refine_radius > 0`` a keypoint's
+        covariance comes from the two wall runs the refinement fits (the keypoint is their
+        intersection; ``refine_exclude``, ``min_points``, ``max_fit_rmse``), falling back to
+        the run of scales when those runs are too short.
     apex_factor, floor, run_factor : float
         Apex-sampling scale, isotropic floor (metres) and run-of-scales inflation, see
         :data:`APEX_FACTOR`, :data:`COV_FLOOR`, :data:`SCALE_RUN_FACTOR`.
-    refine_radius, refine_exclude, min_points, max_rmse : float
-        The detector's refinement options: when ``refine_radius > 0`` a keypoint's
-        covariance comes from the two wall runs the refinement fits (the keypoint is their
-        intersection), falling back to the run of scales when those runs are too short.
-    max_gap : int
-        The detector's ``max_gap_beams``: the wall runs step over that many dropped beams.
     """
+    cfg = unpack(config)
+    scales = cfg.scales
+    max_gap = cfg.max_gap_beams
     m = xy.shape[0]
     cov = np.zeros((m, 2, 2))
     acc = np.zeros(3)
@@ -199,11 +197,11 @@ def keypoint_covariances(
         acc[:] = 0.0
         used = 0
         scale_factor = 1.0
-        if refine_radius > 0.0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
+        if cfg.refine_radius > 0.0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
             used = int(
                 _refined_covariance(
-                    x, y, cx, cy, j, refine_radius, refine_exclude, min_points, max_rmse,
-                    sigma2, max_gap, acc,
+                    x, y, cx, cy, j, cfg.refine_radius, cfg.refine_exclude, cfg.min_points,
+                    cfg.max_fit_rmse, sigma2, max_gap, acc,
                 )
             )  # fmt: skip
         if used == 0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):

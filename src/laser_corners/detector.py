@@ -46,12 +46,8 @@ from typing import Literal, overload
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.covariance import (
-    APEX_FACTOR,
-    COV_FLOOR,
-    SCALE_RUN_FACTOR,
-    DeferredCovariances,
-)
+from laser_corners.choice import ParamsChoice
+from laser_corners.covariance import DeferredCovariances
 from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.kernel import NC, candidates, kernel_config, polar_to_xy
 from laser_corners.keypoints import Keypoints
@@ -72,7 +68,6 @@ from laser_corners.merge import (
     raw_rows,
 )
 from laser_corners.params import DetectorParams
-from laser_corners.presets import get_preset
 from laser_corners.scan import LaserScan
 
 __all__ = ["CornerDetector", "ScaleTable"]
@@ -81,34 +76,25 @@ __all__ = ["CornerDetector", "ScaleTable"]
 _INT_COLUMNS = np.array([M_BEAM, M_NSC, M_NMERGED, M_K0])  # integer fields of the rows
 
 
-def _cov_options(params: DetectorParams) -> tuple:
-    """The arguments of :func:`~laser_corners.covariance.keypoint_covariances` after the
-    beam spacing (constants and the detector's options)."""
-    return (APEX_FACTOR, COV_FLOOR, SCALE_RUN_FACTOR, params.refine_radius,
-            params.refine_exclude, params.min_points, params.max_fit_rmse,
-            params.max_gap_beams)  # fmt: skip
-
-
 def _keypoints_from_rows(
     rows: NDArray[np.float64],
     stamp: float | None,
     frame_id: str,
     points: tuple[NDArray[np.float64], NDArray[np.float64], float],
-    scales: NDArray[np.float64],
-    cov_options: tuple,
+    config: NDArray[np.float64],
 ) -> Keypoints:
     """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`),
     computed on the first access of ``Keypoints.cov``.
 
     ``points`` are the scan's x, y (NaN for gaps, not modified afterwards) and its beam
-    spacing in radians; ``cov_options`` from :func:`_cov_options`.
+    spacing in radians; ``config`` the parameters from :func:`~laser_corners.kernel.kernel_config`.
     """
     columns = rows.T.copy()  # one row per field, each contiguous: views below
     xy = rows[:, M_X : M_Y + 1].copy()
     ints = columns.take(_INT_COLUMNS, axis=0).astype(np.int64)
     beam, n_scales, n_merged, k0 = ints
     x, y, spacing = points
-    cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, scales, spacing, *cov_options)
+    cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, spacing, config)
     return Keypoints._from_valid_arrays(
         stamp,
         frame_id,
@@ -181,11 +167,9 @@ class CornerDetector:
     1
     """
 
-    def __init__(self, params: DetectorParams | str | None = None) -> None:
-        if isinstance(params, str):
-            params = get_preset(params)
-        elif params is None:
-            params = DetectorParams()
+    def __init__(self, params: DetectorParams | str | ParamsChoice | None = None) -> None:
+        if params is None or isinstance(params, str | ParamsChoice):
+            params = ParamsChoice.of(params).resolve(None)
         elif not isinstance(params, DetectorParams):
             raise InvalidParamsError(
                 f"CornerDetector takes DetectorParams or a preset name, got {type(params).__name__}"
@@ -193,7 +177,6 @@ class CornerDetector:
         self.params = params
         self._config = kernel_config(params)
         self._scales = np.asarray(params.scales, dtype=np.float64)
-        self._cov_args = (self._scales, _cov_options(params))  # for covariances
         self._geometry: tuple[int, float, float] | None = None
         self._cos = np.empty(0)
         self._sin = np.empty(0)
@@ -206,7 +189,7 @@ class CornerDetector:
         range noise) adapt to the sensor and need ``scan``, any scan of the recording; they
         raise :class:`~laser_corners.InvalidParamsError` without one.
         """
-        return cls(get_preset(name, scan))
+        return cls(ParamsChoice(preset=name).resolve(scan))
 
     def __repr__(self) -> str:
         return f"CornerDetector({self.params!r})"
@@ -245,14 +228,14 @@ class CornerDetector:
         rows = np.empty((n, NM))
         n_out = finish(x, y, cand, self._config, rows)
         points = (x, y, spacing)
-        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id, points, *self._cov_args)
+        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id, points, self._config)
         if not with_raw:
             return keypoints
         raw = np.empty((n, NM))
         n_raw = raw_rows(cand, raw)
         unrefined = self.params.model_copy(update={"refine_radius": 0.0})  # raw: not refined
-        raw_kp = _keypoints_from_rows(raw[:n_raw], stamp, frame_id, points, self._scales,
-                                      _cov_options(unrefined))  # fmt: skip
+        raw_kp = _keypoints_from_rows(raw[:n_raw], stamp, frame_id, points,
+                                      kernel_config(unrefined))  # fmt: skip
         return keypoints, raw_kp
 
     # ----------------------------------------------------------------- public API
@@ -296,7 +279,7 @@ class CornerDetector:
                             self._config, x, y, rows)  # fmt: skip
         points = (x, y, abs(scan.angle_increment))
         return _keypoints_from_rows(rows[:n_out], scan.stamp, scan.frame_id, points,
-                                    *self._cov_args)  # fmt: skip
+                                    self._config)  # fmt: skip
 
     def detect_points(
         self, xy: NDArray[np.float64], return_candidates: bool = False
@@ -361,5 +344,5 @@ class CornerDetector:
         for s, scan in enumerate(scans):
             points = (xs[s], ys[s], spacing)
             out.append(_keypoints_from_rows(rows[s, : counts[s]], scan.stamp, scan.frame_id,
-                                            points, *self._cov_args))  # fmt: skip
+                                            points, self._config))  # fmt: skip
         return out

@@ -71,9 +71,9 @@ class KernelConfig(NamedTuple):
     max_fit_rmse: float
     max_point_distance: float
     max_centroid_distance: float
-    min_consecutive: int
-    min_extent: float
-    max_gap: int
+    min_consecutive_scales: int
+    min_extent_ratio: float
+    max_gap_beams: int
     merge_radius: float
     refine_radius: float
     refine_exclude: float
@@ -187,7 +187,7 @@ def candidates(
     r2 = scales * scales
     # dense scans (many points within the largest scale) and gap bridging: block-skipping
     # walk; otherwise the short branch-free walk, counted per scale on demand
-    dense = cfg.max_gap > 0 or points_within(x, y, valid, scales[n_scales - 1]) > 48.0
+    dense = cfg.max_gap_beams > 0 or points_within(x, y, valid, scales[n_scales - 1]) > 48.0
     box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
     if dense:
         next_valid, prev_valid = links(valid)
@@ -201,7 +201,7 @@ def candidates(
     screened = np.zeros(n_scales, dtype=np.bool_)
     passed = np.zeros(n_scales, dtype=np.bool_)
     res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
-    m = cfg.min_consecutive
+    m = cfg.min_consecutive_scales
     top = n_scales - 1
     st = max(top - (m - 1), 0)  # sentinels: st = K-m, st - m, st - 2m, ... >= 0
     # the walk counts the top three sentinels; with more it stores the running maxima
@@ -225,8 +225,9 @@ def candidates(
         if not valid[j]:
             continue
         if dense:  # the sentinel scales only, for now
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, cfg.max_gap, s_start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, cfg.max_gap, s_stop)
+            gap = cfg.max_gap_beams
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
             for i in range(n_sent):
                 start[st - (n_sent - 1 - i) * m] = s_start[i]
                 stop[st - (n_sent - 1 - i) * m] = s_stop[i]
@@ -253,13 +254,13 @@ def candidates(
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])
             screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2,
-                                 cfg.max_gap > 0)  # fmt: skip
+                                 cfg.max_gap_beams > 0)  # fmt: skip
             hit |= screened[k]
         if not hit:
             continue
         if dense:  # again, every scale
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap, stop)
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap_beams, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap_beams, stop)
         # bounds of the other scales: dense, already in start/stop (mode 0); with more than
         # three sentinels, from the stored running maxima (1, after a walk to the largest
         # scale); else extended from the sentinels' bounds, point by point (2)
@@ -273,7 +274,7 @@ def candidates(
         if not want_table and not keep_runs(screened, m):
             continue
         _test_scales(x, y, ps, ox, oy, j, start, stop, screened, cfg, limits, passed, res, table)
-        _store(cand, j, passed, res, cfg.min_consecutive, max_cd2)
+        _store(cand, j, passed, res, cfg.min_consecutive_scales, max_cd2)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -341,8 +342,8 @@ def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelCon
             continue
         s = start[k]
         e = stop[k]
-        if cfg.min_extent > 0.0:  # option, not in the paper: both runs must reach out
-            reach2 = (cfg.min_extent * cfg.scales[k]) ** 2
+        if cfg.min_extent_ratio > 0.0:  # option, not in the paper: both runs must reach out
+            reach2 = (cfg.min_extent_ratio * cfg.scales[k]) ** 2
             if (x[s] - x[j]) ** 2 + (y[s] - y[j]) ** 2 < reach2 or (
                 (x[e] - x[j]) ** 2 + (y[e] - y[j]) ** 2 < reach2
             ):

@@ -293,10 +293,10 @@ def refine(x: NDArray[np.float64], y: NDArray[np.float64], rows: NDArray[np.floa
         cx = rows[m, M_X]
         cy = rows[m, M_Y]
         rad = cfg.refine_radius
-        apex = nearest(x, y, int(rows[m, M_BEAM]), cx, cy, rad * rad, cfg.max_gap)
+        apex = nearest(x, y, int(rows[m, M_BEAM]), cx, cy, rad * rad, cfg.max_gap_beams)
         while rad >= 4.0 * cfg.refine_exclude:
-            wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2, cfg.max_gap, sa)
-            wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2, cfg.max_gap, sd)
+            wall_sums(x, y, apex, -1, cx, cy, rad * rad, e2, cfg.max_gap_beams, sa)
+            wall_sums(x, y, apex, 1, cx, cy, rad * rad, e2, cfg.max_gap_beams, sd)
             if sa[0] < cfg.min_points or sd[0] < cfg.min_points:
                 break
             ma, a0, a1, mse_a = select_from_sums(sa[0], sa[1], sa[2], sa[3], sa[4], sa[5])

@@ -7,16 +7,12 @@ folder records.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
 from itertools import pairwise
-from pathlib import Path
-from typing import Any
+from typing import ClassVar
 
-import tomllib
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from laser_corners.errors import InvalidParamsError
+from laser_corners.options import Options
 
 __all__ = ["PAPER_SCALES", "DetectorParams"]
 
@@ -24,7 +20,7 @@ PAPER_SCALES: tuple[float, ...] = tuple(round(0.05 + 0.025 * k, 6) for k in rang
 """The paper's neighbourhood radii R_k: 0.05, 0.075, ..., 0.25 m."""
 
 
-class DetectorParams(BaseModel):
+class DetectorParams(Options):
     """Parameters of :class:`~laser_corners.CornerDetector` (defaults: the paper's, section III).
 
     Parameters
@@ -76,7 +72,8 @@ class DetectorParams(BaseModel):
     6
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True)
+    section: ClassVar[str] = "detector"
+    tuple_hints: ClassVar[dict[str, str]] = {"scales": "comma-separated metres like 0.05,0.075,0.1"}
 
     scales: tuple[float, ...] = Field(default=PAPER_SCALES)
     min_points: int = 5
@@ -91,12 +88,6 @@ class DetectorParams(BaseModel):
     refine_radius: float = 0.0
     refine_exclude: float = 0.03
     max_gap_beams: int = 0
-
-    def __init__(self, **data: Any) -> None:
-        try:
-            super().__init__(**data)
-        except ValidationError as exc:
-            raise InvalidParamsError(_one_line(exc)) from None
 
     @field_validator("scales")
     @classmethod
@@ -164,122 +155,3 @@ class DetectorParams(BaseModel):
                 f"of scales ({len(self.scales)})"
             )
         return self
-
-    # ------------------------------------------------------------------ construction
-    @classmethod
-    def from_mapping(cls, data: Mapping[str, Any], source: str = "parameters") -> DetectorParams:
-        """Build parameters from a mapping such as a parsed YAML/TOML document.
-
-        A top-level ``detector`` table, if present, is used (so a config file can hold other
-        sections too).
-        """
-        if not isinstance(data, Mapping):
-            raise InvalidParamsError(f"{source}: expected a mapping of parameter names to values")
-        if "detector" in data and isinstance(data["detector"], Mapping):
-            data = data["detector"]
-        try:
-            return cls(**dict(data))
-        except InvalidParamsError as exc:
-            raise InvalidParamsError(f"{source}: {exc}") from None
-
-    @classmethod
-    def from_file(cls, path: str | Path) -> DetectorParams:
-        """Load parameters from a ``.yaml``/``.yml`` or ``.toml`` file."""
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InvalidParamsError(f"{path}: cannot read parameters ({exc.strerror})") from None
-        try:
-            if path.suffix.lower() == ".toml":
-                data = tomllib.loads(text)
-            else:
-                data = yaml.safe_load(text) or {}
-        except (yaml.YAMLError, tomllib.TOMLDecodeError) as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise InvalidParamsError(f"{path}: not valid YAML/TOML: {first}") from None
-        return cls.from_mapping(data, source=str(path))
-
-    def with_overrides(self, assignments: Iterable[str] | Mapping[str, Any]) -> DetectorParams:
-        """Return a copy with fields replaced.
-
-        Parameters
-        ----------
-        assignments : iterable of ``"key=value"`` strings, or a mapping
-            Values in strings are parsed as YAML (``scales=[0.1, 0.2, 0.3]``, ``min_points=6``);
-            tuple fields also take comma-separated numbers (``scales=0.1,0.2,0.3``).
-
-        Examples
-        --------
-        >>> DetectorParams().with_overrides(["scales=0.1,0.2", "min_consecutive_scales=2"]).scales
-        (0.1, 0.2)
-        """
-        updates: dict[str, Any] = {}
-        if isinstance(assignments, Mapping):
-            updates.update(assignments)
-        else:
-            for item in assignments:
-                key, sep, raw = item.partition("=")
-                key = key.strip()
-                if not sep or not key:
-                    raise InvalidParamsError(f"override {item!r} is not of the form key=value")
-                if key not in type(self).model_fields:
-                    known = ", ".join(type(self).model_fields)
-                    raise InvalidParamsError(f"unknown parameter {key!r}; known: {known}")
-                try:
-                    updates[key] = yaml.safe_load(raw)
-                except yaml.YAMLError:
-                    raise InvalidParamsError(f"override {item!r}: value is not valid") from None
-        unknown = set(updates) - set(type(self).model_fields)
-        if unknown:
-            raise InvalidParamsError(f"unknown parameter(s): {', '.join(sorted(unknown))}")
-        for key, value in updates.items():
-            if key in _TUPLE_FIELDS:
-                updates[key] = _as_tuple(key, value)
-        merged = self.model_dump()
-        merged.update(updates)
-        return type(self)(**merged)
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise InvalidParamsError(
-            f"DetectorParams is frozen: cannot set {name!r}; make a changed copy with "
-            f"params.with_overrides({{{name!r}: ...}}) or params.model_copy(update=...)"
-        )
-
-    def __delattr__(self, name: str) -> None:
-        self.__setattr__(name, None)
-
-    def to_yaml(self) -> str:
-        """The parameters as a YAML document (the format :meth:`from_file` reads)."""
-        data = self.model_dump()
-        data["scales"] = list(data["scales"])
-        return yaml.safe_dump(data, sort_keys=False)
-
-
-_TUPLE_FIELDS = {"scales": "comma-separated metres like 0.05,0.075,0.1"}
-"""Tuple fields and the accepted form of their values, for messages."""
-
-
-def _as_tuple(key: str, value: Any) -> Any:
-    """A tuple field's override: comma-separated numbers or one number -> tuple of floats."""
-    if isinstance(value, int | float) and not isinstance(value, bool):
-        return (float(value),)
-    if not isinstance(value, str):
-        return value
-    try:
-        return tuple(float(part) for part in value.strip("[]() ").split(","))
-    except ValueError:
-        raise InvalidParamsError(f"{key}: expected {_TUPLE_FIELDS[key]}, got {value!r}") from None
-
-
-def _one_line(exc: ValidationError) -> str:
-    parts = []
-    for error in exc.errors():
-        loc = error.get("loc", ())
-        where = ".".join(str(p) for p in loc) or "parameters"
-        message = str(error.get("msg", "invalid")).removeprefix("Value error, ")
-        if loc and loc[0] in _TUPLE_FIELDS and error.get("type") != "value_error":
-            message = f"expected {_TUPLE_FIELDS[str(loc[0])]} ({message})"
-            where = str(loc[0])
-        parts.append(f"{where}: {message}")
-    return "; ".join(dict.fromkeys(parts))

@@ -232,7 +232,7 @@ def test_one_inlier_threshold_and_config_checks(loop_scans: list[LaserScan]) -> 
     # detections are accepted registrations only, and in this hall all of them are right
     assert detected.sum() >= 5 and paper.correct[detected].all()
     assert np.all(paper.best_candidate[~detected] == -1)
-    with pytest.raises(InvalidParamsError, match="unknown descriptor"):
+    with pytest.raises(InvalidParamsError, match=r"descriptor: input should be .bsc. or .csc."):
         LoopsConfig(descriptor="sift")
     with pytest.raises(InvalidParamsError, match="min_inliers"):
         LoopsConfig(min_inliers=0)

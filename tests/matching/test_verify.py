@@ -21,7 +21,7 @@ from laser_corners.matching import (
 from laser_corners.matching.verify import align, scan_agreement, scan_arrays, verify_pose
 from laser_corners.sim import World
 
-VOPT = np.array([1.0, 0.1, 0.5, 0.05, 20, 3])  # as MatchOptions' defaults
+VOPT = MatchOptions(verify_scan=True).kernel_options("csc")  # the defaults, check on
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def test_check_accepts_truth_refines_and_rejects(room: World) -> None:
     for wrong in truth + shifts:
         assert verify_pose(*a, *b, *wrong, VOPT)[0] < 0.0, wrong
     # disabled: 1.0 and the pose unchanged
-    assert verify_pose(*a, *b, *off, np.zeros(6)) == (1.0, *off)
+    assert verify_pose(*a, *b, *off, VOPT._replace(verify_scan=False)) == (1.0, *off)
 
 
 def test_agreement_counts_agree_and_conflict() -> None:

@@ -85,16 +85,17 @@ _Relations = Annotated[
     ),
 ]
 _RelationsMount = Annotated[
-    str,
+    str | None,
     typer.Option(
-        "--relations-mount", help="Sensor pose x,y,theta in the robot frame of the relations."
+        "--relations-mount",
+        help="Sensor pose x,y,theta in the robot frame of the relations [default: 0,0,0].",
     ),
 ]
 _MaxScans = Annotated[
     int | None, typer.Option("--max-scans", min=1, help="Read at most this many scans.")
 ]
 _MaxPairs = Annotated[
-    int, typer.Option("--max-pairs", min=1, help="At most this many repeatability pairs.")
+    int | None, typer.Option("--max-pairs", min=1, help="At most this many repeatability pairs.")
 ]
 _MaxRange = Annotated[
     float | None,
@@ -105,26 +106,29 @@ _MaxRange = Annotated[
     ),
 ]
 _Resolution = Annotated[
-    float, typer.Option("--resolution", help="Observability cell size, metres.")
+    float | None, typer.Option("--resolution", help="Observability cell size, metres.")
 ]
 _AssociationRadius = Annotated[
-    float, typer.Option("--association-radius", help="Keypoint-feature radius, metres.")
+    float | None, typer.Option("--association-radius", help="Keypoint-feature radius, metres.")
 ]
 _MinRatio = Annotated[
-    float, typer.Option("--min-ratio", help="Lowest N8 observability of a persistent feature.")
+    float | None,
+    typer.Option("--min-ratio", help="Lowest N8 observability of a persistent feature."),
 ]
 _MinViews = Annotated[
-    int, typer.Option("--min-views", help="Fewest scans that saw a persistent feature's cell.")
+    int | None,
+    typer.Option("--min-views", help="Fewest scans that saw a persistent feature's cell."),
 ]
 _Occlusion = Annotated[
-    bool, typer.Option("--occlusion/--no-occlusion", help="Ray-cast against each scan.")
+    bool | None, typer.Option("--occlusion/--no-occlusion", help="Ray-cast against each scan.")
 ]
 _Methods = Annotated[
-    str,
+    str | None,
     typer.Option(
         "--methods",
         help="Repeatability rows, comma-separated: paper, auto, robust, split-and-merge, "
-        "falko-like (our reading of the FALKO paper, not falkolib).",
+        "falko-like (our reading of the FALKO paper, not falkolib) [default: "
+        "laser_corners.eval.methods.DEFAULT_METHODS].",
     ),
 ]
 
@@ -141,21 +145,22 @@ def evaluate_real_command(
     set_: SetOption = None,
     trajectory: _Trajectory = None,
     relations: _Relations = None,
-    relations_mount: _RelationsMount = "0,0,0",
+    relations_mount: _RelationsMount = None,
     max_scans: _MaxScans = None,
-    max_pairs: _MaxPairs = 1000,
+    max_pairs: _MaxPairs = None,
     max_range: _MaxRange = None,
-    resolution: _Resolution = 0.03,
-    association_radius: _AssociationRadius = 0.06,
-    min_ratio: _MinRatio = 0.25,
-    min_views: _MinViews = 20,
-    occlusion: _Occlusion = True,
-    methods: _Methods = "paper,auto,split-and-merge,falko-like",
+    resolution: _Resolution = None,
+    association_radius: _AssociationRadius = None,
+    min_ratio: _MinRatio = None,
+    min_views: _MinViews = None,
+    occlusion: _Occlusion = None,
+    methods: _Methods = None,
 ) -> None:
     """Paper section IV on a recording with poses (maps, features, association, repeatability).
 
     Writes the observability maps, persistent features, association matrix and histogram,
-    the repeatability table and report.md into --output (docs/real-evaluation.md).
+    the repeatability table and report.md into --output (docs/real-evaluation.md). Options
+    left out take the defaults of the library's RealEvalConfig.
     """
     # the library is imported after the options are parsed, so that --help stays instant
     from laser_corners.eval.poses import read_relations
@@ -167,23 +172,26 @@ def evaluate_real_command(
         for option, value in (("--max-range", max_range), ("--resolution", resolution),
                               ("--association-radius", association_radius),
                               ("--min-ratio", min_ratio)):  # fmt: skip
-            check_number(option, value, minimum=0.0)
+            if value is not None:
+                check_number(option, value, minimum=0.0)
+        given = {
+            "resolution": resolution, "association_radius": association_radius,
+            "min_ratio": min_ratio, "min_views": min_views, "occlusion": occlusion,
+            "max_range": max_range, "max_scans": max_scans, "max_pairs": max_pairs,
+            "relations_mount": None if relations_mount is None else _mount(relations_mount),
+            "methods": None if methods is None else method_list(methods),
+        }  # fmt: skip
         config = RealEvalConfig(
-            preset=preset or "paper", resolution=resolution,
-            association_radius=association_radius, min_ratio=min_ratio, min_views=min_views,
-            occlusion=occlusion, max_range=max_range, max_scans=max_scans, max_pairs=max_pairs,
-            relations_mount=_mount(relations_mount), methods=method_list(methods),
-        )  # fmt: skip
-        choice = params_choice(preset, params_file, set_)
+            detector=params_choice(preset, params_file, set_),
+            **{name: value for name, value in given.items() if value is not None},
+        )
         new_folder(output)
         t0 = time.perf_counter()
         scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
         relations_path = relations if relations is not None else default_relations(input_path)
-        custom = params_file is not None or bool(set_)
         result = evaluate_real(
             scans, config,
             relations=read_relations(relations_path) if relations_path is not None else None,
-            params=choice.resolve(scans[0]) if custom else None,
             source=input_path.name, pose_source=pose_source,
             progress=lambda message: console.print(message, highlight=False),
         )  # fmt: skip

@@ -35,21 +35,25 @@ def evaluate_loops_command(
         int | None, typer.Option("--max-scans", min=2, help="Use at most this many scans.")
     ] = None,
     methods: Annotated[
-        str,
+        str | None,
         typer.Option(
-            "--methods", help="Comma-separated: paper, auto, robust, split-and-merge, falko-like."
+            "--methods",
+            help="Comma-separated: paper, auto, robust, split-and-merge, falko-like [default: "
+            "laser_corners.eval.methods.DEFAULT_METHODS].",
         ),
-    ] = "paper,auto,split-and-merge,falko-like",
+    ] = None,
     min_inliers: Annotated[
         int | None,
         typer.Option("--min-inliers", min=1, help="Detection threshold T (default: the library's)"),
     ] = None,
     window: Annotated[
-        float,
+        float | None,
         typer.Option(
-            "--window", help="Exclude candidates closer than this in travelled path, metres."
+            "--window",
+            help="Exclude candidates closer than this in travelled path, metres "
+            "[default: LoopsConfig.window_travel].",
         ),
-    ] = 5.0,
+    ] = None,
 ) -> None:
     """Place recognition with FLIRT's protocol on a log with corrected poses.
 
@@ -65,9 +69,9 @@ def evaluate_loops_command(
     console = Console(stderr=True)
     t0 = time.perf_counter()
     with known_errors():
-        options = {"min_inliers": min_inliers} if min_inliers is not None else {}
-        config = LoopsConfig(methods=method_list(methods), window_travel=window,
-                             max_scans=max_scans, **options)  # fmt: skip
+        given = {"min_inliers": min_inliers, "max_scans": max_scans, "window_travel": window,
+                 "methods": None if methods is None else method_list(methods)}  # fmt: skip
+        config = LoopsConfig(**{k: v for k, v in given.items() if v is not None})
         check_output_dir(output)
         scans, _ = load_scans(input_path, None, max_scans)
         with Progress(console=console, transient=True) as bar:

@@ -17,23 +17,24 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from itertools import pairwise
+from typing import ClassVar
 
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field, model_validator
 
-from laser_corners.errors import InvalidParamsError, InvalidScanError
+from laser_corners.errors import InvalidScanError
 from laser_corners.eval.noise import estimate_range_noise
 from laser_corners.keypoints import Keypoints
+from laser_corners.options import Options
 from laser_corners.scan import LaserScan
 
 __all__ = ["SplitAndMergeDetector", "SplitAndMergeParams"]
 
 
-@dataclass(frozen=True)
-class SplitAndMergeParams:
+class SplitAndMergeParams(Options):
     """Parameters of :class:`SplitAndMergeDetector`.
 
     Attributes
@@ -56,21 +57,21 @@ class SplitAndMergeParams:
         Largest distance from the lines' intersection to the segments' shared end, metres.
     """
 
-    split_distance: float | None = None
-    min_points: int = 5
-    min_length: float = 0.1
-    breakpoint_angle_deg: float = 10.0
-    min_angle_deg: float = 45.0
-    max_angle_deg: float = 135.0
-    max_corner_distance: float = 0.1
+    title: ClassVar[str] = "SplitAndMergeParams"
 
-    def __post_init__(self) -> None:
-        if self.split_distance is not None and not self.split_distance > 0.0:
-            raise InvalidParamsError(f"split_distance must be > 0, got {self.split_distance}")
-        if self.min_points < 2:
-            raise InvalidParamsError(f"min_points must be >= 2, got {self.min_points}")
-        if not 0.0 <= self.min_angle_deg <= self.max_angle_deg <= 180.0:
-            raise InvalidParamsError("need 0 <= min_angle_deg <= max_angle_deg <= 180")
+    split_distance: float | None = Field(None, gt=0.0)
+    min_points: int = Field(5, ge=2)
+    min_length: float = Field(0.1, ge=0.0)
+    breakpoint_angle_deg: float = Field(10.0, gt=0.0, lt=180.0)
+    min_angle_deg: float = Field(45.0, ge=0.0, le=180.0)
+    max_angle_deg: float = Field(135.0, ge=0.0, le=180.0)
+    max_corner_distance: float = Field(0.1, ge=0.0)
+
+    @model_validator(mode="after")
+    def _check_angles(self) -> SplitAndMergeParams:
+        if self.min_angle_deg > self.max_angle_deg:
+            raise ValueError("need min_angle_deg <= max_angle_deg")
+        return self
 
 
 @nb.njit(cache=True)

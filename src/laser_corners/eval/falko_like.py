@@ -29,21 +29,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from typing import ClassVar
 
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field, model_validator
 
-from laser_corners.errors import InvalidParamsError, InvalidScanError
+from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
+from laser_corners.options import Options
 from laser_corners.scan import LaserScan
 
 __all__ = ["FalkoLikeDetector", "FalkoLikeParams"]
 
 
-@dataclass(frozen=True)
-class FalkoLikeParams:
+class FalkoLikeParams(Options):
     """Parameters of :class:`FalkoLikeDetector`.
 
     Attributes
@@ -67,38 +68,25 @@ class FalkoLikeParams:
         Only points with a range in this interval are considered, metres.
     """
 
-    neigh_a: float = 0.1
-    neigh_b: float = 0.07
-    min_neighbours: int = 2
-    side_ratio: float = 2.0
-    min_apex_deg: float = 30.0
-    max_apex_deg: float = 150.0
-    sectors: int = 16
-    max_mean_sector_distance: float = 1.0
-    nms_radius: float = 0.1
-    min_range: float = 0.1
-    max_range: float = 30.0
+    title: ClassVar[str] = "FalkoLikeParams"
 
-    def __post_init__(self) -> None:
-        if not (self.neigh_a > 0.0 and math.isfinite(self.neigh_b)):
-            raise InvalidParamsError("FalkoLikeParams.neigh_a must be > 0 and neigh_b finite")
-        if self.min_neighbours < 1:
-            raise InvalidParamsError(f"FalkoLikeParams.min_neighbours must be >= 1, got "
-                                     f"{self.min_neighbours}")  # fmt: skip
-        if not self.side_ratio >= 1.0:
-            raise InvalidParamsError(
-                f"FalkoLikeParams.side_ratio must be >= 1, got {self.side_ratio}"
-            )
-        if not 0.0 <= self.min_apex_deg < self.max_apex_deg <= 180.0:
-            raise InvalidParamsError(
-                "FalkoLikeParams: need 0 <= min_apex_deg < max_apex_deg <= 180"
-            )
-        if self.sectors < 4:
-            raise InvalidParamsError(f"FalkoLikeParams.sectors must be >= 4, got {self.sectors}")
-        if not self.nms_radius >= 0.0:
-            raise InvalidParamsError(
-                f"FalkoLikeParams.nms_radius must be >= 0, got {self.nms_radius}"
-            )
+    neigh_a: float = Field(0.1, gt=0.0, allow_inf_nan=False)
+    neigh_b: float = Field(0.07, allow_inf_nan=False)
+    min_neighbours: int = Field(2, ge=1)
+    side_ratio: float = Field(2.0, ge=1.0)
+    min_apex_deg: float = Field(30.0, ge=0.0, le=180.0)
+    max_apex_deg: float = Field(150.0, ge=0.0, le=180.0)
+    sectors: int = Field(16, ge=4)
+    max_mean_sector_distance: float = Field(1.0, ge=0.0)
+    nms_radius: float = Field(0.1, ge=0.0)
+    min_range: float = Field(0.1, ge=0.0)
+    max_range: float = Field(30.0, gt=0.0)
+
+    @model_validator(mode="after")
+    def _check_apex(self) -> FalkoLikeParams:
+        if not self.min_apex_deg < self.max_apex_deg:
+            raise ValueError("need min_apex_deg < max_apex_deg")
+        return self
 
 
 @nb.njit(cache=True)

@@ -23,14 +23,16 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import partial
+from typing import Annotated, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 
-from laser_corners.errors import InputError, InvalidParamsError
-from laser_corners.eval.methods import detect_all, method_factories
+from laser_corners.errors import InputError
+from laser_corners.eval.methods import DEFAULT_METHODS, detect_all, method_factories
 from laser_corners.eval.revisits import candidates, revisits, travel_distance
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching import (
@@ -40,7 +42,7 @@ from laser_corners.matching import (
     describe,
     register_pairs,
 )
-from laser_corners.matching.descriptors import DESCRIPTORS
+from laser_corners.options import Options
 from laser_corners.scan import LaserScan, compose, invert, pose_error
 
 __all__ = [
@@ -55,9 +57,6 @@ __all__ = [
     "precision_recall",
 ]
 
-DEFAULT_METHODS: tuple[str, ...] = ("paper", "auto", "split-and-merge", "falko-like")
-"""Methods of ``evaluate loops`` by default (``paper`` is our detector with the paper's
-parameters; ``falko-like`` is our reading of the FALKO paper, not falkolib)."""
 
 LOOPS_MATCH = PLACE_RECOGNITION
 """Matcher options of ``evaluate loops``: the library's
@@ -66,8 +65,7 @@ only when the scans agree; one inlier is enough for the kernel, the sweep over T
 the inliers of the accepted registrations afterwards)."""
 
 
-@dataclass(frozen=True)
-class LoopsConfig:
+class LoopsConfig(Options):
     """Settings of :func:`evaluate_loops` (see the module docstring).
 
     Attributes
@@ -97,33 +95,19 @@ class LoopsConfig:
         replaced by the smallest swept threshold).
     """
 
-    methods: tuple[str, ...] = DEFAULT_METHODS
-    min_inliers: int = 1
-    thresholds: tuple[int, ...] = tuple(range(1, 16))
-    max_position_error: float = 0.5
-    max_angle_error: float = 0.2
-    window_travel: float = 5.0
-    revisit_overlap: float = 0.5
-    overlap_tolerance: float = 0.3
-    max_scans: int | None = None
-    descriptor: str = "csc"
-    match: MatchOptions = LOOPS_MATCH
+    title: ClassVar[str] = "LoopsConfig"
 
-    def __post_init__(self) -> None:
-        if self.min_inliers < 1:
-            raise InvalidParamsError(f"min_inliers must be >= 1, got {self.min_inliers}")
-        if not self.thresholds or min(self.thresholds) < 1:
-            raise InvalidParamsError("thresholds must be integers >= 1")
-        if not self.methods:
-            raise InvalidParamsError("no method given")
-        if not self.window_travel >= 0.0:
-            raise InvalidParamsError(f"window_travel must be >= 0, got {self.window_travel}")
-        if self.descriptor not in DESCRIPTORS:
-            raise InvalidParamsError(f"unknown descriptor {self.descriptor!r}; known: "
-                                     f"{', '.join(DESCRIPTORS)}")  # fmt: skip
-        if not 0.0 < self.revisit_overlap <= 1.0:
-            raise InvalidParamsError(f"revisit_overlap must be in (0, 1], got "
-                                     f"{self.revisit_overlap}")  # fmt: skip
+    methods: tuple[str, ...] = Field(DEFAULT_METHODS, min_length=1)
+    min_inliers: int = Field(1, ge=1)
+    thresholds: tuple[Annotated[int, Field(ge=1)], ...] = Field(tuple(range(1, 16)), min_length=1)
+    max_position_error: float = Field(0.5, gt=0.0)
+    max_angle_error: float = Field(0.2, gt=0.0)
+    window_travel: float = Field(5.0, ge=0.0)
+    revisit_overlap: float = Field(0.5, gt=0.0, le=1.0)
+    overlap_tolerance: float = Field(0.3, gt=0.0)
+    max_scans: int | None = Field(None, ge=1)
+    descriptor: Literal["bsc", "csc"] = "csc"
+    match: MatchOptions = LOOPS_MATCH
 
 
 @dataclass
@@ -289,7 +273,7 @@ def _evaluate_method(
     t0 = time.perf_counter()
     bank = loop_bank(scans, keypoints, config)
     seconds["describe"] = time.perf_counter() - t0
-    options = replace(config.match, min_inliers=min(config.thresholds))
+    options = config.match.with_overrides({"min_inliers": min(config.thresholds)})
     poses = np.array([s.pose for s in scans], dtype=np.float64)
     travel = travel_distance(poses)
     n = len(scans)

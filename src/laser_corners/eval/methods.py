@@ -27,6 +27,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
 
+from laser_corners.choice import ParamsChoice
 from laser_corners.detector import CornerDetector
 from laser_corners.errors import InvalidParamsError
 from laser_corners.eval.baselines import SplitAndMergeDetector
@@ -34,11 +35,12 @@ from laser_corners.eval.falko_like import FalkoLikeDetector
 from laser_corners.io import KeypointWriter
 from laser_corners.keypoints import Keypoints
 from laser_corners.pipeline import detect_recording
-from laser_corners.presets import PRESETS, get_preset
+from laser_corners.presets import PRESETS
 from laser_corners.scan import LaserScan
 
 __all__ = [
     "ALIASES",
+    "DEFAULT_METHODS",
     "DetectLoop",
     "Detects",
     "MethodFactory",
@@ -73,9 +75,15 @@ _OTHERS: dict[str, MethodFactory] = {
 ALIASES: dict[str, str] = {"baseline": "split-and-merge", "falko": "falko-like"}
 """Older method names, still accepted."""
 
+DEFAULT_METHODS: tuple[str, ...] = ("paper", "auto", "split-and-merge", "falko-like")
+"""The methods an evaluation compares by default (``evaluate real``, ``evaluate loops``):
+``paper`` is our detector with the paper's parameters; ``falko-like`` is our reading of the
+FALKO paper, not falkolib."""
+
 
 def _preset_factory(name: str) -> MethodFactory:
-    return lambda scan: CornerDetector(get_preset(name, scan))
+    choice = ParamsChoice(preset=name)
+    return lambda scan: CornerDetector(choice.resolve(scan))
 
 
 def method_names() -> list[str]:

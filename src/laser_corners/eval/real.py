@@ -56,7 +56,6 @@ from laser_corners.eval.repeatability import RepeatabilityResult
 from laser_corners.io import open_scans
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline.recording import no_scan_error
-from laser_corners.presets import get_preset
 from laser_corners.scan import LaserScan
 
 __all__ = [
@@ -171,8 +170,8 @@ def evaluate_real(
         Ground-truth relative poses for repeatability; default: pairs from the poses.
     params : DetectorParams, optional
         Our detector's parameters for the maps and the association distance (first row of
-        the repeatability table, ``custom``); default: ``config.preset`` with
-        ``config.overrides``.
+        the repeatability table, ``custom``); default: ``config.detector`` resolved against
+        the first scan.
     source, pose_source : str
         Names recorded in the report.
     progress : callable, optional
@@ -201,10 +200,8 @@ def evaluate_real(
     if not any(s.pose is not None for s in scans):
         raise InputError(f"{source or 'recording'}: no scan has a sensor pose")
     if params is None:
-        params = get_preset(cfg.preset, scans[0])
-        if cfg.overrides:
-            params = params.with_overrides(list(cfg.overrides))
-        maps_label = cfg.preset + (" + overrides" if cfg.overrides else "")
+        params = cfg.detector.resolve(scans[0])
+        maps_label = cfg.detector.label
     else:
         maps_label = "custom"
     maps = maps_phase(scans, CornerDetector(params), cfg, phases)

@@ -2,26 +2,25 @@
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from typing import Annotated, Any, ClassVar
 
-from laser_corners.errors import InvalidParamsError
-from laser_corners.eval.methods import canonical_name
-from laser_corners.scan import Pose2D
+from pydantic import Field, field_validator, model_validator
+
+from laser_corners.choice import ParamsChoice
+from laser_corners.eval.methods import DEFAULT_METHODS, canonical_name
+from laser_corners.options import Options
 
 __all__ = ["RealEvalConfig"]
 
 
-@dataclass(frozen=True)
-class RealEvalConfig:
+class RealEvalConfig(Options):
     """Settings of :func:`evaluate_real`.
 
     Attributes
     ----------
-    preset : str
-        Detector preset for the maps and the association distance.
-    overrides : tuple of str
-        ``key=value`` overrides of that preset.
+    detector : ParamsChoice
+        Detector parameters for the maps and the association distance (a preset plus
+        overrides; ``preset=`` and ``overrides=`` keywords are still accepted and read).
     resolution : float
         Observability grid cell, metres (0.03 in the paper).
     association_radius : float
@@ -63,36 +62,53 @@ class RealEvalConfig:
         std (association) and scan pairs (repeatability); visible keypoints (repeatability).
     """
 
-    preset: str = "paper"
-    overrides: tuple[str, ...] = ()
-    resolution: float = 0.03
-    association_radius: float = 0.06
-    std_threshold: float = 0.03
-    min_ratio: float = 0.25
-    min_views: int = 20
-    nms_radius: float = 0.2
-    radii: tuple[float, ...] = (0.05, 0.1)
-    occlusion: bool = True
-    view_tolerance: float = 0.06
-    max_range: float | None = None
-    max_scans: int | None = None
-    pair_min_motion: float = 0.5
-    pair_min_turn_deg: float = 15.0
-    max_pairs: int = 1000
-    relations_mount: Pose2D = (0.0, 0.0, 0.0)
-    methods: tuple[str, ...] = ("paper", "auto", "split-and-merge", "falko-like")
-    max_cells: int = 2_000_000
-    max_features: int = 400
-    min_pairs: int = 20
-    min_visible: int = 5
+    title: ClassVar[str] = "RealEvalConfig"
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "methods", tuple(canonical_name(m) for m in self.methods))
-        for name in ("resolution", "association_radius", "std_threshold", "view_tolerance"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise InvalidParamsError(f"{name} must be a finite number > 0, got {value}")
-        if self.max_range is not None and not self.max_range > 0.0:
-            raise InvalidParamsError(f"max_range must be > 0, got {self.max_range}")
-        if self.max_cells < 1 or self.max_features < 1 or self.max_pairs < 1:
-            raise InvalidParamsError("max_cells, max_features and max_pairs must be >= 1")
+    detector: ParamsChoice = ParamsChoice()
+    resolution: float = Field(0.03, gt=0.0, allow_inf_nan=False)
+    association_radius: float = Field(0.06, gt=0.0, allow_inf_nan=False)
+    std_threshold: float = Field(0.03, gt=0.0, allow_inf_nan=False)
+    min_ratio: float = Field(0.25, ge=0.0, le=1.0)
+    min_views: int = Field(20, ge=1)
+    nms_radius: float = Field(0.2, ge=0.0)
+    radii: tuple[Annotated[float, Field(gt=0.0)], ...] = Field((0.05, 0.1), min_length=1)
+    occlusion: bool = True
+    view_tolerance: float = Field(0.06, gt=0.0, allow_inf_nan=False)
+    max_range: float | None = Field(None, gt=0.0)
+    max_scans: int | None = Field(None, ge=1)
+    pair_min_motion: float = Field(0.5, ge=0.0)
+    pair_min_turn_deg: float = Field(15.0, ge=0.0)
+    max_pairs: int = Field(1000, ge=1)
+    relations_mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    methods: tuple[str, ...] = Field(DEFAULT_METHODS, min_length=1)
+    max_cells: int = Field(2_000_000, ge=1)
+    max_features: int = Field(400, ge=1)
+    min_pairs: int = Field(20, ge=0)
+    min_visible: int = Field(5, ge=0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _legacy_preset(cls, data: Any) -> Any:
+        """``preset=`` and ``overrides=`` (the fields before ``detector``) still work."""
+        if isinstance(data, dict) and ("preset" in data or "overrides" in data):
+            data = dict(data)
+            if "detector" in data:
+                raise ValueError("give detector or preset/overrides, not both")
+            preset = data.pop("preset", "paper")
+            data["detector"] = ParamsChoice(preset=preset, overrides=data.pop("overrides", ()))
+        return data
+
+    @field_validator("methods")
+    @classmethod
+    def _canonical(cls, methods: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(canonical_name(m) for m in methods)
+
+    @property
+    def preset(self) -> str:
+        """The detector preset (``detector.preset``)."""
+        return self.detector.preset
+
+    @property
+    def overrides(self) -> tuple[str, ...]:
+        """The detector overrides (``detector.overrides``)."""
+        return self.detector.overrides

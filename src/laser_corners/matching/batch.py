@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching.descriptors import Descriptors
+from laser_corners.matching.kernel_args import Bank
 from laser_corners.matching.registration import MatchOptions, _check_pair
 from laser_corners.matching.solve import register_batch
 from laser_corners.matching.verify import scan_arrays
@@ -76,9 +77,9 @@ class KeypointBank:
         """Keypoints per scan."""
         return np.diff(self.offsets)
 
-    def arrays(self) -> tuple:
-        """The bank as the kernels' bank tuple (:mod:`laser_corners.matching.solve`)."""
-        return (self.xy, self.cov, self.orientation, self.opening, self.bits, self.values,
+    def arrays(self) -> Bank:
+        """The bank as the kernels' :class:`~laser_corners.matching.kernel_args.Bank`."""
+        return Bank(self.xy, self.cov, self.orientation, self.opening, self.bits, self.values,
                 self.offsets, self.ranges, self.range_offsets, self.geometry, self.points,
                 self.point_offsets)  # fmt: skip
 
@@ -174,7 +175,7 @@ def _run(
     inv_bits = 1.0 / bank_b.n_bits if bank_b.n_bits else 0.0
     register_batch(
         1 if bank_b.kind == "csc" else 0, inv_bits, bank_a.arrays(), bank_b.arrays(), qa, cb,
-        *options.kernel_options(bank_b.kind), status, n_inl, poses, covs, agreement,
+        options.kernel_options(bank_b.kind), status, n_inl, poses, covs, agreement,
     )  # fmt: skip
     accepted = status == 0
     poses[~accepted] = 0.0

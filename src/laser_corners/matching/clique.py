@@ -3,13 +3,12 @@ pairwise-consistent matches (conventions as :mod:`laser_corners.matching.core`).
 
 from __future__ import annotations
 
-import math
-
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.matching.core import _pair_fast, _prepare
+from laser_corners.matching.core import _pair_fast, _prepare, cos_tolerance
+from laser_corners.matching.kernel_args import KernelOptions
 from laser_corners.matching.nearest import _popcount
 
 # exact maximum clique up to this many candidate matches (bitsets of one uint64 word)
@@ -21,8 +20,8 @@ CLIQUE_BUDGET = 20000
 @nb.njit(cache=True, nogil=True)
 def max_clique(
     xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    tol: float, min_sep: float, members: NDArray[np.int64],
-    oa: NDArray[np.float64], ob: NDArray[np.float64], angle_tol: float,
+    members: NDArray[np.int64], oa: NDArray[np.float64], ob: NDArray[np.float64],
+    options: KernelOptions,
 ) -> int:  # fmt: skip
     """Largest set of pairwise-consistent matches (FALKO's CCDA); returns its size.
 
@@ -33,7 +32,8 @@ def max_clique(
     if n == 0:
         return 0
     da, db, rot = _prepare(xa, xb, m, n, oa, ob)
-    cos_tol = math.cos(angle_tol) if angle_tol < math.pi else -2.0
+    tol = options.tolerance
+    cos_tol = cos_tolerance(options.angle_tolerance)
     if n > CLIQUE_EXACT_MAX:
         adj_ok = np.zeros((n, n), dtype=np.bool_)
         deg = np.zeros(n, dtype=np.int64)

@@ -15,6 +15,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.matching.kernel_args import KernelOptions
+
 # verification modes
 VERIFY_RANSAC = 0
 VERIFY_CLIQUE = 1
@@ -63,6 +65,12 @@ def _count_inliers(
 @nb.njit(cache=True, nogil=True)
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def cos_tolerance(angle_tolerance: float) -> float:
+    """The cosine of ``angle_tolerance`` for the rotation tests (-2: off at pi or more)."""
+    return math.cos(angle_tolerance) if angle_tolerance < math.pi else -2.0
 
 
 @nb.njit(cache=True, nogil=True)
@@ -157,24 +165,26 @@ def _keep(
 @nb.njit(cache=True, nogil=True)
 def ransac(
     xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    tol: float, min_sep: float, iterations: int, seed: int,
-    oa: NDArray[np.float64], ob: NDArray[np.float64], angle_tol: float, single: bool,
+    oa: NDArray[np.float64], ob: NDArray[np.float64], options: KernelOptions,
     poses: NDArray[np.float64], counts: NDArray[np.int64],
 ) -> int:  # fmt: skip
-    """The best SE(2) hypotheses (most inliers within ``tol``; ties: lower cost).
+    """The best SE(2) hypotheses (most inliers within ``options.tolerance``; ties: lower
+    cost).
 
-    Hypotheses: with ``single``, each match alone (rotation = difference of the two keypoint
-    orientations, translation from the keypoints); then pairs of matches (two-point
-    alignment): all pairs when there are at most ``iterations`` of them, else ``iterations``
-    pairs drawn by a xorshift generator seeded with ``seed`` (deterministic). ``poses`` (K, 3)
-    and ``counts`` (K) receive the K best distinct ones, best first; returns how many.
+    Hypotheses: with ``options.single_point``, each match alone (rotation = difference of the
+    two keypoint orientations, translation from the keypoints); then pairs of matches
+    (two-point alignment): all pairs when there are at most ``options.iterations`` of them,
+    else that many pairs drawn by a xorshift generator seeded with ``options.seed``
+    (deterministic). ``poses`` (K, 3) and ``counts`` (K) receive the K best distinct ones,
+    best first; returns how many.
     """
+    tol = options.tolerance
     costs = np.empty(counts.shape[0])
     nk = 0
     tol2 = tol * tol
     da, db, rot = _prepare(xa, xb, m, n, oa, ob)
-    cos_tol = math.cos(angle_tol) if angle_tol < math.pi else -2.0
-    if single:
+    cos_tol = cos_tolerance(options.angle_tolerance)
+    if options.single_point:
         for q in range(n):
             th = math.atan2(rot[q, 1], rot[q, 0])
             if th != th:
@@ -189,11 +199,11 @@ def ransac(
             if cnt > 0:
                 nk = _keep(poses, counts, costs, nk, tx, ty, th, cnt, cost, tol)
     n_pairs = n * (n - 1) // 2
-    exhaustive = n_pairs <= iterations
-    state = np.uint64(88172645463325252) ^ (np.uint64(seed) * np.uint64(2654435761))
+    exhaustive = n_pairs <= options.iterations
+    state = np.uint64(88172645463325252) ^ (np.uint64(options.seed) * np.uint64(2654435761))
     p = np.int64(0)
     q = np.int64(1)
-    total = n_pairs if exhaustive else iterations
+    total = n_pairs if exhaustive else options.iterations
     for it in range(total):
         if exhaustive:
             if it > 0:
@@ -212,7 +222,7 @@ def ransac(
             q = np.int64(state % np.uint64(n))
             if p == q:
                 continue
-        if not _pair_fast(da, db, rot, m, p, q, tol, min_sep, cos_tol):
+        if not _pair_fast(da, db, rot, m, p, q, tol, options.min_separation, cos_tol):
             continue
         tx, ty, th = _pose_two(
             xa[m[p, 0], 0], xa[m[p, 0], 1], xa[m[q, 0], 0], xa[m[q, 0], 1],

@@ -30,14 +30,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, ClassVar, Literal
 
 import numba as nb
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 
-from laser_corners.errors import InvalidParamsError
 from laser_corners.keypoints import Keypoints
+from laser_corners.options import Options
 from laser_corners.scan import LaserScan
 
 __all__ = ["DESCRIPTORS", "DescriptorParams", "Descriptors", "describe", "describe_points"]
@@ -48,8 +49,7 @@ KIND_BSC = 0
 KIND_CSC = 1
 
 
-@dataclass(frozen=True)
-class DescriptorParams:
+class DescriptorParams(Options):
     """Parameters of a descriptor (see the module docstring).
 
     Attributes
@@ -70,33 +70,31 @@ class DescriptorParams:
         csc: weight of the opening angle difference (per 180 degrees) in the distance.
     """
 
+    title: ClassVar[str] = "DescriptorParams"
+
     kind: Literal["bsc", "csc"] = "csc"
-    radius: float = 0.0
-    n_sectors: int = 0
-    n_rings: int = 0
-    inner: float = 0.1
-    max_step: float = 0.1
-    opening_weight: float = 0.5
+    radius: float = Field(0.0, ge=0.0, allow_inf_nan=False)
+    n_sectors: int = Field(0, ge=0)
+    n_rings: int = Field(0, ge=0)
+    inner: float = Field(0.1, gt=0.0, allow_inf_nan=False)
+    max_step: float = Field(0.1, gt=0.0, allow_inf_nan=False)
+    opening_weight: float = Field(0.5, ge=0.0, allow_inf_nan=False)
+
+    def __init__(self, kind: str | None = None, /, **data: Any) -> None:
+        if kind is not None:  # DescriptorParams("bsc", ...): the kind may come first
+            data["kind"] = kind
+        super().__init__(**data)
 
     def resolved(self) -> DescriptorParams:
-        """A copy with the kind's defaults filled in (0 means default) and checked."""
-        if self.kind not in DESCRIPTORS:
-            raise InvalidParamsError(
-                f"descriptor kind must be one of {DESCRIPTORS}, got {self.kind!r}"
-            )
+        """A copy with the kind's defaults filled in (0 means default)."""
         bsc = self.kind == "bsc"
-        out = DescriptorParams(
-            self.kind,
-            self.radius or (2.0 if bsc else 3.0),
-            self.n_sectors or (16 if bsc else 12),
-            self.n_rings or (8 if bsc else 5),
-            self.inner,
-            self.max_step,
-            self.opening_weight,
+        return self.with_overrides(
+            {
+                "radius": self.radius or (2.0 if bsc else 3.0),
+                "n_sectors": self.n_sectors or (16 if bsc else 12),
+                "n_rings": self.n_rings or (8 if bsc else 5),
+            }
         )
-        if out.radius <= 0 or out.n_sectors < 1 or out.n_rings < 1 or out.inner <= 0:
-            raise InvalidParamsError(f"invalid descriptor parameters: {out}")
-        return out
 
 
 @dataclass(frozen=True)

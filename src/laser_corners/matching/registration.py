@@ -28,18 +28,21 @@ For place recognition (one query against thousands of scans) see
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 
 from laser_corners.detector import CornerDetector
-from laser_corners.errors import InvalidParamsError, InvalidScanError
+from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching.core import VERIFY_CLIQUE, VERIFY_RANSAC
 from laser_corners.matching.descriptors import DescriptorParams, Descriptors, describe
+from laser_corners.matching.kernel_args import KernelOptions, Side
 from laser_corners.matching.solve import register_pair
 from laser_corners.matching.verify import ScanArrays, scan_arrays
+from laser_corners.options import Options
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan, Pose2D
 
@@ -56,8 +59,7 @@ _REASONS = {
 }
 
 
-@dataclass(frozen=True)
-class MatchOptions:
+class MatchOptions(Options):
     """Options of the matcher (defaults in brackets).
 
     Attributes
@@ -119,59 +121,62 @@ class MatchOptions:
         the refined pose is the result) [3].
     """
 
-    min_inliers: int = 4
-    tolerance: float = 0.1
-    k_nearest: int = 3
-    ratio: float = 1.0
+    title: ClassVar[str] = "MatchOptions"
+    what: ClassVar[str] = "match option"
+
+    min_inliers: int = Field(4, ge=1)
+    tolerance: float = Field(0.1, gt=0.0)
+    k_nearest: int = Field(3, ge=1)
+    ratio: float = Field(1.0, gt=0.0)
     mutual: bool = False
-    max_distance: float | None = None
+    max_distance: float | None = Field(None, gt=0.0)
     verification: Literal["ransac", "clique"] = "ransac"
-    iterations: int = 200
-    min_separation: float = 0.3
-    seed: int = 0
-    default_sigma: float = 0.03
-    angle_tolerance: float = 0.5
-    max_opening_difference: float = 180.0
+    iterations: int = Field(200, ge=1)
+    min_separation: float = Field(0.3, ge=0.0)
+    seed: int = Field(0, ge=0)
+    default_sigma: float = Field(0.03, gt=0.0)
+    angle_tolerance: float = Field(0.5, gt=0.0)
+    max_opening_difference: float = Field(180.0, ge=0.0)
     single_point: bool = True
-    max_hypotheses: int = 3
+    max_hypotheses: int = Field(3, ge=1)
     verify_scan: bool = False
-    scan_tolerance: float = 0.1
-    min_scan_agreement: float = 0.5
-    max_scan_conflict: float = 0.05
-    min_scan_points: int = 20
-    scan_points: int = 90
-    align_iterations: int = 3
+    scan_tolerance: float = Field(0.1, gt=0.0)
+    min_scan_agreement: float = Field(0.5, ge=0.0, le=1.0)
+    max_scan_conflict: float = Field(0.05, ge=0.0, le=1.0)
+    min_scan_points: int = Field(20, ge=0)
+    scan_points: int = Field(90, ge=1)
+    align_iterations: int = Field(3, ge=0)
 
-    def __post_init__(self) -> None:
-        if self.verification not in ("ransac", "clique"):
-            raise InvalidParamsError(
-                f"verification must be 'ransac' or 'clique', got {self.verification!r}"
-            )
-        if (self.k_nearest < 1 or self.iterations < 1 or self.tolerance <= 0
-                or self.min_inliers < 1 or self.max_hypotheses < 1 or self.scan_points < 1
-                or self.scan_tolerance <= 0 or not 0 <= self.min_scan_agreement <= 1
-                or not 0 <= self.max_scan_conflict <= 1):  # fmt: skip
-            raise InvalidParamsError(f"invalid match options: {self}")
-
-    def kernel_options(
-        self, kind: str
-    ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-        """The options as the integer, float and scan-check vectors of the numba kernels
-        (:mod:`laser_corners.matching.solve`), for descriptors of ``kind``."""
-        verify = VERIFY_CLIQUE if self.verification == "clique" else VERIFY_RANSAC
+    def kernel_options(self, kind: str) -> KernelOptions:
+        """The one conversion of the options into the kernels' argument
+        (:class:`~laser_corners.matching.kernel_args.KernelOptions`, the same names), for
+        descriptors of ``kind`` (which sets the default ``max_distance``)."""
         max_distance = self.max_distance
         if max_distance is None:
             max_distance = DEFAULT_MAX_DISTANCE[kind]
-        iopt = np.array([self.k_nearest, int(self.mutual), verify, self.iterations, self.seed,
-                         self.min_inliers, int(self.single_point), self.max_hypotheses],
-                        dtype=np.int64)  # fmt: skip
-        fopt = np.array([self.ratio, max_distance, self.tolerance, self.min_separation,
-                         self.default_sigma**2, self.angle_tolerance,
-                         self.max_opening_difference], dtype=np.float64)  # fmt: skip
-        vopt = np.array([float(self.verify_scan), self.scan_tolerance, self.min_scan_agreement,
-                         self.max_scan_conflict, self.min_scan_points, self.align_iterations],
-                        dtype=np.float64)  # fmt: skip
-        return iopt, fopt, vopt
+        return KernelOptions(
+            min_inliers=int(self.min_inliers),
+            tolerance=float(self.tolerance),
+            k_nearest=int(self.k_nearest),
+            ratio=float(self.ratio),
+            mutual=bool(self.mutual),
+            max_distance=float(max_distance),
+            verification=VERIFY_CLIQUE if self.verification == "clique" else VERIFY_RANSAC,
+            iterations=int(self.iterations),
+            min_separation=float(self.min_separation),
+            seed=int(self.seed),
+            default_sigma=float(self.default_sigma),
+            angle_tolerance=float(self.angle_tolerance),
+            max_opening_difference=float(self.max_opening_difference),
+            single_point=bool(self.single_point),
+            max_hypotheses=int(self.max_hypotheses),
+            verify_scan=bool(self.verify_scan),
+            scan_tolerance=float(self.scan_tolerance),
+            min_scan_agreement=float(self.min_scan_agreement),
+            max_scan_conflict=float(self.max_scan_conflict),
+            min_scan_points=int(self.min_scan_points),
+            align_iterations=int(self.align_iterations),
+        )
 
 
 PLACE_RECOGNITION = MatchOptions(
@@ -236,9 +241,9 @@ NO_SCAN: ScanArrays = (np.zeros(0), np.zeros(4), np.zeros((0, 2)))
 """Scan arrays of a side without a scan (the scan check must be off)."""
 
 
-def side_arrays(k: Keypoints, d: Descriptors, scan: ScanArrays = NO_SCAN) -> tuple:
-    """One scan as the kernels' side tuple (:mod:`laser_corners.matching.solve`)."""
-    return (
+def side_arrays(k: Keypoints, d: Descriptors, scan: ScanArrays = NO_SCAN) -> Side:
+    """One scan as the kernels' :class:`~laser_corners.matching.kernel_args.Side`."""
+    return Side(
         np.ascontiguousarray(k.xy, dtype=np.float64),
         np.ascontiguousarray(k.cov, dtype=np.float64),
         np.ascontiguousarray(k.orientation, dtype=np.float64),
@@ -302,7 +307,7 @@ def register_keypoints(
     inv_bits = 1.0 / desc_a.n_bits if desc_a.n_bits else 0.0
     status, n_inl, n_cand, agreement = register_pair(
         desc_a.kind_code, inv_bits, side_arrays(kp_a, desc_a, scans[0]),
-        side_arrays(kp_b, desc_b, scans[1]), *opt.kernel_options(desc_a.kind), pose, pose_cov,
+        side_arrays(kp_b, desc_b, scans[1]), opt.kernel_options(desc_a.kind), pose, pose_cov,
         inl,
     )  # fmt: skip
     if status != 0:

@@ -5,13 +5,10 @@ final inliers -> scan verification); :func:`register_batch` runs it for any list
 (query, candidate) pairs of two keypoint banks in one call, in parallel over the pairs
 (``numba.prange``).
 
-A *side* (one scan) is the tuple ``(xy, cov, orientation, opening, bits, values, ranges,
-geometry, points)``; a *bank* (many scans) is ``(xy, cov, orientation, opening, bits, values,
-offsets, ranges, range_offsets, geometry, points, point_offsets)``. Integer options ``iopt`` =
-(k_nearest, mutual, verification, iterations, seed, min_inliers, single, max_hypotheses);
-float options ``fopt`` = (ratio, max_distance, tolerance, min_separation, default_var,
-angle_tolerance, max_opening_difference); scan options ``vopt`` as
-:func:`laser_corners.matching.verify.verify_pose`.
+A *side* (one scan, :class:`~laser_corners.matching.kernel_args.Side`), a *bank* (many scans,
+:class:`~laser_corners.matching.kernel_args.Bank`) and the options
+(:class:`~laser_corners.matching.kernel_args.KernelOptions`, the fields of
+:class:`~laser_corners.matching.MatchOptions` under the same names) are named tuples.
 """
 
 from __future__ import annotations
@@ -24,6 +21,7 @@ from numpy.typing import NDArray
 
 from laser_corners.matching.clique import max_clique
 from laser_corners.matching.core import VERIFY_CLIQUE, _wrap, ransac
+from laser_corners.matching.kernel_args import Bank, KernelOptions, Side
 from laser_corners.matching.nearest import candidate_matches
 from laser_corners.matching.verify import precheck, verify_pose
 
@@ -222,33 +220,28 @@ def _refine(
 
 @nb.njit(cache=True, nogil=True)
 def _hypotheses(
-    a: tuple, b: tuple, m: NDArray[np.int64], n: int, iopt: NDArray[np.int64],
-    fopt: NDArray[np.float64], sel: NDArray[np.int64], hyp: NDArray[np.float64],
-    counts: NDArray[np.int64], pose_cov: NDArray[np.float64],
+    a: Side, b: Side, m: NDArray[np.int64], n: int, options: KernelOptions,
+    sel: NDArray[np.int64], hyp: NDArray[np.float64], counts: NDArray[np.int64],
+    pose_cov: NDArray[np.float64],
 ) -> int:  # fmt: skip
     """The verification's pose hypotheses, best first (RANSAC: up to ``max_hypotheses``;
     clique: one); returns how many."""
-    xa, cov_a, oa = a[0], a[1], a[2]
-    xb, cov_b, ob = b[0], b[1], b[2]
-    tol, min_sep, default_var, angle_tol = fopt[2], fopt[3], fopt[4], fopt[5]
-    if iopt[2] == VERIFY_CLIQUE:
-        n_sel = max_clique(xa, xb, m, n, tol, min_sep, sel, oa, ob, angle_tol)
+    if options.verification == VERIFY_CLIQUE:
+        n_sel = max_clique(a.xy, b.xy, m, n, sel, a.orientation, b.orientation, options)
         if n_sel == 0:
             return 0
-        tx, ty, th = _clique_pose(xa, xb, cov_a, cov_b, oa, ob, m, sel, n_sel, default_var,
-                                  pose_cov)  # fmt: skip
+        tx, ty, th = _clique_pose(a.xy, b.xy, a.cov, b.cov, a.orientation, b.orientation, m,
+                                  sel, n_sel, options.default_sigma**2, pose_cov)  # fmt: skip
         hyp[0, 0], hyp[0, 1], hyp[0, 2] = tx, ty, th
         counts[0] = n_sel
         return 1
-    return ransac(xa, xb, m, n, tol, min_sep, iopt[3], iopt[4], oa, ob, angle_tol,
-                  iopt[6] != 0, hyp, counts)  # fmt: skip
+    return ransac(a.xy, b.xy, m, n, a.orientation, b.orientation, options, hyp, counts)
 
 
 @nb.njit(cache=True, nogil=True)
 def register_pair(
-    kind: int, inv_bits: float, a: tuple, b: tuple, iopt: NDArray[np.int64],
-    fopt: NDArray[np.float64], vopt: NDArray[np.float64], pose: NDArray[np.float64],
-    pose_cov: NDArray[np.float64], inliers: NDArray[np.int64],
+    kind: int, inv_bits: float, a: Side, b: Side, options: KernelOptions,
+    pose: NDArray[np.float64], pose_cov: NDArray[np.float64], inliers: NDArray[np.int64],
 ) -> tuple[int, int, int, float]:  # fmt: skip
     """Register side B to side A; returns ``(status, n_inliers, n_candidates, agreement)``.
 
@@ -258,43 +251,46 @@ def register_pair(
     matches agreeing on a rotation. The hypotheses are then refined (WLS) and, with the scan
     check on, verified against the scans, best first; the first that passes is the result.
     """
-    xa, cov_a, oa, open_a, bits_a, vals_a = a[0], a[1], a[2], a[3], a[4], a[5]
-    xb, cov_b, ob, open_b, bits_b, vals_b = b[0], b[1], b[2], b[3], b[4], b[5]
-    ratio, max_distance, tol, default_var, angle_tol = fopt[0], fopt[1], fopt[2], fopt[4], fopt[5]
-    need = max(1 if vopt[0] != 0.0 else 2, iopt[5])
-    na = xa.shape[0]
-    nb_ = xb.shape[0]
+    tol, angle_tol = options.tolerance, options.angle_tolerance
+    default_var = options.default_sigma**2
+    need = max(1 if options.verify_scan else 2, options.min_inliers)
+    na = a.xy.shape[0]
+    nb_ = b.xy.shape[0]
     if na < need or nb_ < need:
         return FEW_KEYPOINTS, 0, 0, 0.0
-    m = np.empty((na * max(iopt[0], 1), 2), dtype=np.int64)
-    n = candidate_matches(kind, bits_a, vals_a, bits_b, vals_b, inv_bits, iopt[0], ratio,
-                          iopt[1] != 0, max_distance, m, open_a, open_b, fopt[6])  # fmt: skip
+    m = np.empty((na * max(options.k_nearest, 1), 2), dtype=np.int64)
+    n = candidate_matches(kind, a.bits, a.values, b.bits, b.values, inv_bits, options.k_nearest,
+                          options.ratio, options.mutual, options.max_distance, m, a.opening,
+                          b.opening, options.max_opening_difference)  # fmt: skip
     if n < need:
         return FEW_CANDIDATES, 0, n, 0.0
     # inliers imply one rotation, so at least `need` matches must agree on the rotation
-    # given by their keypoint orientations (bisectors) within angle_tol
-    if angle_tol < math.pi and _rotation_support(oa, ob, m, n, angle_tol) < need:
+    # given by their keypoint orientations (bisectors) within angle_tolerance
+    if angle_tol < math.pi and _rotation_support(a.orientation, b.orientation, m, n,
+                                                 angle_tol) < need:  # fmt: skip
         return FEW_INLIERS, 0, n, 0.0
     sel = np.empty(n, dtype=np.int64)
-    hyp = np.empty((max(iopt[7], 1), 3))
-    counts = np.zeros(max(iopt[7], 1), dtype=np.int64)
-    nk = _hypotheses(a, b, m, n, iopt, fopt, sel, hyp, counts, pose_cov)
+    hyp = np.empty((max(options.max_hypotheses, 1), 3))
+    counts = np.zeros(max(options.max_hypotheses, 1), dtype=np.int64)
+    nk = _hypotheses(a, b, m, n, options, sel, hyp, counts, pose_cov)
     status = FEW_INLIERS
     best_n = 0
     for h in range(nk):
         if counts[h] < need:
             break
-        if not precheck(a[6], a[7], b[8], hyp[h, 0], hyp[h, 1], hyp[h, 2], vopt):
+        if not precheck(a.ranges, a.geometry, b.points, hyp[h, 0], hyp[h, 1], hyp[h, 2],
+                        options):  # fmt: skip
             status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
             continue
-        n_sel, tx, ty, th = _refine(xa, xb, cov_a, cov_b, oa, ob, m, n, hyp[h, 0], hyp[h, 1],
-                                    hyp[h, 2], tol, angle_tol, need, default_var, sel,
-                                    pose_cov)  # fmt: skip
+        n_sel, tx, ty, th = _refine(a.xy, b.xy, a.cov, b.cov, a.orientation, b.orientation, m,
+                                    n, hyp[h, 0], hyp[h, 1], hyp[h, 2], tol, angle_tol, need,
+                                    default_var, sel, pose_cov)  # fmt: skip
         best_n = max(best_n, n_sel)
         if n_sel < need:
             continue
-        agreement, tx, ty, th = verify_pose(a[6], a[7], a[8], b[6], b[7], b[8], tx, ty, th,
-                                            vopt)  # fmt: skip
+        agreement, tx, ty, th = verify_pose(a.ranges, a.geometry, a.points, b.ranges,
+                                            b.geometry, b.points, tx, ty, th,
+                                            options)  # fmt: skip
         if agreement < 0.0:
             status = SCAN_DISAGREES
             continue
@@ -307,30 +303,31 @@ def register_pair(
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _side(bank: tuple, s: int) -> tuple:
+def _side(bank: Bank, s: int) -> Side:
     """Scan ``s`` of a bank as a side."""
-    lo, hi = bank[6][s], bank[6][s + 1]
-    r0, r1 = bank[8][s], bank[8][s + 1]
-    p0, p1 = bank[11][s], bank[11][s + 1]
-    return (bank[0][lo:hi], bank[1][lo:hi], bank[2][lo:hi], bank[3][lo:hi], bank[4][lo:hi],
-            bank[5][lo:hi], bank[7][r0:r1], bank[9][s], bank[10][p0:p1])  # fmt: skip
+    lo, hi = bank.offsets[s], bank.offsets[s + 1]
+    r0, r1 = bank.range_offsets[s], bank.range_offsets[s + 1]
+    p0, p1 = bank.point_offsets[s], bank.point_offsets[s + 1]
+    return Side(bank.xy[lo:hi], bank.cov[lo:hi], bank.orientation[lo:hi], bank.opening[lo:hi],
+                bank.bits[lo:hi], bank.values[lo:hi], bank.ranges[r0:r1], bank.geometry[s],
+                bank.points[p0:p1])  # fmt: skip
 
 
 @nb.njit(cache=True, parallel=True)
 def register_batch(
-    kind: int, inv_bits: float, bank_a: tuple, bank_b: tuple, qa: NDArray[np.int64],
-    cb: NDArray[np.int64], iopt: NDArray[np.int64], fopt: NDArray[np.float64],
-    vopt: NDArray[np.float64], status: NDArray[np.int64], n_inliers: NDArray[np.int64],
-    poses: NDArray[np.float64], pose_covs: NDArray[np.float64], agreement: NDArray[np.float64],
+    kind: int, inv_bits: float, bank_a: Bank, bank_b: Bank, qa: NDArray[np.int64],
+    cb: NDArray[np.int64], options: KernelOptions, status: NDArray[np.int64],
+    n_inliers: NDArray[np.int64], poses: NDArray[np.float64], pose_covs: NDArray[np.float64],
+    agreement: NDArray[np.float64],
 ) -> None:  # fmt: skip
     """:func:`register_pair` of scan ``qa[t]`` of ``bank_a`` (A) and scan ``cb[t]`` of
     ``bank_b`` (B) for every t, in parallel; outputs are indexed by t."""
     for t in nb.prange(qa.shape[0]):
         a = _side(bank_a, qa[t])
         b = _side(bank_b, cb[t])
-        inl = np.empty((max(min(a[0].shape[0], b[0].shape[0]), 1), 2), dtype=np.int64)
-        st, k, _, agr = register_pair(kind, inv_bits, a, b, iopt, fopt, vopt, poses[t],
-                                      pose_covs[t], inl)  # fmt: skip
+        inl = np.empty((max(min(a.xy.shape[0], b.xy.shape[0]), 1), 2), dtype=np.int64)
+        st, k, _, agr = register_pair(kind, inv_bits, a, b, options, poses[t], pose_covs[t],
+                                      inl)  # fmt: skip
         status[t] = st
         n_inliers[t] = k
         agreement[t] = agr

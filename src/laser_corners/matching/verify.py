@@ -31,6 +31,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.matching.kernel_args import KernelOptions, scan_geometry
 from laser_corners.scan import LaserScan
 
 __all__ = [
@@ -106,7 +107,8 @@ def scan_agreement(
     Stops early (returning what it counted) once ``conflict`` exceeds ``max_conflicts``.
     """
     n = ranges.shape[0]
-    amin, ainc, rmin, rmax = geom[0], geom[1], geom[2], geom[3]
+    g = scan_geometry(geom)
+    amin, ainc = g.angle_min, g.angle_increment
     c = math.cos(th)
     s = math.sin(th)
     tested = 0
@@ -116,7 +118,7 @@ def scan_agreement(
         x = c * pts[p, 0] - s * pts[p, 1] + tx
         y = s * pts[p, 0] + c * pts[p, 1] + ty
         r = math.sqrt(x * x + y * y)
-        if not rmin < r < rmax:
+        if not g.range_min < r < g.range_max:
             continue
         k = math.floor(beam_of(math.atan2(y, x), amin, ainc) + 0.5)
         if k < 0 or k >= n:
@@ -150,7 +152,8 @@ def align(
     line through the two neighbouring returns), pairs farther than ``max_d`` (halved at each
     iteration, not below 0.05 m) left out. Returns the pose unchanged when under-determined."""
     n = ranges.shape[0]
-    amin, ainc = geom[0], geom[1]
+    g = scan_geometry(geom)
+    amin, ainc = g.angle_min, g.angle_increment
     ca, sa = math.cos(ainc), math.sin(ainc)
     h = np.zeros((3, 3))
     g = np.zeros(3)
@@ -206,15 +209,19 @@ def align(
 @nb.njit(cache=True, nogil=True)
 def _one_way(
     ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
-    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+    tx: float, ty: float, th: float, options: KernelOptions,
 ) -> float:  # fmt: skip
     """Share of ``pts`` that agree with the scan ``(ranges, geom)``; -1 when the check fails."""
-    tol, min_agree, max_conflict, min_points = vopt[1], vopt[2], vopt[3], vopt[4]
+    max_conflict = options.max_scan_conflict
     tested, agree, conflict = scan_agreement(
-        ranges, geom, pts, tx, ty, th, tol, int(max_conflict * pts.shape[0])
+        ranges, geom, pts, tx, ty, th, options.scan_tolerance, int(max_conflict * pts.shape[0])
     )
     share = agree / max(pts.shape[0], 1)
-    if tested < min_points or conflict > max_conflict * tested or share < min_agree:
+    if (
+        tested < options.min_scan_points
+        or conflict > max_conflict * tested
+        or share < options.min_scan_agreement
+    ):
         return -1.0
     return share
 
@@ -222,47 +229,52 @@ def _one_way(
 @nb.njit(cache=True, nogil=True)
 def precheck(
     ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_b: NDArray[np.float64],
-    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+    tx: float, ty: float, th: float, options: KernelOptions,
 ) -> bool:  # fmt: skip
     """The cheap first look of :func:`verify_pose`: the first ``PRECHECK`` points of B
-    (stored evenly spread) with a tolerance of ``3·tolerance``; fails when fewer than
-    ``min_agreement`` of them agree or more than ``PRECHECK_CONFLICTS`` conflict. True when
-    the check is disabled."""
-    if vopt[0] == 0.0:
+    (stored evenly spread) with a tolerance of ``3·scan_tolerance``; fails when fewer than
+    ``min_scan_agreement`` of them agree or more than ``PRECHECK_CONFLICTS`` conflict. True
+    when the check is off (``options.verify_scan`` false)."""
+    if not options.verify_scan:
         return True
     pre = pts_b[:PRECHECK]
-    _, agree, conflict = scan_agreement(ranges_a, geom_a, pre, tx, ty, th, 3.0 * vopt[1],
-                                        PRECHECK_CONFLICTS)  # fmt: skip
-    return agree >= vopt[2] * pre.shape[0] and conflict <= PRECHECK_CONFLICTS
+    _, agree, conflict = scan_agreement(
+        ranges_a, geom_a, pre, tx, ty, th, 3.0 * options.scan_tolerance, PRECHECK_CONFLICTS
+    )
+    return agree >= options.min_scan_agreement * pre.shape[0] and conflict <= PRECHECK_CONFLICTS
 
 
 @nb.njit(cache=True, nogil=True)
 def verify_pose(
     ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_a: NDArray[np.float64],
     ranges_b: NDArray[np.float64], geom_b: NDArray[np.float64], pts_b: NDArray[np.float64],
-    tx: float, ty: float, th: float, vopt: NDArray[np.float64],
+    tx: float, ty: float, th: float, options: KernelOptions,
 ) -> tuple[float, float, float, float]:  # fmt: skip
     """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
 
-    ``vopt`` = (enabled, tolerance, min_agreement, max_conflict, min_points,
-    align_iterations). First the cheap :func:`precheck`, then the
+    ``options``: the ``verify_scan``, ``scan_tolerance``, ``min_scan_agreement``,
+    ``max_scan_conflict``, ``min_scan_points`` and ``align_iterations`` fields of
+    :class:`~laser_corners.matching.kernel_args.KernelOptions`. First the cheap
+    :func:`precheck`, then the
     pose is refined on A's scan (:func:`align`) and checked both ways. Returns
     ``(agreement, tx, ty, θ)``: the smaller share of agreeing points of the two directions
     and the refined pose, or agreement -1 when the check fails; 1.0 and the pose unchanged
     when the check is disabled.
     """
-    if vopt[0] == 0.0:
+    if not options.verify_scan:
         return 1.0, tx, ty, th
-    if not precheck(ranges_a, geom_a, pts_b, tx, ty, th, vopt):
+    if not precheck(ranges_a, geom_a, pts_b, tx, ty, th, options):
         return -1.0, tx, ty, th
-    tx, ty, th = align(ranges_a, geom_a, pts_b, tx, ty, th, int(vopt[5]), 4.0 * vopt[1])
-    ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, vopt)
+    tx, ty, th = align(
+        ranges_a, geom_a, pts_b, tx, ty, th, options.align_iterations, 4.0 * options.scan_tolerance
+    )
+    ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, options)
     if ab < 0.0:
         return -1.0, tx, ty, th
     # the inverse pose: p_B = Rᵀ·(p_A - t)
     c = math.cos(th)
     s = math.sin(th)
-    ba = _one_way(ranges_b, geom_b, pts_a, -(c * tx + s * ty), s * tx - c * ty, -th, vopt)
+    ba = _one_way(ranges_b, geom_b, pts_a, -(c * tx + s * ty), s * tx - c * ty, -th, options)
     if ba < 0.0:
         return -1.0, tx, ty, th
     return min(ab, ba), tx, ty, th

@@ -13,13 +13,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from itertools import chain
 from pathlib import Path
-from typing import Any
 
+from laser_corners.choice import ParamsChoice
 from laser_corners.detector import CornerDetector
-from laser_corners.errors import InputError, InvalidParamsError
+from laser_corners.errors import InputError
 from laser_corners.io import BagSource, ScanSource, detect_kind, open_scans
 from laser_corners.params import DetectorParams
-from laser_corners.presets import PRESETS, get_preset
 from laser_corners.scan import LaserScan
 
 __all__ = [
@@ -34,97 +33,10 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class ParamsChoice:
-    """How a recording gets its :class:`~laser_corners.DetectorParams` (picklable).
-
-    Parameters
-    ----------
-    preset : str
-        A preset of :data:`laser_corners.presets.PRESETS` (``paper``, ``auto``, ``robust``);
-        presets that adapt to the sensor use each recording's first scan. Ignored when
-        ``base`` is given.
-    base : DetectorParams, optional
-        Fixed parameters (for instance loaded from a file) instead of a preset.
-    overrides : tuple of str
-        ``key=value`` overrides applied last.
-    source : str
-        Where ``base`` came from (a file name), for summaries; "" for a preset.
-
-    Examples
-    --------
-    >>> choice = ParamsChoice(preset="paper", overrides=("min_points=6",))
-    >>> choice.resolve(None).min_points
-    6
-    >>> print(choice.describe(), end="")
-    preset: paper
-    overrides:
-    - min_points=6
-    """
-
-    preset: str = "paper"
-    base: DetectorParams | None = None
-    overrides: tuple[str, ...] = ()
-    source: str = ""
-
-    @classmethod
-    def from_options(
-        cls,
-        preset: str | None = None,
-        params_file: str | Path | None = None,
-        overrides: list[str] | tuple[str, ...] | None = None,
-    ) -> ParamsChoice:
-        """The choice for a preset name *or* a parameter file, plus overrides, checked now.
-
-        Raises
-        ------
-        InvalidParamsError
-            Both a preset and a file, an unknown preset, or an override with an unknown key or
-            a bad value (checked against the paper's parameters, so it fails once, not per file).
-        InputError
-            The parameter file cannot be read.
-        """
-        if preset is not None and params_file is not None:
-            raise InvalidParamsError("give a preset or a parameter file, not both")
-        if preset is not None and preset not in PRESETS:
-            get_preset(preset)  # raises the error listing the presets
-        overrides = tuple(overrides or ())
-        if overrides:
-            DetectorParams().with_overrides(list(overrides))
-        if params_file is not None:
-            base = DetectorParams.from_file(Path(params_file))
-            return cls(base=base, overrides=overrides, source=Path(params_file).name)
-        return cls(preset=preset or "paper", overrides=overrides)
-
-    @property
-    def label(self) -> str:
-        """A short name: the preset, or the parameter file (``+ overrides`` when any)."""
-        name = self.source or ("parameters" if self.base is not None else self.preset)
-        return name + (" + overrides" if self.overrides else "")
-
-    def resolve(self, scan: LaserScan | None) -> DetectorParams:
-        """The parameters for a recording whose first scan is ``scan``."""
-        params = self.base if self.base is not None else get_preset(self.preset, scan)
-        return params.with_overrides(list(self.overrides)) if self.overrides else params
-
-    def describe(self) -> str:
-        """A YAML document naming the choice (what ``batch-params.yaml`` holds)."""
-        import yaml
-
-        data: dict[str, Any] = (
-            {"params": yaml.safe_load(self.base.to_yaml())}
-            if self.base is not None
-            else {"preset": self.preset}
-        )
-        data["overrides"] = list(self.overrides)
-        return yaml.safe_dump(data, sort_keys=False)
-
-
 def as_choice(params: ParamsChoice | DetectorParams | None) -> ParamsChoice:
-    """``params`` as a :class:`ParamsChoice` (fixed parameters become its ``base``)."""
-    if params is None:
-        return ParamsChoice()
-    return params if isinstance(params, ParamsChoice) else ParamsChoice(base=params)
+    """``params`` as a :class:`~laser_corners.choice.ParamsChoice` (fixed parameters become
+    its ``base``); :meth:`ParamsChoice.of <laser_corners.choice.ParamsChoice.of>`."""
+    return ParamsChoice.of(params)
 
 
 @dataclass

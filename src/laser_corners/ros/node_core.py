@@ -20,11 +20,13 @@ from typing import Any
 
 import numpy as np
 
+from laser_corners.choice import ParamsChoice
 from laser_corners.detector import CornerDetector
 from laser_corners.errors import InvalidParamsError
 from laser_corners.keypoints import Keypoints
+from laser_corners.options import parse_assignments
 from laser_corners.params import DetectorParams
-from laser_corners.presets import PRESETS, get_preset
+from laser_corners.presets import PRESETS
 from laser_corners.ros.convert import scan_from_msg
 from laser_corners.scan import LaserScan
 
@@ -53,16 +55,14 @@ class NodeConfig:
 
     Attributes
     ----------
-    preset : str
-        Preset name (``paper`` when not given).
-    overrides : dict
-        Detector fields given explicitly; they override the preset.
+    params : ParamsChoice
+        The detector parameters: the ``preset`` (``paper`` when not given) with the detector
+        fields given explicitly as overrides.
     options : dict
         Node options (:data:`NODE_OPTIONS` with the given values).
     """
 
-    preset: str = "paper"
-    overrides: dict[str, Any] = field(default_factory=dict)
+    params: ParamsChoice = field(default_factory=ParamsChoice)
     options: dict[str, Any] = field(default_factory=lambda: dict(NODE_OPTIONS))
 
     @classmethod
@@ -106,18 +106,26 @@ class NodeConfig:
         for name in NODE_OPTIONS:
             if name in values:
                 options[name] = _check_option(name, values[name], f"{source} {prefix}{name}")
-        config = cls(preset=preset, overrides=overrides, options=options)
-        config.start_params()  # validates the overrides now, not at the first scan
-        return config
+        try:  # the overrides are checked now, not at the first scan
+            params = ParamsChoice(preset=preset, overrides=overrides)
+        except InvalidParamsError as exc:
+            raise InvalidParamsError(f"{source}s: {exc}") from None
+        return cls(params=params, options=options)
+
+    @property
+    def preset(self) -> str:
+        """The preset name."""
+        return self.params.preset
+
+    @property
+    def overrides(self) -> dict[str, Any]:
+        """The detector fields given explicitly (they override the preset)."""
+        return parse_assignments(DetectorParams, self.params.overrides)
 
     @property
     def needs_scan(self) -> bool:
         """Whether the preset adapts to the sensor, so it is resolved at the first scan."""
-        try:
-            get_preset(self.preset, None)
-        except InvalidParamsError:
-            return True
-        return False
+        return self.params.needs_scan
 
     def start_params(self) -> DetectorParams:
         """The parameters known before any scan arrives.
@@ -125,12 +133,7 @@ class NodeConfig:
         For a preset that needs a scan (``auto``), the overrides are checked against the
         paper's parameters; the preset is resolved at the first scan.
         """
-        if not self.needs_scan:
-            return self.detector_params(None)
-        try:
-            return DetectorParams().with_overrides(self.overrides)
-        except InvalidParamsError as exc:
-            raise InvalidParamsError(f"ROS parameters: {exc}") from None
+        return self.params.start_params()
 
     def updated(self, changes: Mapping[str, Any]) -> NodeConfig:
         """A new config with ``changes`` applied (for ROS 2 on-set-parameters callbacks).
@@ -148,8 +151,7 @@ class NodeConfig:
     def detector_params(self, scan: LaserScan | None) -> DetectorParams:
         """The preset (adapted to ``scan`` where it applies) with the overrides applied."""
         try:
-            base = get_preset(self.preset, scan)
-            return base.with_overrides(self.overrides) if self.overrides else base
+            return self.params.resolve(scan)
         except InvalidParamsError as exc:
             raise InvalidParamsError(f"ROS parameters: {exc}") from None
 

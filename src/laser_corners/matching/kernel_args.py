@@ -1,0 +1,105 @@
+"""The matcher's kernel arguments, by name: options, one scan (a side), many scans (a bank).
+
+numba takes named tuples as arguments and reads their fields by name, so a matcher option
+keeps one name from :class:`~laser_corners.matching.MatchOptions` (``scan_tolerance``) to the
+innermost kernel (``options.scan_tolerance``). :meth:`MatchOptions.kernel_options
+<laser_corners.matching.MatchOptions.kernel_options>` is the one conversion into
+:class:`KernelOptions`; :func:`~laser_corners.matching.registration.side_arrays` and
+:meth:`KeypointBank.arrays <laser_corners.matching.KeypointBank.arrays>` build the
+:class:`Side` and :class:`Bank` tuples.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["Bank", "KernelOptions", "ScanGeometry", "Side", "scan_geometry"]
+
+
+class KernelOptions(NamedTuple):
+    """:class:`~laser_corners.matching.MatchOptions` as the kernels read it (same names).
+
+    ``verification`` is :data:`~laser_corners.matching.core.VERIFY_RANSAC` or
+    :data:`~laser_corners.matching.core.VERIFY_CLIQUE`; ``max_distance`` is resolved for the
+    descriptor kind. Every other field is the option of the same name.
+    """
+
+    min_inliers: int
+    tolerance: float
+    k_nearest: int
+    ratio: float
+    mutual: bool
+    max_distance: float
+    verification: int
+    iterations: int
+    min_separation: float
+    seed: int
+    default_sigma: float
+    angle_tolerance: float
+    max_opening_difference: float
+    single_point: bool
+    max_hypotheses: int
+    verify_scan: bool
+    scan_tolerance: float
+    min_scan_agreement: float
+    max_scan_conflict: float
+    min_scan_points: int
+    align_iterations: int
+
+
+class Side(NamedTuple):
+    """One scan's keypoints, descriptors and (for the scan check) scan arrays.
+
+    ``ranges``, ``geometry`` and ``points`` are those of
+    :func:`~laser_corners.matching.verify.scan_arrays` (empty without a scan).
+    """
+
+    xy: NDArray[np.float64]
+    cov: NDArray[np.float64]
+    orientation: NDArray[np.float64]
+    opening: NDArray[np.float64]
+    bits: NDArray[np.uint64]
+    values: NDArray[np.float64]
+    ranges: NDArray[np.float64]
+    geometry: NDArray[np.float64]
+    points: NDArray[np.float64]
+
+
+class Bank(NamedTuple):
+    """Many scans in flat arrays (:class:`~laser_corners.matching.KeypointBank`): scan ``s``
+    owns keypoint rows ``offsets[s]:offsets[s+1]``, ranges ``range_offsets[s]:...``, geometry
+    row ``s`` and check points ``point_offsets[s]:...``."""
+
+    xy: NDArray[np.float64]
+    cov: NDArray[np.float64]
+    orientation: NDArray[np.float64]
+    opening: NDArray[np.float64]
+    bits: NDArray[np.uint64]
+    values: NDArray[np.float64]
+    offsets: NDArray[np.int64]
+    ranges: NDArray[np.float64]
+    range_offsets: NDArray[np.int64]
+    geometry: NDArray[np.float64]
+    points: NDArray[np.float64]
+    point_offsets: NDArray[np.int64]
+
+
+class ScanGeometry(NamedTuple):
+    """A scan's beam geometry as the kernels read it (:func:`scan_geometry`)."""
+
+    angle_min: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def scan_geometry(geometry: NDArray[np.float64]) -> ScanGeometry:
+    """The :class:`ScanGeometry` of a geometry row ``(angle_min, angle_increment, range_min,
+    range_max)`` (:func:`~laser_corners.matching.verify.scan_arrays`): the one place that
+    reads the row by position."""
+    return ScanGeometry(geometry[0], geometry[1], geometry[2], geometry[3])
