@@ -80,9 +80,9 @@ def _scans(n: int) -> list[LaserScan]:
 
 # ------------------------------------------------------------------ parameters
 def test_params_choice_docstring_and_options() -> None:
-    import laser_corners.pipeline.recording as recording
+    import laser_corners.choice as choice_module
 
-    result = doctest.testmod(recording, optionflags=doctest.NORMALIZE_WHITESPACE)
+    result = doctest.testmod(choice_module, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert result.attempted > 0 and result.failed == 0
     with pytest.raises(InvalidParamsError, match="not both"):
         ParamsChoice.from_options("auto", "p.yaml")
