@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.scan import Pose2D, rotation, transform_points
+from laser_corners.pose import Pose2D, rotation, transform_points, wrap_angle
 
 __all__ = ["KEYPOINT_DTYPE", "Keypoints"]
 
@@ -181,7 +181,7 @@ class Keypoints:
         theta = pose[2]
         rot = rotation(theta)
         xy = transform_points(self.xy, pose)
-        orientation = np.angle(np.exp(1j * (self.orientation + theta)))
+        orientation = wrap_angle(self.orientation + theta)
         values = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "cov"}
         values.update(xy=xy, orientation=orientation, frame_id=frame_id)
         if self._cov_is_lazy():  # stays lazy: turned when computed

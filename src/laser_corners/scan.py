@@ -9,6 +9,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidScanError
+from laser_corners.pose import (  # the SE(2) helpers' home; re-exported for compatibility
+    Pose2D,
+    compose,
+    invert,
+    pose_error,
+    relative_pose,
+    rotation,
+    transform_points,
+)
 
 __all__ = [
     "LaserScan",
@@ -24,58 +33,6 @@ __all__ = [
 # largest (n_beams - 1) * |angle_increment|: a full turn, plus a tolerance for increments
 # rounded to float32 by drivers
 _MAX_FIELD_OF_VIEW = 2.0 * math.pi * (1.0 + 1e-4)
-
-Pose2D = tuple[float, float, float]
-"""A planar pose ``(x, y, theta)`` in metres and radians."""
-
-
-def rotation(theta: float) -> NDArray[np.float64]:
-    """The 2x2 rotation matrix of angle ``theta`` (radians)."""
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, -s], [s, c]])
-
-
-def transform_points(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float64]:
-    """Points ``xy`` (M, 2) moved by the rigid transform ``pose = (x, y, theta)``: sensor-frame
-    points to the frame the sensor pose is given in."""
-    return xy @ rotation(pose[2]).T + np.array([pose[0], pose[1]])
-
-
-def compose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """``a ⊕ b``: the pose ``b`` (given in the frame of ``a``) in ``a``'s parent frame; the
-    angle wrapped to [-π, π]."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (
-        a[0] + c * b[0] - s * b[1],
-        a[1] + s * b[0] + c * b[1],
-        math.remainder(a[2] + b[2], math.tau),
-    )
-
-
-def invert(a: Pose2D) -> Pose2D:
-    """``⊖ a``: the inverse rigid transform."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], math.remainder(-a[2], math.tau))
-
-
-def pose_error(est: Pose2D, truth: Pose2D) -> tuple[float, float]:
-    """Position error (metres) and absolute angle error (radians, in [0, π]) of ``est``."""
-    return (
-        math.hypot(est[0] - truth[0], est[1] - truth[1]),
-        abs(math.remainder(est[2] - truth[2], math.tau)),
-    )
-
-
-def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:
-    """``⊖ a ⊕ b``: the pose ``b`` expressed in the frame of ``a``.
-
-    Examples
-    --------
-    >>> [round(v, 6) for v in relative_pose((1.0, 0.0, math.pi / 2), (1.0, 2.0, math.pi / 2))]
-    [2.0, 0.0, 0.0]
-    """
-    return compose(invert(a), b)
-
 
 def _finite_float(name: str, value: object) -> float:
     try:

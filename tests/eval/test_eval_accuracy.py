@@ -20,7 +20,7 @@ from laser_corners.eval.accuracy import (
     run_sweep,
 )
 from laser_corners.eval.linefit_study import line_fit_study
-from laser_corners.eval.noise import estimate_range_noise
+from laser_corners.noise import estimate_range_noise
 from laser_corners.sim import SICK_LMS_1DEG, UST_10LX, World, random_poses, random_world
 from laser_corners.viz.paper_figures import neighbourhoods, plot_neighbourhoods
 from laser_corners.viz.report import write_accuracy_report
@@ -148,7 +148,7 @@ def test_fig2_helper_agrees_with_the_kernel() -> None:
     assert info["opening"] == pytest.approx(90.0, abs=3.0)
 
 
-@pytest.mark.parametrize("name", ["laser_corners.eval.noise", "laser_corners.eval.baselines"])
+@pytest.mark.parametrize("name", ["laser_corners.noise", "laser_corners.eval.baselines"])
 def test_docstring_examples(name: str) -> None:
     import doctest
     import importlib

@@ -13,6 +13,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from laser_corners.io.base import PARTIAL_SUFFIX  # re-exported: batch's temporary names
+
 __all__ = [
     "MANIFEST_NAME",
     "PARAMS_NAME",
@@ -28,8 +30,6 @@ MANIFEST_NAME = "manifest.jsonl"
 """File name of the manifest in the output folder."""
 PARAMS_NAME = "batch-params.yaml"
 """File name of the parameter choice recorded in the output folder."""
-PARTIAL_SUFFIX = ".partial"
-"""Suffix of an output being written (renamed away on success)."""
 
 Status = Literal["done", "failed"]
 

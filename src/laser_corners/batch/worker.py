@@ -19,6 +19,7 @@ from laser_corners.batch.manifest import PARTIAL_SUFFIX, BatchJob, JobResult
 from laser_corners.citation import CITATION
 from laser_corners.errors import LaserCornersError, first_line
 from laser_corners.io import KeypointWriter
+from laser_corners.io.base import PartialOutput
 from laser_corners.io.writers import ParquetKeypointWriter
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline import (
@@ -123,13 +124,14 @@ def run_job(
     """
     start = time.perf_counter()
     outdir = Path(outdir)
-    partial = outdir / (job.output + PARTIAL_SUFFIX)
+    partial = outdir / (job.output + PARTIAL_SUFFIX)  # fixed: a re-run replaces a leftover
+    output = PartialOutput(outdir / job.output, overwrite=True, create=False, temporary=partial)
     result = JobResult(job.input, job.topic, job.output, "failed", worker=_worker_name())
     n_threads = set_threads(threads)
     writer = KeypointWriter()
     recording: Recording | None = None
     try:
-        partial.unlink(missing_ok=True)  # a leftover of an interrupted run
+        output.discard()  # a leftover of an interrupted run
         recording = open_recording(job.input, job.topic, params)
         result.read_seconds = time.perf_counter() - start
         result.startup_seconds = warm_up(recording.detector, recording.first, n_threads)
@@ -141,19 +143,19 @@ def run_job(
         result.detect_seconds = summary.detect_seconds
         result.write_seconds = summary.write_seconds
         result.reader_seconds = summary.reader_seconds
-        os.replace(partial, outdir / job.output)
+        output.publish()
         result.status = "done"
     except KeyboardInterrupt:
         writer.close()
-        partial.unlink(missing_ok=True)
+        output.discard()
         raise
     except LaserCornersError as exc:
         writer.close()
-        partial.unlink(missing_ok=True)
+        output.discard()
         result.error = first_line(exc)
     except Exception as exc:  # a surprise: keep the traceback next to the results
         writer.close()
-        partial.unlink(missing_ok=True)
+        output.discard()
         result.error = f"{type(exc).__name__}: {first_line(exc)} (traceback in errors/)"
         errors = outdir / "errors"
         errors.mkdir(exist_ok=True)

@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
 from laser_corners.errors import InvalidScanError
-from laser_corners.eval.noise import estimate_range_noise
 from laser_corners.keypoints import Keypoints
+from laser_corners.noise import estimate_range_noise
 from laser_corners.options import Options
 from laser_corners.scan import LaserScan
 
@@ -43,7 +43,7 @@ class SplitAndMergeParams(Options):
         A segment is split where a point lies farther than this from its chord, and two
         neighbouring segments are merged when one line fits both within it, metres. ``None``:
         ``max(0.02, 0.01 + 4 sigma)`` with sigma the range noise estimated from each scan
-        (:func:`~laser_corners.eval.noise.estimate_range_noise`).
+        (:func:`~laser_corners.noise.estimate_range_noise`).
     min_points : int
         Fewest points of a segment.
     min_length : float

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.errors import InputError
+from laser_corners.pose import wrap_angle
 from laser_corners.scan import LaserScan, Pose2D
 
 __all__ = [
@@ -140,11 +141,11 @@ def interpolate_poses(
             continue
         w = (ti - t0) / (t1 - t0)
         p0, p1 = ps[h - 1], ps[h]
-        dyaw = math.remainder(p1[2] - p0[2], math.tau)
+        dyaw = wrap_angle(p1[2] - p0[2])
         out[i] = (
             p0[0] + w * (p1[0] - p0[0]),
             p0[1] + w * (p1[1] - p0[1]),
-            math.remainder(p0[2] + w * dyaw, math.tau),
+            wrap_angle(p0[2] + w * dyaw),
         )
     return out
 

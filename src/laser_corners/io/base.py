@@ -265,8 +265,8 @@ class PartialOutput:
     file (or folder), never a half-written file under the final name.
 
     A ``path`` whose name ends in :data:`PARTIAL_SUFFIX` is a temporary name already (its
-    caller renames it when it is done, as ``laser-corners batch`` does): it is written
-    directly, so a kill leaves the one file the caller knows about.
+    caller's :class:`PartialOutput` renames it when it is done, as ``laser-corners batch``
+    does): it is written directly, so a kill leaves the one file the caller knows about.
 
     Parameters
     ----------
@@ -283,6 +283,10 @@ class PartialOutput:
         The output is a folder whose contents are named after it (a ROS 2 bag): it is written
         as ``STEM.XXXXXXXX.partial/NAME`` (not created) and moved out of that folder when
         published, so what is inside keeps its final names.
+    temporary : Path, optional
+        A fixed temporary name in the same folder, ending in :data:`PARTIAL_SUFFIX`, instead
+        of a new one (``batch``: ``NAME.parquet.partial``, so a re-run replaces the leftover
+        of a killed run); it is not created.
 
     Raises
     ------
@@ -291,7 +295,13 @@ class PartialOutput:
     """
 
     def __init__(
-        self, path: Path, *, overwrite: bool, create: bool = True, folder: bool = False
+        self,
+        path: Path,
+        *,
+        overwrite: bool,
+        create: bool = True,
+        folder: bool = False,
+        temporary: Path | None = None,
     ) -> None:
         self.path = path
         self.overwrite = overwrite
@@ -300,8 +310,8 @@ class PartialOutput:
         parent = path.parent
         if not parent.is_dir():
             raise OutputError(f"{path}: the folder {parent} does not exist")
-        if path.name.endswith(PARTIAL_SUFFIX):
-            self.temporary, self._holder = path, None
+        if temporary is not None or path.name.endswith(PARTIAL_SUFFIX):
+            self.temporary, self._holder = temporary or path, None
             return
         self._holder: Path | None = None
         try:

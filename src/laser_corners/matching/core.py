@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.matching.kernel_args import KernelOptions
+from laser_corners.pose import wrap_angle
 
 # verification modes
 VERIFY_RANSAC = 0
@@ -60,11 +61,6 @@ def _count_inliers(
             cnt += 1
             cost += d2
     return cnt, cost
-
-
-@nb.njit(cache=True, nogil=True)
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
@@ -135,7 +131,7 @@ def _keep(
     inlier set) are kept once, the better one."""
     for h in range(nk):
         if (abs(poses[h, 0] - tx) <= 2.0 * tol and abs(poses[h, 1] - ty) <= 2.0 * tol
-                and abs(_wrap(poses[h, 2] - th)) <= 0.5 * tol):  # fmt: skip
+                and abs(wrap_angle(poses[h, 2] - th)) <= 0.5 * tol):  # fmt: skip
             if not _better(cnt, cost, counts[h], costs[h]):
                 return nk
             for g in range(h, nk - 1):  # drop the worse copy

@@ -20,10 +20,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.matching.clique import max_clique
-from laser_corners.matching.core import VERIFY_CLIQUE, _wrap, ransac
+from laser_corners.matching.core import VERIFY_CLIQUE, ransac
 from laser_corners.matching.kernel_args import Bank, KernelOptions, Side
 from laser_corners.matching.nearest import candidate_matches
 from laser_corners.matching.verify import precheck, verify_pose
+from laser_corners.pose import wrap_angle
 
 # status codes of register_pair (the Python layer turns them into reason strings)
 OK = 0
@@ -128,7 +129,7 @@ def _final_inliers(
         by = xb[m[q, 1], 1]
         res[q] = math.hypot(xa[m[q, 0], 0] - (c * bx - s * by + tx),
                             xa[m[q, 0], 1] - (s * bx + c * by + ty))  # fmt: skip
-        if abs(_wrap(oa[m[q, 0]] - ob[m[q, 1]] - th)) > angle_tol:
+        if abs(wrap_angle(oa[m[q, 0]] - ob[m[q, 1]] - th)) > angle_tol:
             res[q] = math.inf
     order = np.argsort(res, kind="mergesort")
     used_a = np.zeros(xa.shape[0], dtype=np.bool_)
@@ -159,7 +160,7 @@ def _rotation_support(
     for p in range(n):
         cnt = 0
         for q in range(n):
-            if abs(_wrap(rot[p] - rot[q])) <= angle_tol:
+            if abs(wrap_angle(rot[p] - rot[q])) <= angle_tol:
                 cnt += 1
         best = max(best, cnt)
     return best

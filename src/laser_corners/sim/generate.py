@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidParamsError
+from laser_corners.pose import wrap_angle
 from laser_corners.sim.checks import check_number
 from laser_corners.sim.worlds import World, _distance_to_segments, _rotation
 
@@ -171,7 +172,7 @@ def trajectory(
             target = _next_waypoint(world, pose[:2], rng, clearance)
         d = target - pose[:2]
         wanted = math.atan2(d[1], d[0])
-        turn = float(np.angle(np.exp(1j * (wanted - heading))))
+        turn = float(wrap_angle(wanted - heading))
         heading += float(np.clip(turn, -max_turn, max_turn))
         if abs(turn) < math.radians(20.0):  # drive once roughly facing the waypoint
             step = min(speed * dt, float(np.hypot(*d)))

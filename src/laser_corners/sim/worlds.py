@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from laser_corners.pose import wrap_angle
 from laser_corners.scan import LaserScan
 from laser_corners.sim.checks import check_number
 from laser_corners.sim.raycast import cast_circles, cast_ranges
@@ -72,7 +73,7 @@ class World:
             nxt = np.roll(poly, -1, axis=0)
             a = np.arctan2(poly[:, 1] - prev[:, 1], poly[:, 0] - prev[:, 0])
             b = np.arctan2(nxt[:, 1] - poly[:, 1], nxt[:, 0] - poly[:, 0])
-            turn = np.abs(np.angle(np.exp(1j * (b - a))))
+            turn = np.abs(wrap_angle(b - a))
             keep = turn > math.radians(CORNER_MIN_TURN_DEG)
             verts.append(poly[keep])
             prevs.append(prev[keep])
@@ -144,7 +145,7 @@ class World:
         ).all(axis=1)
         if min_beams > 0.0:
             for far in (1, 3):
-                span = np.abs(np.angle(np.exp(1j * (bearing[:, far] - bearing[:, 0]))))
+                span = np.abs(wrap_angle(bearing[:, far] - bearing[:, 0]))
                 ok &= span >= min_beams * sensor.angle_increment
         return ok
 

@@ -1,0 +1,85 @@
+"""Planar poses (SE(2)): composition, inverse, relative pose, errors, and the one angle wrap.
+
+A pose ``(x, y, theta)`` (metres, radians) is the rigid transform taking points of a child
+frame (a sensor) into its parent frame: ``p_parent = R(theta)·p_child + (x, y)``.
+:func:`wrap_angle` is the package's one angle wrap: Python code and the numba kernels
+(:mod:`laser_corners.matching.core`) call the same function.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "Pose2D",
+    "compose",
+    "invert",
+    "pose_error",
+    "relative_pose",
+    "rotation",
+    "transform_points",
+    "wrap_angle",
+]
+
+Pose2D = tuple[float, float, float]
+"""A planar pose ``(x, y, theta)`` in metres and radians."""
+
+TAU = 2.0 * math.pi
+
+
+@nb.njit(cache=True, nogil=True)
+def wrap_angle(angle: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
+    """``angle`` (radians, a number or an array) wrapped to [-π, π]: ``angle - 2π·n`` with
+    ``n`` the nearest integer to ``angle / 2π`` (ties to even, as ``math.remainder``).
+
+    Examples
+    --------
+    >>> round(wrap_angle(3 * math.pi / 2), 12), round(wrap_angle(-0.25), 12)
+    (-1.570796326795, -0.25)
+    """
+    return angle - TAU * np.rint(angle / TAU)
+
+
+def rotation(theta: float) -> NDArray[np.float64]:
+    """The 2x2 rotation matrix of angle ``theta`` (radians)."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def transform_points(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float64]:
+    """Points ``xy`` (M, 2) moved by the rigid transform ``pose = (x, y, theta)``: sensor-frame
+    points to the frame the sensor pose is given in."""
+    return xy @ rotation(pose[2]).T + np.array([pose[0], pose[1]])
+
+
+def compose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """``a ⊕ b``: the pose ``b`` (given in the frame of ``a``) in ``a``'s parent frame; the
+    angle wrapped to [-π, π]."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap_angle(a[2] + b[2]))
+
+
+def invert(a: Pose2D) -> Pose2D:
+    """``⊖ a``: the inverse rigid transform."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return (-c * a[0] - s * a[1], s * a[0] - c * a[1], wrap_angle(-a[2]))
+
+
+def pose_error(est: Pose2D, truth: Pose2D) -> tuple[float, float]:
+    """Position error (metres) and absolute angle error (radians, in [0, π]) of ``est``."""
+    return math.hypot(est[0] - truth[0], est[1] - truth[1]), abs(wrap_angle(est[2] - truth[2]))
+
+
+def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:
+    """``⊖ a ⊕ b``: the pose ``b`` expressed in the frame of ``a``.
+
+    Examples
+    --------
+    >>> [round(v, 6) for v in relative_pose((1.0, 0.0, math.pi / 2), (1.0, 2.0, math.pi / 2))]
+    [2.0, 0.0, 0.0]
+    """
+    return compose(invert(a), b)
