@@ -88,7 +88,7 @@ _RelationsMount = Annotated[
     str | None,
     typer.Option(
         "--relations-mount",
-        help="Sensor pose x,y,theta in the robot frame of the relations [default: 0,0,0].",
+        help="Sensor pose x,y,theta in the robot frame of the relations (default: 0,0,0).",
     ),
 ]
 _MaxScans = Annotated[
@@ -127,8 +127,8 @@ _Methods = Annotated[
     typer.Option(
         "--methods",
         help="Repeatability rows, comma-separated: paper, auto, robust, split-and-merge, "
-        "falko-like (our reading of the FALKO paper, not falkolib) [default: "
-        "laser_corners.eval.methods.DEFAULT_METHODS].",
+        "falko-like (our reading of the FALKO paper, not falkolib; default: "
+        "laser_corners.eval.methods.DEFAULT_METHODS).",
     ),
 ]
 
@@ -299,8 +299,6 @@ def _write_yaml(path: Path, data: dict[str, Any]) -> None:
 
 def _params_record(detector: object) -> dict[str, object]:
     params = getattr(detector, "params", None)
-    if hasattr(params, "model_dump"):
-        data = params.model_dump()  # type: ignore[union-attr]
-        data["scales"] = [float(v) for v in data["scales"]]
-        return data
+    if hasattr(params, "model_dump"):  # every options object (laser_corners.options)
+        return params.model_dump(mode="json")  # type: ignore[union-attr,no-any-return]
     return asdict(params) if is_dataclass(params) else {}  # type: ignore[arg-type]

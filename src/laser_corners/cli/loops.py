@@ -38,8 +38,8 @@ def evaluate_loops_command(
         str | None,
         typer.Option(
             "--methods",
-            help="Comma-separated: paper, auto, robust, split-and-merge, falko-like [default: "
-            "laser_corners.eval.methods.DEFAULT_METHODS].",
+            help="Comma-separated: paper, auto, robust, split-and-merge, falko-like (default: "
+            "laser_corners.eval.methods.DEFAULT_METHODS).",
         ),
     ] = None,
     min_inliers: Annotated[
@@ -51,7 +51,7 @@ def evaluate_loops_command(
         typer.Option(
             "--window",
             help="Exclude candidates closer than this in travelled path, metres "
-            "[default: LoopsConfig.window_travel].",
+            "(default: LoopsConfig.window_travel).",
         ),
     ] = None,
 ) -> None:
