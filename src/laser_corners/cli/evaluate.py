@@ -27,7 +27,6 @@ from laser_corners.cli.common import (
     SetOption,
     TopicOption,
     check_number,
-    known_errors,
     new_folder,
     params_choice,
 )
@@ -163,31 +162,30 @@ def evaluate_real_command(
     from laser_corners.viz.report import write_real_report
 
     console = Console(stderr=True)
-    with known_errors():
-        for option, value in (("--max-range", max_range), ("--resolution", resolution),
-                              ("--association-radius", association_radius),
-                              ("--min-ratio", min_ratio)):  # fmt: skip
-            check_number(option, value, minimum=0.0)
-        config = RealEvalConfig(
-            preset=preset or "paper", resolution=resolution,
-            association_radius=association_radius, min_ratio=min_ratio, min_views=min_views,
-            occlusion=occlusion, max_range=max_range, max_scans=max_scans, max_pairs=max_pairs,
-            relations_mount=_mount(relations_mount), methods=method_list(methods),
-        )  # fmt: skip
-        choice = params_choice(preset, params_file, set_)
-        new_folder(output)
-        t0 = time.perf_counter()
-        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
-        relations_path = relations if relations is not None else default_relations(input_path)
-        custom = params_file is not None or bool(set_)
-        result = evaluate_real(
-            scans, config,
-            relations=read_relations(relations_path) if relations_path is not None else None,
-            params=choice.resolve(scans[0]) if custom else None,
-            source=input_path.name, pose_source=pose_source,
-            progress=lambda message: console.print(message, highlight=False),
-        )  # fmt: skip
-        paths = write_real_report(result, output)
+    for option, value in (("--max-range", max_range), ("--resolution", resolution),
+                          ("--association-radius", association_radius),
+                          ("--min-ratio", min_ratio)):  # fmt: skip
+        check_number(option, value, minimum=0.0)
+    config = RealEvalConfig(
+        preset=preset or "paper", resolution=resolution,
+        association_radius=association_radius, min_ratio=min_ratio, min_views=min_views,
+        occlusion=occlusion, max_range=max_range, max_scans=max_scans, max_pairs=max_pairs,
+        relations_mount=_mount(relations_mount), methods=method_list(methods),
+    )  # fmt: skip
+    choice = params_choice(preset, params_file, set_)
+    new_folder(output)
+    t0 = time.perf_counter()
+    scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
+    relations_path = relations if relations is not None else default_relations(input_path)
+    custom = params_file is not None or bool(set_)
+    result = evaluate_real(
+        scans, config,
+        relations=read_relations(relations_path) if relations_path is not None else None,
+        params=choice.resolve(scans[0]) if custom else None,
+        source=input_path.name, pose_source=pose_source,
+        progress=lambda message: console.print(message, highlight=False),
+    )  # fmt: skip
+    paths = write_real_report(result, output)
     _print_real(console, result, config)
     for warning in result.warnings:
         console.print(f"[yellow]warning:[/yellow] {warning}", highlight=False)
@@ -236,22 +234,21 @@ def evaluate_sim_command(
     from laser_corners.viz.report import write_accuracy_report
 
     console = Console(width=max(Console().width, 120))
-    with known_errors():
-        try:
-            sigmas = [float(v) for v in _split(noise)]
-        except ValueError:
-            raise fail(f"--noise: not a list of numbers: {noise!r}") from None
-        for sigma in sigmas:
-            check_number("--noise", sigma, minimum=0.0)
-        check_number("--match-radius", match_radius, minimum=0.0)
-        profile = get_sensor(sensor)
-        factories = method_factories(method_list(methods))
-        new_folder(output)
-        t0 = time.perf_counter()
-        cases = make_cases(worlds, poses, profile, seed=seed)
-        stats, used = run_sweep(cases, factories, sigmas, profile, seed=seed,
-                                match_radius=match_radius, progress=console.print)  # fmt: skip
-        paths = write_accuracy_report(stats, output)
+    try:
+        sigmas = [float(v) for v in _split(noise)]
+    except ValueError:
+        raise fail(f"--noise: not a list of numbers: {noise!r}") from None
+    for sigma in sigmas:
+        check_number("--noise", sigma, minimum=0.0)
+    check_number("--match-radius", match_radius, minimum=0.0)
+    profile = get_sensor(sensor)
+    factories = method_factories(method_list(methods))
+    new_folder(output)
+    t0 = time.perf_counter()
+    cases = make_cases(worlds, poses, profile, seed=seed)
+    stats, used = run_sweep(cases, factories, sigmas, profile, seed=seed,
+                            match_radius=match_radius, progress=console.print)  # fmt: skip
+    paths = write_accuracy_report(stats, output)
     console.print(
         _sim_table(f"{profile.name}: {len(cases)} poses in {worlds} random worlds", stats)
     )

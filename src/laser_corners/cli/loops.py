@@ -16,7 +16,7 @@ from rich.console import Console
 from rich.progress import Progress
 
 from laser_corners.cli.app import evaluate_app
-from laser_corners.cli.common import InputArg, known_errors
+from laser_corners.cli.common import InputArg
 from laser_corners.cli.evaluate import method_list
 
 if TYPE_CHECKING:
@@ -64,22 +64,21 @@ def evaluate_loops_command(
 
     console = Console(stderr=True)
     t0 = time.perf_counter()
-    with known_errors():
-        options = {"min_inliers": min_inliers} if min_inliers is not None else {}
-        config = LoopsConfig(methods=method_list(methods), window_travel=window,
-                             max_scans=max_scans, **options)  # fmt: skip
-        check_output_dir(output)
-        scans, _ = load_scans(input_path, None, max_scans)
-        with Progress(console=console, transient=True) as bar:
-            task = bar.add_task("loops", total=1)
+    options = {"min_inliers": min_inliers} if min_inliers is not None else {}
+    config = LoopsConfig(methods=method_list(methods), window_travel=window,
+                         max_scans=max_scans, **options)  # fmt: skip
+    check_output_dir(output)
+    scans, _ = load_scans(input_path, None, max_scans)
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("loops", total=1)
 
-            def progress(stage: str, done: int, total: int) -> None:
-                bar.update(task, description=stage, completed=done, total=total)
+        def progress(stage: str, done: int, total: int) -> None:
+            bar.update(task, description=stage, completed=done, total=total)
 
-            def save(partial: LoopsResult) -> None:
-                write_loops_report(partial, output)
+        def save(partial: LoopsResult) -> None:
+            write_loops_report(partial, output)
 
-            result = evaluate_loops(scans, config, input_path.name, progress, on_method=save)
+        result = evaluate_loops(scans, config, input_path.name, progress, on_method=save)
     for row in loops_rows(result):
         p = "n/a" if row["precision"] is None else f"{row['precision']:.3f}"
         console.print(
