@@ -14,16 +14,25 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+from pathlib import Path
 from typing import Any
 
-import click
 import typer
 import typer.core
 
 from laser_corners import __version__
 from laser_corners.errors import LaserCornersError, printable
 
-__all__ = ["HELP_WIDTH", "ErrorLineGroup", "app", "error_line", "evaluate_app", "fail", "main"]
+__all__ = [
+    "HELP_WIDTH",
+    "ErrorLineGroup",
+    "app",
+    "created_folders",
+    "error_line",
+    "evaluate_app",
+    "fail",
+    "main",
+]
 
 HELP_WIDTH = 120
 """Columns of the ``--help`` layout (independent of the terminal)."""
@@ -62,13 +71,39 @@ def fail(message: str, code: int = 2) -> typer.Exit:
     return typer.Exit(code)
 
 
-class ErrorLineGroup(typer.core.TyperGroup):
-    """The command group that turns known errors of any command into one line and exit 2."""
+_CREATED: list[Path] = []
+"""Output folders the running command created, deepest first (see :func:`created_folders`)."""
 
-    def invoke(self, ctx: click.Context) -> Any:
+
+def created_folders() -> list[Path]:
+    """The output folders the running command created (``common.new_folder`` adds to it)."""
+    return _CREATED
+
+
+def _remove_empty_created() -> None:
+    while _CREATED:
+        try:
+            _CREATED.pop(0).rmdir()  # only when empty
+        except OSError:
+            _CREATED.clear()
+
+
+class ErrorLineGroup(typer.core.TyperGroup):
+    """The command group that turns known errors of any command into one line and exit 2.
+
+    When a command fails, the output folders it created and left empty are removed.
+    """
+
+    def invoke(self, ctx: typer.Context) -> Any:  # type: ignore[override]
+        _CREATED.clear()
         try:
             return super().invoke(ctx)
-        except (LaserCornersError, OSError) as exc:
+        except typer.Exit as exc:
+            if exc.exit_code != 0:
+                _remove_empty_created()
+            raise
+        except BaseException as exc:
+            _remove_empty_created()
             line = error_line(exc)
             if line is None:
                 raise

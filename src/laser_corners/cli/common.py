@@ -12,14 +12,14 @@ import functools
 import inspect
 import math
 import os
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager, nullcontext
+from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from laser_corners.cli.app import fail
+from laser_corners.cli.app import created_folders, fail
 
 if TYPE_CHECKING:
     from laser_corners.pipeline import ParamsChoice
@@ -34,7 +34,6 @@ __all__ = [
     "image_file",
     "known_errors",
     "new_folder",
-    "output_folder",
     "params_choice",
     "with_params_choice",
     "writable_file",
@@ -125,35 +124,25 @@ def image_file(path: Path, option: str = "--output") -> tuple[Path, str]:
 
 
 def new_folder(path: Path, option: str = "--output") -> Path:
-    """``path`` as an output folder (created); an existing file in the way fails."""
+    """``path`` as an output folder (created); an existing file in the way fails.
+
+    The folders this creates are recorded (:func:`~laser_corners.cli.app.created_folders`):
+    if the command then fails, the group removes those still empty, so an error leaves no
+    empty output folder behind.
+    """
     if path.exists() and not path.is_dir():
         raise fail(f"{path}: is a file; {option} needs a folder")
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise fail(f"{path}: cannot create the folder for {option} ({exc.strerror})") from None
-    return path
-
-
-@contextmanager
-def output_folder(path: Path, option: str = "--output") -> Iterator[Path]:
-    """``path`` as an output folder for the block; if the block fails, the folders this call
-    created are removed again when they are still empty (an error leaves no empty folder)."""
     missing = []
     for folder in (path, *path.parents):
         if folder.exists():
             break
         missing.append(folder)
-    new_folder(path, option)
     try:
-        yield path
-    except BaseException:
-        for folder in missing:  # deepest first
-            try:
-                folder.rmdir()  # only when empty
-            except OSError:
-                break
-        raise
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise fail(f"{path}: cannot create the folder for {option} ({exc.strerror})") from None
+    created_folders().extend(missing)  # deepest first
+    return path
 
 
 def with_params_choice(command: Callable[..., None]) -> Callable[..., None]:

@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-import yaml
 from rich.console import Console
 from rich.table import Table
 
@@ -36,7 +35,12 @@ if TYPE_CHECKING:
     from laser_corners.eval.accuracy import AccuracyStats
     from laser_corners.eval.real import RealEvalConfig, RealEvaluation
 
-__all__ = ["evaluate_real_command", "evaluate_sim_command", "method_list"]
+__all__ = [
+    "TrajectoryOption",
+    "evaluate_real_command",
+    "evaluate_sim_command",
+    "method_list",
+]
 
 
 def _split(text: str) -> list[str]:
@@ -66,7 +70,7 @@ def _mount(text: str) -> tuple[float, float, float]:
     return mount  # type: ignore[return-value]
 
 
-_Trajectory = Annotated[
+TrajectoryOption = Annotated[
     Path | None,
     typer.Option(
         "--trajectory",
@@ -138,7 +142,7 @@ def evaluate_real_command(
     preset: PresetOption = None,
     params_file: ParamsOption = None,
     set_: SetOption = None,
-    trajectory: _Trajectory = None,
+    trajectory: TrajectoryOption = None,
     relations: _Relations = None,
     relations_mount: _RelationsMount = "0,0,0",
     max_scans: _MaxScans = None,
@@ -283,6 +287,8 @@ def _sim_table(title: str, stats: list[AccuracyStats]) -> Table:
 
 
 def _write_yaml(path: Path, data: dict[str, Any]) -> None:
+    import yaml
+
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
 
 
