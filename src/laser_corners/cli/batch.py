@@ -9,6 +9,7 @@ import typer
 
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import new_table, quoted, stop_progress, with_params_choice
+from laser_corners.cli.kernels import KernelCommand
 from laser_corners.errors import MissingDependencyError
 
 if TYPE_CHECKING:
@@ -63,7 +64,7 @@ _Topic = Annotated[
 ]
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def batch(
     inputs: _Inputs,

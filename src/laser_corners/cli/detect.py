@@ -19,6 +19,7 @@ from laser_corners.cli.common import (
     with_params_choice,
     writable_file,
 )
+from laser_corners.cli.kernels import KernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.pipeline import DetectRun, ParamsChoice
@@ -68,7 +69,7 @@ def _summary_table(run: DetectRun) -> Any:
     return table
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def detect(
     input_path: InputArg,
@@ -184,7 +185,7 @@ def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
     return table
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def plot(
     input_path: InputArg,

@@ -29,6 +29,7 @@ from laser_corners.cli.common import (
     new_folder,
     params_choice,
 )
+from laser_corners.cli.kernels import KernelCommand
 from laser_corners.errors import InvalidParamsError
 
 if TYPE_CHECKING:
@@ -132,7 +133,7 @@ _Methods = Annotated[
 ]
 
 
-@evaluate_app.command("real")
+@evaluate_app.command("real", cls=KernelCommand)
 def evaluate_real_command(
     input_path: InputArg,
     output: Annotated[
@@ -214,7 +215,7 @@ def _print_real(console: Console, result: RealEvaluation, config: RealEvalConfig
     console.print(table)
 
 
-@evaluate_app.command("sim")
+@evaluate_app.command("sim", cls=KernelCommand)
 def evaluate_sim_command(
     output: Annotated[
         Path, typer.Option("--output", "-o", help="Folder for accuracy.csv/.md/.png.")

@@ -18,6 +18,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from laser_corners.cli.app import evaluate_app
 from laser_corners.cli.common import InputArg, TopicOption, new_folder, quoted
 from laser_corners.cli.evaluate import TrajectoryOption, method_list
+from laser_corners.cli.kernels import KernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.eval.loops import LoopsResult
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ["evaluate_loops_command"]
 
 
-@evaluate_app.command("loops")
+@evaluate_app.command("loops", cls=KernelCommand)
 def evaluate_loops_command(
     input_path: InputArg,
     output: Annotated[

@@ -9,11 +9,12 @@ import typer
 
 from laser_corners.cli.app import app
 from laser_corners.cli.common import check_number, image_file, new_folder
+from laser_corners.cli.kernels import KernelCommand
 
 __all__ = ["demo", "simulate"]
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 def demo(
     output: Annotated[
         Path, typer.Option("--output", "-o", help="Image to write (.png, .pdf, .svg ...).")

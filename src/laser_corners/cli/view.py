@@ -14,6 +14,7 @@ from laser_corners.cli.common import (
     with_params_choice,
     writable_file,
 )
+from laser_corners.cli.kernels import KernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.pipeline import ParamsChoice
@@ -21,7 +22,7 @@ if TYPE_CHECKING:
 __all__ = ["view"]
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def view(
     input_path: InputArg,
