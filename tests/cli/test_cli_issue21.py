@@ -360,7 +360,7 @@ def test_kernel_cache_check_tells_cold_from_warm(tmp_path: Path) -> None:
 
     CornerDetector().detect(LaserScan(np.full(64, 2.0), -0.5, 0.01, 0.05, 10.0))  # warm
     check = "from laser_corners.cli.kernels import kernels_are_cold; print(kernels_are_cold())"
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    env = dict(os.environ)
     warm = subprocess.run(
         [sys.executable, "-c", check], capture_output=True, text=True, env=env, timeout=300
     )
