@@ -27,7 +27,9 @@ from laser_corners.cli.common import (
     TopicOption,
     check_number,
     new_folder,
+    new_table,
     params_choice,
+    quoted,
 )
 from laser_corners.cli.kernels import KernelCommand
 from laser_corners.errors import InvalidParamsError
@@ -188,12 +190,12 @@ def evaluate_real_command(
         relations=read_relations(relations_path) if relations_path is not None else None,
         params=choice.resolve(scans[0]) if custom else None,
         source=input_path.name, pose_source=pose_source,
-        progress=lambda message: console.print(message, highlight=False),
+        progress=lambda message: console.print(quoted(message), highlight=False),
     )  # fmt: skip
     paths = write_real_report(result, output)
     _print_real(console, result, config)
     for warning in result.warnings:
-        console.print(f"[yellow]warning:[/yellow] {warning}", highlight=False)
+        console.print(f"[yellow]warning:[/yellow] {quoted(warning)}", highlight=False)
     typer.echo(f"wrote {len(paths)} files to {output} ({paths['report.md']}) in "
                f"{time.perf_counter() - t0:.1f} s")  # fmt: skip
 
@@ -202,7 +204,7 @@ def _print_real(console: Console, result: RealEvaluation, config: RealEvalConfig
     from laser_corners.eval.real_summary import headline, repeatability_rows
 
     console.print(headline(result), highlight=False)
-    table = Table(title=f"repeatability, {result.n_pairs} pairs ({result.pairs_source})")
+    table = new_table(f"repeatability, {result.n_pairs} pairs ({result.pairs_source})")
     table.add_column("method")
     table.add_column("kp/scan", justify="right")
     table.add_column("visible", justify="right")
@@ -272,7 +274,7 @@ def evaluate_sim_command(
 
 
 def _sim_table(title: str, stats: list[AccuracyStats]) -> Table:
-    table = Table(title=title)
+    table = new_table(title)
     for name in ("sigma m", "method", "recall", "false kp", "false/scan", "median mm",
                  "p95 mm", "kp/corner", "ms/scan"):  # fmt: skip
         table.add_column(name, justify="left" if name == "method" else "right")
