@@ -445,9 +445,11 @@ def _median_seconds(argv: list[str], runs: int = 5) -> float:
 
 
 def test_help_answers_at_once() -> None:
-    # median of 5 after a warm-up run. Under 0.5 s on an idle machine; on a loaded one the
-    # limit grows with the floor (starting Python with typer and rich, which --help needs)
+    # median of 5 after a warm-up run: under 0.5 s on an idle machine. On a loaded one every
+    # start-up slows down, so the limit grows with the floor (Python starting with typer and
+    # typer's rich help, which --help cannot do without): at most twice that. Importing numba
+    # and the kernels (the old eager package) costs several floors.
     subprocess.run([*CLI, "--help"], capture_output=True, check=True, timeout=120)
     help_seconds = _median_seconds([*CLI, "--help"])
     floor = _median_seconds([sys.executable, "-c", "import typer, typer.rich_utils"])
-    assert help_seconds < max(0.5, 1.5 * floor), (help_seconds, floor)
+    assert help_seconds < max(0.5, 2.0 * floor), (help_seconds, floor)
