@@ -6,9 +6,10 @@
 * :mod:`~laser_corners.cli.detect` (``detect``, ``info``, ``plot``, ``params``),
   :mod:`~laser_corners.cli.evaluate` (``evaluate sim|real``),
   :mod:`~laser_corners.cli.loops` (``evaluate loops``), :mod:`~laser_corners.cli.batch`,
-  :mod:`~laser_corners.cli.view`, :mod:`~laser_corners.cli.sim` (``simulate``, ``demo``),
+  :mod:`~laser_corners.cli.view`,
+  :mod:`~laser_corners.cli.sim` (``simulate``, ``demo``, ``warmup``),
   :mod:`~laser_corners.cli.ros` (``ros1``, ``ros2``),
-  :mod:`~laser_corners.cli.kernels` (``warmup``; the first run's compile notice).
+  :mod:`~laser_corners.cli.kernels` (the first run's compile notice).
 
 A command parses its options, makes one library call (mostly :mod:`laser_corners.pipeline`)
 and presents the result. Heavy modules (numba kernels, readers, matplotlib) are imported

@@ -4,23 +4,20 @@ numba compiles the detector's kernels on their first call and caches them on dis
 (``cache=True``): the first run after an install or an upgrade spends about 30 s (26-35 s
 measured) compiling before it detects anything. Commands that detect use
 :class:`KernelCommand`, which says so on stderr when the cache is cold, so a first run does
-not look hung (or report a slow scans/s without a word). ``laser-corners warmup`` compiles
-them ahead (``make demo`` runs it after installing).
+not look hung (or report a slow scans/s without a word). ``laser-corners warmup``
+(:mod:`~laser_corners.cli.sim`) compiles them ahead (``make`` runs it after installing).
 """
 
 from __future__ import annotations
 
 import os
 import sys
-import time
 from typing import Any
 
 import typer
 import typer.core
 
-from laser_corners.cli.app import app
-
-__all__ = ["COMPILING", "KernelCommand", "kernels_are_cold", "warmup"]
+__all__ = ["COMPILING", "KernelCommand", "kernels_are_cold"]
 
 COMPILING = "compiling the detector's kernels (first run only, about 30 s)..."
 """What a detecting command says on stderr when the kernel cache is cold."""
@@ -68,23 +65,3 @@ class KernelCommand(typer.core.TyperCommand):
         if kernels_are_cold():
             typer.echo(f"laser-corners: {COMPILING}", err=True)
         return super().invoke(ctx)
-
-
-@app.command(cls=KernelCommand)
-def warmup() -> None:
-    """Compile (or load) the detector's kernels now, so the first real run starts at once."""
-    import numpy as np
-
-    from laser_corners import CornerDetector, LaserScan
-
-    start = time.perf_counter()
-    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)  # a 6 m x 4 m room, sensor in the middle
-    along_x = 3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9)
-    along_y = 2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9)
-    scan = LaserScan(np.minimum(along_x, along_y), -np.pi / 2, np.pi / 180, 0.05, 30.0)
-    detector = CornerDetector()
-    keypoints = detector.detect(scan)
-    _ = keypoints.cov  # the covariance kernels are lazy
-    many = detector.detect_many([scan, scan])
-    _ = [k.cov for k in many]
-    typer.echo(f"kernels ready in {time.perf_counter() - start:.1f} s")

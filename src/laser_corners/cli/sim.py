@@ -1,7 +1,8 @@
-"""``simulate`` and ``demo`` (docs/simulation-and-accuracy.md)."""
+"""``simulate``, ``demo`` and ``warmup`` (docs/simulation-and-accuracy.md)."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -11,7 +12,7 @@ from laser_corners.cli.app import app
 from laser_corners.cli.common import check_number, image_file, new_folder
 from laser_corners.cli.kernels import KernelCommand
 
-__all__ = ["demo", "simulate"]
+__all__ = ["demo", "simulate", "warmup"]
 
 
 @app.command(cls=KernelCommand)
@@ -73,3 +74,23 @@ def simulate(
     )
     for path in paths.values():
         typer.echo(f"wrote {path}")
+
+
+@app.command(cls=KernelCommand)
+def warmup() -> None:
+    """Compile (or load) the detector's kernels now, so the first real run starts at once."""
+    import numpy as np
+
+    from laser_corners import CornerDetector, LaserScan
+
+    start = time.perf_counter()
+    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)  # a 6 m x 4 m room, sensor in the middle
+    along_x = 3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9)
+    along_y = 2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9)
+    scan = LaserScan(np.minimum(along_x, along_y), -np.pi / 2, np.pi / 180, 0.05, 30.0)
+    detector = CornerDetector()
+    keypoints = detector.detect(scan)
+    _ = keypoints.cov  # the covariance kernels are lazy
+    many = detector.detect_many([scan, scan])
+    _ = [k.cov for k in many]
+    typer.echo(f"kernels ready in {time.perf_counter() - start:.1f} s")
