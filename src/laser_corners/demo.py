@@ -67,7 +67,8 @@ def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005)
         fig, ax = plt.subplots(figsize=(7, 7))
         plot_scan(ax, scan, keypoints, truth=truth)
         ax.set_title("laser-corners demo: simulated UST-10LX scan")
-        fig.savefig(output, dpi=120, bbox_inches="tight")
+        kind = Path(output).suffix[1:].lower() or "png"  # exactly ``output``, no suffix added
+        fig.savefig(output, format=kind, dpi=120, bbox_inches="tight")
         plt.close(fig)
         print(f"wrote {output}")
     return missed

@@ -54,3 +54,24 @@ def first_line(exc: BaseException) -> str:
     """The first line of an exception's message (its class name when the message is empty)."""
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
+
+
+def printable(text: str) -> str:
+    """``text`` with every non-printable character escaped (``\\x1b``, ``\\x07``, ``\\u009b``).
+
+    Messages that quote input (a file name, a line of a log) pass through this before they
+    reach a terminal, so bytes from a file cannot move the cursor, set the window title or
+    ring the bell. Printable non-ASCII characters (``σ``, ``…``) are kept.
+
+    Examples
+    --------
+    >>> printable("line 1: \\x1b]0;PWNED\\x07 1 2")
+    'line 1: \\\\x1b]0;PWNED\\\\x07 1 2'
+    """
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else _escaped(c) for c in text)
+
+
+def _escaped(char: str) -> str:
+    return char.encode("unicode_escape").decode("ascii")

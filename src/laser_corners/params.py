@@ -7,17 +7,42 @@ folder records.
 
 from __future__ import annotations
 
+import math
 from itertools import pairwise
-from typing import ClassVar
+from typing import Any, ClassVar
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from laser_corners.options import Options
 
-__all__ = ["PAPER_SCALES", "DetectorParams"]
+__all__ = ["MAX_METRES", "MAX_SCALES", "PAPER_SCALES", "DetectorParams"]
 
 PAPER_SCALES: tuple[float, ...] = tuple(round(0.05 + 0.025 * k, 6) for k in range(9))
 """The paper's neighbourhood radii R_k: 0.05, 0.075, ..., 0.25 m."""
+
+MAX_METRES = 100.0
+"""Largest radius or distance a parameter may take, metres (beyond any 2D laser's range)."""
+MAX_SCALES = 64
+"""Most neighbourhood radii R_k (the paper uses 9)."""
+
+_INT_BOUNDS: dict[str, tuple[int, int, str]] = {
+    "min_points": (2, 10_000, "a line needs two points; more than a scan's beams is none"),
+    "min_consecutive_scales": (1, MAX_SCALES, "at most the number of scales"),
+    "max_gap_beams": (0, 1_000, "dropout beams stepped over"),
+}
+_FLOAT_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "min_angle_deg": (0.0, 180.0, "degrees"),
+    "max_angle_deg": (0.0, 180.0, "degrees"),
+    "max_fit_rmse": (0.0, MAX_METRES, "metres"),
+    "max_point_distance": (0.0, MAX_METRES, "metres"),
+    "max_centroid_distance": (0.0, MAX_METRES, "metres"),
+    "merge_radius": (0.0, MAX_METRES, "metres"),
+    "min_extent_ratio": (0.0, 1.0, "a fraction of R_k"),
+    "refine_radius": (0.0, MAX_METRES, "metres"),
+    "refine_exclude": (0.0, MAX_METRES, "metres"),
+}
+_BOUNDS: dict[str, tuple[float, float, str]] = {**_INT_BOUNDS, **_FLOAT_BOUNDS}
+"""Every scalar field's allowed range (what the kernels represent and what is physical)."""
 
 
 class DetectorParams(Options):
@@ -89,58 +114,40 @@ class DetectorParams(Options):
     refine_exclude: float = 0.03
     max_gap_beams: int = 0
 
+    @field_validator(*_INT_BOUNDS, mode="before")
+    @classmethod
+    def _integral(cls, value: Any) -> Any:
+        """``1e3`` (a string in YAML 1.1) or ``1000.0`` as the integer it names."""
+        try:
+            number = float(value) if isinstance(value, str | float) else None
+        except ValueError:
+            return value
+        if number is not None and math.isfinite(number) and number.is_integer():
+            return int(number)
+        return value
+
+    @field_validator(*_INT_BOUNDS, *_FLOAT_BOUNDS)
+    @classmethod
+    def _check_range(cls, value: float, info: ValidationInfo) -> float:
+        low, high, why = _BOUNDS[info.field_name]  # type: ignore[index]
+        if not (low <= value <= high):  # NaN fails too
+            raise ValueError(f"must be in [{low:g}, {high:g}] ({why}), got {value}")
+        return value
+
     @field_validator("scales")
     @classmethod
     def _check_scales(cls, scales: tuple[float, ...]) -> tuple[float, ...]:
         if len(scales) == 0:
             raise ValueError("scales must not be empty")
-        if any(not (s > 0.0) or s == float("inf") for s in scales):
-            raise ValueError(f"scales must be positive and finite, got {list(scales)}")
+        if len(scales) > MAX_SCALES:
+            raise ValueError(f"at most {MAX_SCALES} scales, got {len(scales)}")
+        if any(not (0.0 < s <= MAX_METRES) for s in scales):
+            raise ValueError(
+                f"each scale must be in (0, {MAX_METRES:g}] metres, got {list(scales)}"
+            )
         if any(b <= a for a, b in pairwise(scales)):
             raise ValueError(f"scales must be strictly increasing, got {list(scales)}")
         return tuple(float(s) for s in scales)
-
-    @field_validator("min_points")
-    @classmethod
-    def _check_min_points(cls, value: int) -> int:
-        if value < 2:
-            raise ValueError(f"min_points must be >= 2 (a line needs two points), got {value}")
-        return value
-
-    @field_validator("min_consecutive_scales")
-    @classmethod
-    def _check_min_scales(cls, value: int) -> int:
-        if value < 1:
-            raise ValueError(f"min_consecutive_scales must be >= 1, got {value}")
-        return value
-
-    @field_validator(
-        "max_fit_rmse",
-        "max_point_distance",
-        "max_centroid_distance",
-        "merge_radius",
-        "refine_radius",
-        "refine_exclude",
-    )
-    @classmethod
-    def _check_non_negative(cls, value: float) -> float:
-        if not (value >= 0.0) or value == float("inf"):
-            raise ValueError(f"must be a finite number >= 0, got {value}")
-        return value
-
-    @field_validator("max_gap_beams")
-    @classmethod
-    def _check_max_gap(cls, value: int) -> int:
-        if value < 0:
-            raise ValueError(f"max_gap_beams must be >= 0, got {value}")
-        return value
-
-    @field_validator("min_extent_ratio")
-    @classmethod
-    def _check_extent(cls, value: float) -> float:
-        if not (0.0 <= value <= 1.0):
-            raise ValueError(f"must be in [0, 1], got {value}")
-        return value
 
     @model_validator(mode="after")
     def _check_consistency(self) -> DetectorParams:

@@ -218,7 +218,7 @@ def test_cli_evaluate_loops(loop_scans: list[LaserScan], tmp_path) -> None:
     # an output path that is a file: one line, exit 2
     result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(log)])
     assert result.exit_code == 2
-    assert "exists and is not a folder" in result.output
+    assert "is a file; --output needs a folder" in result.output  # as evaluate real, sim
     result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(out),
                                       "--methods", "nope"])  # fmt: skip
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output

@@ -314,7 +314,7 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
 @pytest.mark.parametrize(
     ("arg", "message"),
     [
-        ("min_points:=1", "min_points must be >= 2"),
+        ("min_points:=1", "min_points: must be in [2, 10000]"),
         ("min_pionts:=4", "unknown ROS 2 parameter min_pionts"),
         ("preset:=nope", "ROS 2 parameter preset: unknown preset 'nope'"),
     ],

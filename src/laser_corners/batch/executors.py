@@ -8,12 +8,15 @@ re-raising, so no finished output is missing from the manifest.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import os
+import socket
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 from laser_corners.batch.manifest import BatchJob, JobResult
 from laser_corners.batch.plan import short_hash
@@ -22,7 +25,7 @@ from laser_corners.errors import ClusterError, MissingDependencyError, first_lin
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline import ParamsChoice
 
-__all__ = ["run_dask", "run_here", "run_pool"]
+__all__ = ["check_scheduler", "run_dask", "run_here", "run_pool"]
 
 Deliver = Callable[[JobResult], None]
 Choice = ParamsChoice | DetectorParams
@@ -108,6 +111,39 @@ def run_pool(
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def check_scheduler(scheduler: str | None, timeout: float) -> None:
+    """Check that a Dask scheduler address (``tcp://host:port``) answers, before any output.
+
+    ``None`` (a local process pool) needs no check, ``"local"`` only Dask.
+
+    Raises
+    ------
+    MissingDependencyError
+        Dask is not installed.
+    ClusterError
+        The address is not of the form ``tcp://host:port``, or nothing accepts a connection
+        there within ``timeout`` seconds.
+    """
+    if scheduler is None:
+        return
+    if importlib.util.find_spec("distributed") is None:
+        raise MissingDependencyError("Dask is needed: pip install 'laser-corners[dask]'")
+    if scheduler == "local":
+        return
+    try:
+        parts = urlsplit(scheduler if "://" in scheduler else f"tcp://{scheduler}")
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if not host or port is None:
+        raise ClusterError(f"{scheduler}: not a Dask scheduler address (tcp://host:port)")
+    try:
+        socket.create_connection((host, port), timeout=min(timeout, 10.0)).close()
+    except OSError as exc:
+        reason = exc.strerror or first_line(exc)
+        raise ClusterError(f"cannot reach the Dask scheduler at {scheduler} ({reason})") from None
 
 
 def _client(scheduler: str, workers: int, timeout: float) -> tuple[Any, Any]:

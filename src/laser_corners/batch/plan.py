@@ -18,7 +18,7 @@ from laser_corners.errors import InputError, first_line
 from laser_corners.io import detect_kind
 from laser_corners.pipeline import laser_topics
 
-__all__ = ["not_a_recording", "plan_inputs", "plan_jobs", "short_hash"]
+__all__ = ["check_globs", "not_a_recording", "plan_inputs", "plan_jobs", "short_hash"]
 
 _BAG_KINDS = ("ros1", "ros2", "mcap")
 
@@ -146,6 +146,25 @@ def not_a_recording(path: str | Path) -> str | None:
     except OSError:
         return None
     return None
+
+
+_GLOB = re.compile(r"[*?[]")
+
+
+def check_globs(inputs: Iterable[str | Path]) -> None:
+    """Refuse an input that does not exist and holds a glob character (``*``, ``?``, ``[``).
+
+    A shell leaves a pattern that matches no file as it is; such an input is a typo or an
+    empty folder, not a recording to run a job for.
+
+    Raises
+    ------
+    InputError
+        Naming the first such pattern.
+    """
+    for item in inputs:
+        if _GLOB.search(str(item)) and not Path(item).expanduser().exists():
+            raise InputError(f"{item}: no file matches this pattern")
 
 
 def plan_inputs(

@@ -7,9 +7,9 @@ import time
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-from laser_corners.batch.executors import run_dask, run_here, run_pool
+from laser_corners.batch.executors import check_scheduler, run_dask, run_here, run_pool
 from laser_corners.batch.manifest import PARAMS_NAME, BatchJob, BatchReport, JobResult, Manifest
-from laser_corners.batch.plan import plan_inputs
+from laser_corners.batch.plan import check_globs, plan_inputs
 from laser_corners.errors import OutputError
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline import ParamsChoice, as_choice
@@ -96,11 +96,15 @@ def run_batch(
         ``outdir`` is not a writable folder, or holds results of another parameter choice.
     MissingDependencyError
         A Dask ``scheduler`` is asked for and Dask is not installed.
+    InputError
+        An input is a glob pattern that matches no file (checked before anything is written).
     ClusterError
-        The Dask scheduler cannot be reached.
+        The Dask scheduler cannot be reached (checked before anything is written).
     """
-    outdir = Path(outdir)
+    outdir, inputs = Path(outdir), list(inputs)
     choice = as_choice(params)
+    check_globs(inputs)  # the inputs and the scheduler first: nothing is written before
+    check_scheduler(scheduler, timeout)
     _claim_folder(outdir, choice)
     cores = os.cpu_count() or 1
     n_workers = max(1, int(workers) if workers else cores)

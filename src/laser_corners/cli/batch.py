@@ -8,10 +8,8 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from laser_corners.cli.app import app, fail
-from laser_corners.cli.common import (
-    known_errors,
-    with_params_choice,
-)
+from laser_corners.cli.common import new_table, quoted, stop_progress, with_params_choice
+from laser_corners.cli.kernels import KernelCommand
 from laser_corners.errors import MissingDependencyError
 
 if TYPE_CHECKING:
@@ -66,7 +64,7 @@ _Topic = Annotated[
 ]
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def batch(
     inputs: _Inputs,
@@ -79,62 +77,64 @@ def batch(
     choice: ParamsChoice,
 ) -> None:
     """Detect keypoints in many recordings in parallel (process pool or Dask), resumably."""
-    with known_errors():
-        from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-        from laser_corners.batch import run_batch
+    from laser_corners.batch import run_batch
 
-        err = Console(stderr=True)
-        bar = Progress(
-            TextColumn("[bold]batch"), BarColumn(), MofNCompleteColumn(),
-            TextColumn("{task.fields[scans]} scans"), console=err,
+    err = Console(stderr=True)
+    bar = Progress(
+        TextColumn("[bold]batch"), BarColumn(), MofNCompleteColumn(),
+        TextColumn("{task.fields[scans]} scans"), console=err,
+    )  # fmt: skip
+    task = bar.add_task("jobs", total=None, scans=0)
+
+    def planned(jobs: list[Any], done: list[Any]) -> None:
+        if done:
+            err.print(f"{len(done)} job(s) already done in {outdir}, skipped")
+        bar.update(task, total=len(jobs))
+        bar.start()  # only now: errors about the folder come without a bar
+
+    def finished(result: Any) -> None:
+        bar.update(task, advance=1, scans=bar.tasks[0].fields["scans"] + result.scans)
+        if result.status == "failed":
+            err.print(f"[red]failed[/red] {quoted(result.error)}", highlight=False)
+
+    try:
+        report = run_batch(
+            inputs, outdir, params=choice, topic=topic, workers=workers,
+            scheduler=scheduler, threads=threads, on_result=finished, on_plan=planned,
         )  # fmt: skip
-        task = bar.add_task("jobs", total=None, scans=0)
-
-        def planned(jobs: list[Any], done: list[Any]) -> None:
-            if done:
-                err.print(f"{len(done)} job(s) already done in {outdir}, skipped")
-            bar.update(task, total=len(jobs))
-            bar.start()  # only now: errors about the folder come without a bar
-
-        def finished(result: Any) -> None:
-            bar.update(task, advance=1, scans=bar.tasks[0].fields["scans"] + result.scans)
-            if result.status == "failed":
-                err.print(f"[red]failed[/red] {result.error}", highlight=False)
-
-        try:
-            report = run_batch(
-                inputs, outdir, params=choice, topic=topic, workers=workers,
-                scheduler=scheduler, threads=threads, on_result=finished, on_plan=planned,
-            )  # fmt: skip
-        except MissingDependencyError as exc:
-            raise fail(f"--scheduler: {exc}") from None
-        finally:
-            bar.stop()
-        _present(report, outdir, err)
-        if report.interrupted:
-            err.print("interrupted; run the same command again to resume")
-            raise typer.Exit(130)
-        if report.failed:
-            raise typer.Exit(1)
+    except MissingDependencyError as exc:
+        raise fail(f"--scheduler: {exc}") from None
+    finally:
+        stop_progress(bar)
+    _present(report, outdir, err)
+    if report.interrupted:
+        err.print("interrupted; run the same command again to resume")
+        raise typer.Exit(130)
+    if report.failed:
+        raise typer.Exit(1)
 
 
 def _present(report: BatchReport, outdir: Path, err: Any) -> None:
     from rich.console import Console
-    from rich.table import Table
 
     for skipped in report.skipped:
         err.print(
-            f"skipped {skipped.input}: not a recording ({skipped.reason})",
+            quoted(f"skipped {skipped.input}: not a recording ({skipped.reason})"),
             highlight=False, soft_wrap=True,
         )  # fmt: skip
-    table = Table(title=f"batch -> {outdir}", caption="r/d/w: seconds reading/detecting/writing")
-    for column in ("job", "status", "scans", "keypoints", "s", "scans/s", "r/d/w"):
-        table.add_column(column, justify="left" if column in ("job", "status") else "right")
-    for r in report.results:
+    table = new_table(f"batch -> {outdir}", caption="r/d/w: seconds reading/detecting/writing")
+    names = [quoted(Path(r.output).stem) for r in report.results]
+    widest = max((len(name) for name in names), default=3)
+    table.add_column("job", min_width=min(widest, 40), overflow="fold")
+    table.add_column("status")
+    for column in ("scans", "keypoints", "s", "scans/s", "r/d/w"):
+        table.add_column(column, justify="right")
+    for name, r in zip(names, report.results, strict=True):
         table.add_row(
-            Path(r.output).stem, r.status, str(r.scans), str(r.keypoints),
+            name, r.status, str(r.scans), str(r.keypoints),
             f"{r.seconds:.2f}", f"{r.scans_per_second:.0f}",
             f"{r.read_seconds:.2f}/{r.detect_seconds:.2f}/{r.write_seconds:.2f}",
         )  # fmt: skip

@@ -1,8 +1,9 @@
-"""Options shared by the commands, option checks, and the one-line handling of known errors.
+"""Options shared by the commands, and option checks that name the option at fault.
 
-Known errors (:class:`~laser_corners.errors.LaserCornersError`) print one line on stderr and
-exit with code 2; the library's messages name files and fields, and these helpers add the
-option names where the user needs them.
+Known errors (:class:`~laser_corners.errors.LaserCornersError`) become one line on stderr and
+exit code 2 in one place, :class:`~laser_corners.cli.app.ErrorLineGroup`; the library's
+messages name files and fields, and these helpers add the option names where the user needs
+them.
 """
 
 from __future__ import annotations
@@ -10,15 +11,15 @@ from __future__ import annotations
 import functools
 import inspect
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+import os
+from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from laser_corners.cli.app import fail
-from laser_corners.errors import LaserCornersError
+from laser_corners.cli.app import created_folders, fail
 
 if TYPE_CHECKING:
     from laser_corners.pipeline import ParamsChoice
@@ -30,6 +31,7 @@ __all__ = [
     "SetOption",
     "TopicOption",
     "check_number",
+    "image_file",
     "known_errors",
     "new_folder",
     "params_choice",
@@ -64,17 +66,9 @@ SetOption = Annotated[
 ]
 
 
-@contextmanager
-def known_errors() -> Iterator[None]:
-    """Turn known errors into one line on stderr and exit code 2 (also under CliRunner)."""
-    try:
-        yield
-    except LaserCornersError as exc:
-        message = str(exc)
-        topics = getattr(exc, "topics", None)  # io.TopicChoiceError: one option line per topic
-        if isinstance(topics, list):
-            message = message.splitlines()[0] + "".join(f"\n  --topic {t}" for t in topics)
-        raise fail(message) from None
+def known_errors() -> nullcontext[None]:
+    """Deprecated: a no-op; :class:`~laser_corners.cli.app.ErrorLineGroup` handles errors."""
+    return nullcontext()
 
 
 def params_choice(
@@ -99,7 +93,8 @@ def check_number(option: str, value: float | None, minimum: float | None = None)
 
 
 def writable_file(path: Path, option: str = "--output") -> Path:
-    """``path`` for a new file: its folder is created; an existing folder in the way fails."""
+    """``path`` for a new file: its folder is created; a folder in the way, or a folder that
+    cannot be written into, fails naming ``option``."""
     if path.is_dir():
         raise fail(f"{path}: is a folder; {option} needs a file name")
     try:
@@ -108,17 +103,45 @@ def writable_file(path: Path, option: str = "--output") -> Path:
         raise fail(
             f"{path.parent}: cannot create the folder for {option} ({exc.strerror})"
         ) from None
+    if not os.access(path.parent, os.W_OK):
+        raise fail(f"{path}: cannot write into {path.parent} ({option})")
     return path
 
 
+def image_file(path: Path, option: str = "--output") -> tuple[Path, str]:
+    """``path`` for an image and its format: the suffix's (``.png``, ``.pdf``, ``.svg`` ...),
+    PNG when there is none (the file is written under exactly ``path``)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    kind = path.suffix[1:].lower()
+    if kind and kind not in formats:
+        raise fail(
+            f"{path}: {option} cannot write {path.suffix!r} images; use one of: "
+            + ", ".join(f".{k}" for k in sorted(formats))
+        )
+    return writable_file(path, option), kind or "png"
+
+
 def new_folder(path: Path, option: str = "--output") -> Path:
-    """``path`` as an output folder (created); an existing file in the way fails."""
+    """``path`` as an output folder (created); an existing file in the way fails.
+
+    The folders this creates are recorded (:func:`~laser_corners.cli.app.created_folders`):
+    if the command then fails, the group removes those still empty, so an error leaves no
+    empty output folder behind.
+    """
     if path.exists() and not path.is_dir():
         raise fail(f"{path}: is a file; {option} needs a folder")
+    missing = []
+    for folder in (path, *path.parents):
+        if folder.exists():
+            break
+        missing.append(folder)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise fail(f"{path}: cannot create the folder for {option} ({exc.strerror})") from None
+    created_folders().extend(missing)  # deepest first
     return path
 
 
@@ -154,11 +177,40 @@ def with_params_choice(command: Callable[..., None]) -> Callable[..., None]:
         preset: str | None = None,
         **kwargs: object,
     ) -> None:
-        with known_errors():
-            choice = params_choice(preset, params_file, set_)
+        choice = params_choice(preset, params_file, set_)
         command(*args, choice=choice, **kwargs)
 
     parameters = [*kept, *added]
     run.__signature__ = signature.replace(parameters=parameters)  # type: ignore[attr-defined]
     run.__annotations__ = {p.name: p.annotation for p in parameters}
     return run
+
+
+def quoted(value: object) -> str:
+    """``value`` as text for a rich console: non-printable characters and markup escaped."""
+    from rich.markup import escape
+
+    from laser_corners.errors import printable
+
+    return escape(printable(str(value)))
+
+
+def new_table(title: str, *headers: str, **options: Any) -> Any:
+    """A rich table that keeps file names whole at any width (80 columns off a terminal).
+
+    Its columns fold long values onto the next line instead of cutting them with an
+    ellipsis, and it is at least as wide as its title, so the title does not wrap mid-word.
+    """
+    from rich.table import Table
+
+    table = Table(title=quoted(title), min_width=len(title) + 4, **options)
+    for header in headers:
+        table.add_column(header, overflow="fold")
+    return table
+
+
+def stop_progress(bar: Any) -> None:
+    """Stop a rich progress bar if it was started (rich's ``stop`` on a bar that never
+    started still prints an empty line off a terminal, before the error that follows)."""
+    if bar.live.is_started:
+        bar.stop()

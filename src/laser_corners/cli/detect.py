@@ -11,11 +11,15 @@ from laser_corners.cli.app import app
 from laser_corners.cli.common import (
     InputArg,
     TopicOption,
-    known_errors,
+    image_file,
+    new_table,
     params_choice,
+    quoted,
+    stop_progress,
     with_params_choice,
     writable_file,
 )
+from laser_corners.cli.kernels import KernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.pipeline import DetectRun, ParamsChoice
@@ -33,9 +37,8 @@ def params(
     ] = None,
 ) -> None:
     """Print detector parameters as YAML (the paper's defaults unless overridden)."""
-    with known_errors():
-        choice = params_choice(None, params_file, set_)
-        typer.echo(choice.resolve(None).to_yaml(), nl=False)
+    choice = params_choice(None, params_file, set_)
+    typer.echo(choice.resolve(None).to_yaml(), nl=False)
 
 
 def _progress_bar() -> Any:
@@ -51,24 +54,22 @@ def _progress_bar() -> Any:
 
 
 def _summary_table(run: DetectRun) -> Any:
-    from rich.table import Table
-
     summary, recording = run.summary, run.recording
-    table = Table(title=recording.description, show_header=False)
+    table = new_table(recording.description, "", "", show_header=False)
     table.add_row("scans", str(summary.n_scans))
     table.add_row("keypoints", str(summary.n_keypoints))
     table.add_row("keypoints/scan", f"{summary.keypoints_per_scan:.2f}")
     table.add_row("seconds", f"{summary.seconds:.2f} ({summary.scans_per_second:.0f} scans/s)")
     table.add_row("parameters", recording.preset)
     for reason, count in sorted(summary.skipped.items()):
-        table.add_row("skipped", f"{count} {reason}")
+        table.add_row("skipped", quoted(f"{count} {reason}"))
     for example in summary.skip_examples:
-        table.add_row("", f"first at {example}")
-    table.add_row("output", str(run.output) if run.output else "(none; use -o FILE)")
+        table.add_row("", quoted(f"first at {example}"))
+    table.add_row("output", quoted(run.output) if run.output else "(none; use -o FILE)")
     return table
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def detect(
     input_path: InputArg,
@@ -86,85 +87,77 @@ def detect(
     choice: ParamsChoice,
 ) -> None:
     """Detect keypoints in every scan of a recording; progress bar, then a summary."""
-    with known_errors():
-        from rich.console import Console
+    from rich.console import Console
 
-        from laser_corners.pipeline import detect_file
+    from laser_corners.pipeline import detect_file
 
-        if output is not None:
-            writable_file(output)
-        bar = _progress_bar()
-        task = bar.add_task(input_path.name, total=None, rate=0.0, keypoints=0)
+    if output is not None:
+        writable_file(output)
+    bar = _progress_bar()
+    task = bar.add_task(input_path.name, total=None, rate=0.0, keypoints=0)
 
-        def opened(recording: Any) -> None:
-            bar.update(task, total=recording.source.n_scans)
-            bar.start()
+    def opened(recording: Any) -> None:
+        bar.update(task, total=recording.source.n_scans)
+        bar.start()
 
-        def update(run: Any) -> None:
-            bar.update(task, completed=run.n_scans, rate=run.scans_per_second,
-                       keypoints=run.n_keypoints)  # fmt: skip
+    def update(run: Any) -> None:
+        bar.update(task, completed=run.n_scans, rate=run.scans_per_second,
+                   keypoints=run.n_keypoints)  # fmt: skip
 
-        try:
-            result = detect_file(
-                input_path, output, topic=topic, params=choice, on_open=opened, progress=update
-            )
-        finally:
-            bar.stop()
-        Console().print(_summary_table(result))
-        summary = result.summary
-        if summary.interrupted:
-            kept = f"; {result.kept}" if result.output else ""
-            typer.echo(
-                f"interrupted at {summary.position} after {summary.n_scans} scans"
-                f" ({summary.n_keypoints} keypoints){kept}",
-                err=True,
-            )
-            raise typer.Exit(130)
+    try:
+        result = detect_file(
+            input_path, output, topic=topic, params=choice, on_open=opened, progress=update
+        )
+    finally:
+        stop_progress(bar)
+    Console().print(_summary_table(result))
+    summary = result.summary
+    if summary.interrupted:
+        kept = f"; {result.kept}" if result.output else ""
+        typer.echo(
+            f"interrupted at {summary.position} after {summary.n_scans} scans"
+            f" ({summary.n_keypoints} keypoints){kept}",
+            err=True,
+        )
+        raise typer.Exit(130)
 
 
 @app.command()
 def info(input_path: InputArg, topic: TopicOption = None) -> None:
     """Show what a recording holds: kind, topics, scan geometry, counts, poses."""
-    with known_errors():
-        from rich.console import Console
+    from rich.console import Console
 
-        from laser_corners.pipeline import laser_topic_sources
+    from laser_corners.pipeline import laser_topic_sources
 
-        sources = laser_topic_sources(input_path, topic)
-        description = sources[0].describe()
-        console = Console()
-        console.print(_head_table(input_path, description))
-        if "topics" in description:
-            from rich.table import Table
-
-            topics = Table("topic", "type", "messages", title="topics")
-            for name, entry in dict(description["topics"]).items():  # type: ignore[call-overload]
-                topics.add_row(name, entry["type"], str(entry["count"]))
-            console.print(topics)
-        console.print(_scans_table(sources, description))
-        if len(sources) > 1:
-            console.print("several LaserScan topics; pick one for detect/plot with:")
-            for source in sources:
-                console.print(f"  --topic {source.topic}")
+    sources = laser_topic_sources(input_path, topic)
+    description = sources[0].describe()
+    console = Console()
+    console.print(_head_table(input_path, description))
+    if "topics" in description:
+        topics = new_table("topics", "topic", "type", "messages")
+        for name, entry in dict(description["topics"]).items():  # type: ignore[call-overload]
+            topics.add_row(quoted(name), quoted(entry["type"]), str(entry["count"]))
+        console.print(topics)
+    console.print(_scans_table(sources, description))
+    if len(sources) > 1:
+        console.print("several LaserScan topics; pick one for detect/plot with:")
+        for source in sources:
+            console.print(f"  --topic {quoted(source.topic)}", highlight=False)
 
 
 def _head_table(input_path: Path, description: dict[str, Any]) -> Any:
-    from rich.table import Table
-
-    head = Table(title=str(input_path), show_header=False)
+    head = new_table(str(input_path), "", "", show_header=False)
     head.add_row("kind", str(description["kind"]))
     for key in ("duration_s", "odometry"):
         if key in description:
-            head.add_row(key.replace("_s", " (s)"), str(description[key]))
+            head.add_row(key.replace("_s", " (s)"), quoted(description[key]))
     for word, count in sorted(dict(description.get("records", {})).items()):
-        head.add_row(f"{word} lines", str(count))
+        head.add_row(quoted(f"{word} lines"), str(count))
     return head
 
 
 def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
     import math
-
-    from rich.table import Table
 
     keys = ("scans", "beams", "resolution (deg)", "field of view (deg)", "range (m)", "frame",
             "first stamp (s)", "sensor pose")  # fmt: skip
@@ -172,7 +165,7 @@ def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
     labels = []
     for source in sources:
         scan = source.first_scan()
-        labels.append(source.topic or source.kind)
+        labels.append(quoted(source.topic or source.kind))
         count = description["scans"] if source.n_scans is None else source.n_scans
         if scan is None:
             values = [str(count)] + ["-"] * (len(rows) - 1)
@@ -180,19 +173,19 @@ def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
             values = [
                 str(count), str(scan.n_beams), f"{scan.resolution_deg:.4g}",
                 f"{math.degrees(abs(scan.angle_increment) * scan.n_beams):.1f}",
-                f"{scan.range_min:g} - {scan.range_max:g}", scan.frame_id or "-",
+                f"{scan.range_min:g} - {scan.range_max:g}", quoted(scan.frame_id or "-"),
                 f"{scan.stamp:.6f}" if scan.stamp is not None else "-",
                 "yes" if scan.pose is not None else "no",
             ]  # fmt: skip
         for key, value in zip(rows, values, strict=True):
             rows[key].append(value)
-    table = Table("", *labels, title="scans (geometry of the first scan)")
+    table = new_table("scans (geometry of the first scan)", "", *labels)
     for key, values in rows.items():
         table.add_row(key, *values)
     return table
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def plot(
     input_path: InputArg,
@@ -205,18 +198,17 @@ def plot(
     choice: ParamsChoice,
 ) -> None:
     """Plot one scan: points, per-point candidates and keypoints (sensor frame)."""
-    with known_errors():
-        output = writable_file(
-            output or Path(f"{input_path.name.split('.')[0]}_scan{scan_index}.png")
-        )
-        n_keypoints, n_candidates = _plot_scan(input_path, scan_index, output, topic, choice)
-        typer.echo(f"wrote {output} ({n_keypoints} keypoints, {n_candidates} candidates)")
+    default = Path(f"{input_path.name.split('.')[0]}_scan{scan_index}.png")
+    output, kind = image_file(output or default)
+    n_keypoints, n_candidates = _plot_scan(input_path, scan_index, (output, kind), topic, choice)
+    typer.echo(f"wrote {output} ({n_keypoints} keypoints, {n_candidates} candidates)")
 
 
 def _plot_scan(
-    input_path: Path, index: int, output: Path, topic: str | None, choice: Any
+    input_path: Path, index: int, output: tuple[Path, str], topic: str | None, choice: Any
 ) -> tuple[int, int]:
-    """Plot scan ``index`` with its candidates and keypoints into ``output``; the counts."""
+    """Plot scan ``index`` with its candidates and keypoints into ``output`` (a path and an
+    image format); the counts."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -236,7 +228,7 @@ def _plot_scan(
             f"{input_path.name} scan {index}{stamp}: {len(keypoints)} keypoints "
             f"({recording.preset})"
         )
-        fig.savefig(output, dpi=150, bbox_inches="tight")
+        fig.savefig(output[0], format=output[1], dpi=150, bbox_inches="tight")
     finally:
         plt.close(fig)
     return len(keypoints), len(candidates)

@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-import yaml
 from rich.console import Console
 from rich.table import Table
 
@@ -27,17 +26,24 @@ from laser_corners.cli.common import (
     SetOption,
     TopicOption,
     check_number,
-    known_errors,
     new_folder,
+    new_table,
     params_choice,
+    quoted,
 )
+from laser_corners.cli.kernels import KernelCommand
 from laser_corners.errors import InvalidParamsError
 
 if TYPE_CHECKING:
     from laser_corners.eval.accuracy import AccuracyStats
     from laser_corners.eval.real import RealEvalConfig, RealEvaluation
 
-__all__ = ["evaluate_real_command", "evaluate_sim_command", "method_list"]
+__all__ = [
+    "TrajectoryOption",
+    "evaluate_real_command",
+    "evaluate_sim_command",
+    "method_list",
+]
 
 
 def _split(text: str) -> list[str]:
@@ -67,7 +73,7 @@ def _mount(text: str) -> tuple[float, float, float]:
     return mount  # type: ignore[return-value]
 
 
-_Trajectory = Annotated[
+TrajectoryOption = Annotated[
     Path | None,
     typer.Option(
         "--trajectory",
@@ -133,7 +139,7 @@ _Methods = Annotated[
 ]
 
 
-@evaluate_app.command("real")
+@evaluate_app.command("real", cls=KernelCommand)
 def evaluate_real_command(
     input_path: InputArg,
     output: Annotated[
@@ -143,7 +149,7 @@ def evaluate_real_command(
     preset: PresetOption = None,
     params_file: ParamsOption = None,
     set_: SetOption = None,
-    trajectory: _Trajectory = None,
+    trajectory: TrajectoryOption = None,
     relations: _Relations = None,
     relations_mount: _RelationsMount = None,
     max_scans: _MaxScans = None,
@@ -168,37 +174,36 @@ def evaluate_real_command(
     from laser_corners.viz.report import write_real_report
 
     console = Console(stderr=True)
-    with known_errors():
-        for option, value in (("--max-range", max_range), ("--resolution", resolution),
-                              ("--association-radius", association_radius),
-                              ("--min-ratio", min_ratio)):  # fmt: skip
-            if value is not None:
-                check_number(option, value, minimum=0.0)
-        given = {
-            "resolution": resolution, "association_radius": association_radius,
-            "min_ratio": min_ratio, "min_views": min_views, "occlusion": occlusion,
-            "max_range": max_range, "max_scans": max_scans, "max_pairs": max_pairs,
-            "relations_mount": None if relations_mount is None else _mount(relations_mount),
-            "methods": None if methods is None else method_list(methods),
-        }  # fmt: skip
-        config = RealEvalConfig(
-            detector=params_choice(preset, params_file, set_),
-            **{name: value for name, value in given.items() if value is not None},
-        )
-        new_folder(output)
-        t0 = time.perf_counter()
-        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
-        relations_path = relations if relations is not None else default_relations(input_path)
-        result = evaluate_real(
-            scans, config,
-            relations=read_relations(relations_path) if relations_path is not None else None,
-            source=input_path.name, pose_source=pose_source,
-            progress=lambda message: console.print(message, highlight=False),
-        )  # fmt: skip
-        paths = write_real_report(result, output)
+    for option, value in (("--max-range", max_range), ("--resolution", resolution),
+                          ("--association-radius", association_radius),
+                          ("--min-ratio", min_ratio)):  # fmt: skip
+        if value is not None:
+            check_number(option, value, minimum=0.0)
+    given = {
+        "resolution": resolution, "association_radius": association_radius,
+        "min_ratio": min_ratio, "min_views": min_views, "occlusion": occlusion,
+        "max_range": max_range, "max_scans": max_scans, "max_pairs": max_pairs,
+        "relations_mount": None if relations_mount is None else _mount(relations_mount),
+        "methods": None if methods is None else method_list(methods),
+    }  # fmt: skip
+    config = RealEvalConfig(
+        detector=params_choice(preset, params_file, set_),
+        **{name: value for name, value in given.items() if value is not None},
+    )
+    new_folder(output)
+    t0 = time.perf_counter()
+    scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
+    relations_path = relations if relations is not None else default_relations(input_path)
+    result = evaluate_real(
+        scans, config,
+        relations=read_relations(relations_path) if relations_path is not None else None,
+        source=input_path.name, pose_source=pose_source,
+        progress=lambda message: console.print(quoted(message), highlight=False),
+    )  # fmt: skip
+    paths = write_real_report(result, output)
     _print_real(console, result, config)
     for warning in result.warnings:
-        console.print(f"[yellow]warning:[/yellow] {warning}", highlight=False)
+        console.print(f"[yellow]warning:[/yellow] {quoted(warning)}", highlight=False)
     typer.echo(f"wrote {len(paths)} files to {output} ({paths['report.md']}) in "
                f"{time.perf_counter() - t0:.1f} s")  # fmt: skip
 
@@ -207,7 +212,7 @@ def _print_real(console: Console, result: RealEvaluation, config: RealEvalConfig
     from laser_corners.eval.real_summary import headline, repeatability_rows
 
     console.print(headline(result), highlight=False)
-    table = Table(title=f"repeatability, {result.n_pairs} pairs ({result.pairs_source})")
+    table = new_table(f"repeatability, {result.n_pairs} pairs ({result.pairs_source})")
     table.add_column("method")
     table.add_column("kp/scan", justify="right")
     table.add_column("visible", justify="right")
@@ -220,7 +225,7 @@ def _print_real(console: Console, result: RealEvaluation, config: RealEvalConfig
     console.print(table)
 
 
-@evaluate_app.command("sim")
+@evaluate_app.command("sim", cls=KernelCommand)
 def evaluate_sim_command(
     output: Annotated[
         Path, typer.Option("--output", "-o", help="Folder for accuracy.csv/.md/.png.")
@@ -244,22 +249,21 @@ def evaluate_sim_command(
     from laser_corners.viz.report import write_accuracy_report
 
     console = Console(width=max(Console().width, 120))
-    with known_errors():
-        try:
-            sigmas = [float(v) for v in _split(noise)]
-        except ValueError:
-            raise fail(f"--noise: not a list of numbers: {noise!r}") from None
-        for sigma in sigmas:
-            check_number("--noise", sigma, minimum=0.0)
-        check_number("--match-radius", match_radius, minimum=0.0)
-        profile = get_sensor(sensor)
-        factories = method_factories(method_list(methods))
-        new_folder(output)
-        t0 = time.perf_counter()
-        cases = make_cases(worlds, poses, profile, seed=seed)
-        stats, used = run_sweep(cases, factories, sigmas, profile, seed=seed,
-                                match_radius=match_radius, progress=console.print)  # fmt: skip
-        paths = write_accuracy_report(stats, output)
+    try:
+        sigmas = [float(v) for v in _split(noise)]
+    except ValueError:
+        raise fail(f"--noise: not a list of numbers: {noise!r}") from None
+    for sigma in sigmas:
+        check_number("--noise", sigma, minimum=0.0)
+    check_number("--match-radius", match_radius, minimum=0.0)
+    profile = get_sensor(sensor)
+    factories = method_factories(method_list(methods))
+    new_folder(output)
+    t0 = time.perf_counter()
+    cases = make_cases(worlds, poses, profile, seed=seed)
+    stats, used = run_sweep(cases, factories, sigmas, profile, seed=seed,
+                            match_radius=match_radius, progress=console.print)  # fmt: skip
+    paths = write_accuracy_report(stats, output)
     console.print(
         _sim_table(f"{profile.name}: {len(cases)} poses in {worlds} random worlds", stats)
     )
@@ -278,7 +282,7 @@ def evaluate_sim_command(
 
 
 def _sim_table(title: str, stats: list[AccuracyStats]) -> Table:
-    table = Table(title=title)
+    table = new_table(title)
     for name in ("sigma m", "method", "recall", "false kp", "false/scan", "median mm",
                  "p95 mm", "kp/corner", "ms/scan"):  # fmt: skip
         table.add_column(name, justify="left" if name == "method" else "right")
@@ -294,6 +298,8 @@ def _sim_table(title: str, stats: list[AccuracyStats]) -> Table:
 
 
 def _write_yaml(path: Path, data: dict[str, Any]) -> None:
+    import yaml
+
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
 
 

@@ -13,11 +13,12 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import Progress
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from laser_corners.cli.app import evaluate_app
-from laser_corners.cli.common import InputArg, known_errors
-from laser_corners.cli.evaluate import method_list
+from laser_corners.cli.common import InputArg, TopicOption, new_folder, quoted
+from laser_corners.cli.evaluate import TrajectoryOption, method_list
+from laser_corners.cli.kernels import KernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.eval.loops import LoopsResult
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ["evaluate_loops_command"]
 
 
-@evaluate_app.command("loops")
+@evaluate_app.command("loops", cls=KernelCommand)
 def evaluate_loops_command(
     input_path: InputArg,
     output: Annotated[
@@ -54,6 +55,8 @@ def evaluate_loops_command(
             "(default: LoopsConfig.window_travel).",
         ),
     ] = None,
+    topic: TopicOption = None,
+    trajectory: TrajectoryOption = None,
 ) -> None:
     """Place recognition with FLIRT's protocol on a log with corrected poses.
 
@@ -63,27 +66,29 @@ def evaluate_loops_command(
     """
     # the library is imported after the options are parsed, so that --help stays instant
     from laser_corners.eval.loops import LoopsConfig, evaluate_loops
-    from laser_corners.eval.real import load_scans
-    from laser_corners.viz.loops_report import check_output_dir, loops_rows, write_loops_report
+    from laser_corners.eval.real import ODOMETRY_POSES, load_scans
+    from laser_corners.viz.loops_report import loops_rows, write_loops_report
 
     console = Console(stderr=True)
     t0 = time.perf_counter()
-    with known_errors():
-        given = {"min_inliers": min_inliers, "max_scans": max_scans, "window_travel": window,
-                 "methods": None if methods is None else method_list(methods)}  # fmt: skip
-        config = LoopsConfig(**{k: v for k, v in given.items() if v is not None})
-        check_output_dir(output)
-        scans, _ = load_scans(input_path, None, max_scans)
-        with Progress(console=console, transient=True) as bar:
-            task = bar.add_task("loops", total=1)
+    given = {"min_inliers": min_inliers, "max_scans": max_scans, "window_travel": window,
+             "methods": None if methods is None else method_list(methods)}  # fmt: skip
+    config = LoopsConfig(**{k: v for k, v in given.items() if v is not None})
+    new_folder(output)
+    with _Phases(console) as progress:
+        progress(f"reading {input_path.name}", 0, None)
+        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
+        if pose_source == ODOMETRY_POSES:
+            progress.warn(
+                f"the poses are the bag's raw odometry ({pose_source}), not ground truth: "
+                "a correct match counts as wrong where odometry drifted, so precision means "
+                "little; give corrected poses with --trajectory"
+            )
 
-            def progress(stage: str, done: int, total: int) -> None:
-                bar.update(task, description=stage, completed=done, total=total)
+        def save(partial: LoopsResult) -> None:
+            write_loops_report(partial, output)
 
-            def save(partial: LoopsResult) -> None:
-                write_loops_report(partial, output)
-
-            result = evaluate_loops(scans, config, input_path.name, progress, on_method=save)
+        result = evaluate_loops(scans, config, input_path.name, progress, on_method=save)
     for row in loops_rows(result):
         p = "n/a" if row["precision"] is None else f"{row['precision']:.3f}"
         console.print(
@@ -92,3 +97,35 @@ def evaluate_loops_command(
             highlight=False,
         )
     typer.echo(f"wrote {output / 'loops.json'} in {time.perf_counter() - t0:.1f} s")
+
+
+class _Phases:
+    """Progress over the evaluation's phases from the start: a rich bar on a terminal, one
+    line per phase on stderr otherwise (a bar off a terminal shows nothing until the end)."""
+
+    def __init__(self, console: Console) -> None:
+        self.console = console
+        self.bar = Progress(
+            TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+            TimeElapsedColumn(), console=console, transient=True,
+        )  # fmt: skip
+        self.task = self.bar.add_task("loops", total=None)
+        self.stage = ""
+
+    def __enter__(self) -> _Phases:
+        self.bar.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.live.stop()  # not bar.stop(): off a terminal it adds an empty line
+
+    def __call__(self, stage: str, done: int, total: int | None) -> None:
+        if stage != self.stage and not self.console.is_terminal:
+            self.console.print(f"{quoted(stage)} ...", highlight=False, soft_wrap=True)
+        self.stage = stage
+        self.bar.update(self.task, description=quoted(stage), completed=done, total=total)
+
+    def warn(self, message: str) -> None:
+        """One warning line (above the bar on a terminal)."""
+        text = f"[yellow]warning:[/yellow] {quoted(message)}"
+        self.console.print(text, highlight=False, soft_wrap=True)

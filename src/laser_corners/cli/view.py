@@ -11,9 +11,10 @@ from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import (
     InputArg,
     TopicOption,
-    known_errors,
     with_params_choice,
+    writable_file,
 )
+from laser_corners.cli.kernels import KernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.pipeline import ParamsChoice
@@ -21,7 +22,7 @@ if TYPE_CHECKING:
 __all__ = ["view"]
 
 
-@app.command()
+@app.command(cls=KernelCommand)
 @with_params_choice
 def view(
     input_path: InputArg,
@@ -48,19 +49,20 @@ def view(
     choice: ParamsChoice,
 ) -> None:
     """Stream scans and keypoints (and map-frame keypoints when poses exist) to rerun."""
-    with known_errors():
-        from laser_corners.viz.viewer import ViewerUnavailableError, view_recording
+    from laser_corners.viz.viewer import ViewerUnavailableError, view_recording
 
-        try:
-            summary = view_recording(
-                input_path, topic=topic, params=choice, save=save, connect=connect, every=every,
-                max_scans=max_scans,
-            )  # fmt: skip
-        except ViewerUnavailableError as exc:
-            hint = "" if save is not None else "; use --save FILE.rrd (no display needed)"
-            raise fail(f"{exc}{hint}") from None
-        where = f"wrote {save}" if save is not None else "sent to the viewer"
-        typer.echo(
-            f"{where}: {summary.n_scans} scans, {summary.n_keypoints} keypoints"
-            f" ({summary.n_with_pose} scans with a pose)"
-        )
+    if save is not None:
+        writable_file(save, "--save")
+    try:
+        summary = view_recording(
+            input_path, topic=topic, params=choice, save=save, connect=connect, every=every,
+            max_scans=max_scans,
+        )  # fmt: skip
+    except ViewerUnavailableError as exc:
+        hint = "" if save is not None else "; use --save FILE.rrd (no display needed)"
+        raise fail(f"{exc}{hint}") from None
+    where = f"wrote {save}" if save is not None else "sent to the viewer"
+    typer.echo(
+        f"{where}: {summary.n_scans} scans, {summary.n_keypoints} keypoints"
+        f" ({summary.n_with_pose} scans with a pose)"
+    )

@@ -268,9 +268,11 @@ def _evaluate_method(
     """Detect and describe every scan once, then register each query against its candidates."""
     seconds: dict[str, float] = {}
     t0 = time.perf_counter()
+    progress(f"{name}: detecting", 0, len(scans))
     keypoints = detect(scans)
     seconds["detect"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    progress(f"{name}: describing", 0, len(scans))
     bank = loop_bank(scans, keypoints, config)
     seconds["describe"] = time.perf_counter() - t0
     options = config.match.with_overrides({"min_inliers": min(config.thresholds)})

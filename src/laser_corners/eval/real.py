@@ -59,6 +59,7 @@ from laser_corners.pipeline.recording import no_scan_error
 from laser_corners.scan import LaserScan
 
 __all__ = [
+    "ODOMETRY_POSES",
     "PERSISTENCE_LEVELS",
     "RealEvalConfig",
     "RealEvaluation",
@@ -111,6 +112,11 @@ class RealEvaluation:
         return {level: self.features.count_at_least(level) for level in PERSISTENCE_LEVELS}
 
 
+ODOMETRY_POSES = "/odom + /tf"
+"""The pose source :func:`load_scans` names for a bag's odometry (raw, drifting: not ground
+truth)."""
+
+
 def load_scans(
     path: Path,
     topic: str | None = None,
@@ -136,7 +142,7 @@ def load_scans(
     elif source.kind == "carmen":
         pose_source = "laser poses of the log"
     elif source.kind in ("ros1", "ros2", "mcap"):
-        pose_source = "/odom + /tf"
+        pose_source = ODOMETRY_POSES
     else:
         pose_source = "poses of the recording"
     if not any(s.pose is not None for s in scans):
