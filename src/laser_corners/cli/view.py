@@ -12,7 +12,6 @@ from laser_corners.cli.common import (
     InputArg,
     TopicOption,
     with_params_choice,
-    writable_file,
 )
 from laser_corners.cli.kernels import KernelCommand
 
@@ -51,8 +50,8 @@ def view(
     """Stream scans and keypoints (and map-frame keypoints when poses exist) to rerun."""
     from laser_corners.viz.viewer import ViewerUnavailableError, view_recording
 
-    if save is not None:
-        writable_file(save, "--save")
+    if save is not None and save.is_dir():
+        raise fail(f"{save}: is a folder; --save needs a file name")
     try:
         summary = view_recording(
             input_path, topic=topic, params=choice, save=save, connect=connect, every=every,
