@@ -79,6 +79,7 @@ def detect_file(
     on_open: Callable[[Recording], None] | None = None,
     progress: Callable[[RunSummary], None] | None = None,
     threads: int = 1,
+    compression: str | None = None,
 ) -> DetectRun:
     """Detect keypoints in every scan of ``path`` and write them to ``output``.
 
@@ -99,6 +100,9 @@ def detect_file(
         Progress hook of :func:`~laser_corners.pipeline.detect_recording`.
     threads : int
         numba threads (see :func:`~laser_corners.pipeline.detect_recording`).
+    compression : {"lz4", "bz2", "none"}, optional
+        Chunk compression of a ``.bag`` output (default
+        :data:`~laser_corners.io.bagwriter.BAG_COMPRESSION`).
 
     Returns
     -------
@@ -121,6 +125,7 @@ def detect_file(
             out, recording.source, with_map=recording.has_poses,
             metadata={"laser_corners.params": params_yaml, "laser_corners.input": str(path),
                       "laser_corners.method": CITATION},
+            compression=compression,
         )  # fmt: skip
         if out is not None:
             Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")
