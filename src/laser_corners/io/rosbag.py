@@ -61,6 +61,9 @@ from laser_corners.io.ros1_decode import (
 from laser_corners.io.ros1_index import LeanPlan
 from laser_corners.io.ros1_lean import finite_pose, locate
 from laser_corners.io.ros1_runs import (
+    DAMAGED_CHUNK,
+    DAMAGED_RECORD,
+    LOST_SCANS,
     SCAN,
     ChunkCache,
     ChunkRun,
@@ -268,7 +271,8 @@ class BagSource(ScanSource):
         self, reader: Any, topics: list[str], track: StreamingTrack | None
     ) -> Iterator[LaserScan]:
         """What the per-message loop of :meth:`_scans` yields, chunk run by chunk run
-        (:mod:`laser_corners.io.ros1_lean`)."""
+        (:mod:`laser_corners.io.ros1_lean`); an undecompressable chunk or a damaged record is
+        a counted skip (with its scans), and reading goes on after it."""
         connections = [c for c in reader.connections if c.topic in topics]
         plan = LeanPlan.of(connections)
         kinds = [kind_of(c, self.topic) for c in connections]
@@ -276,29 +280,39 @@ class BagSource(ScanSource):
         chunks = ChunkCache(connections[0].owner) if connections else None
         waiting: deque[RawScan] = deque()
         self._lean_index = 0
+        damaged: set[int] = set()
         for start, stop in plan.runs():
+            pos = int(plan.chunks[start])
             try:
-                data = chunks.get(int(plan.chunks[start]))  # type: ignore[union-attr]
+                data = chunks.get(pos) if pos not in damaged else None  # type: ignore[union-attr]
             except CHUNK_ERRORS as exc:
-                raise self.error(
-                    f"damaged bag data ({type(exc).__name__}: {first_line(exc)})"
-                ) from None
-            ranks = plan.ranks[start:stop]
-            starts, lengths, error = locate(
-                data, plan.offsets[start:stop], ids[ranks], plan.times[start:stop]
-            )
-            run = ChunkRun(data, starts, lengths, [kinds[r] for r in ranks[: starts.size].tolist()])
-            run.decode()
-            yield from self._lean_run(reader, run, plan.times[start:stop], connections,
-                                      ranks, track, waiting)  # fmt: skip
-            if error is not None:
-                if isinstance(error, CHUNK_ERRORS):
-                    raise self.error(
-                        f"damaged bag data ({type(error).__name__}: {first_line(error)})"
-                    ) from None
-                raise error
+                damaged.add(pos)
+                self._skip(DAMAGED_CHUNK, f"chunk at byte {pos}", first_line(exc))
+                data = None
+            if data is None:  # a damaged chunk: its scans are lost, counted
+                self._lost_scans(plan.ranks[start:stop], kinds)
+                continue
+            while start < stop:
+                times, ranks = plan.times[start:stop], plan.ranks[start:stop]
+                starts, lengths, error = locate(data, plan.offsets[start:stop], ids[ranks], times)
+                run = ChunkRun(data, starts, lengths, [kinds[r] for r in ranks[: starts.size]])
+                run.decode()
+                yield from self._lean_run(reader, run, times, connections, ranks, track, waiting)
+                if error is None:
+                    break
+                start += starts.size  # the damaged record: skipped, counted; then the rest
+                where = f"chunk at byte {pos}, record at offset {int(plan.offsets[start])}"
+                self._skip(DAMAGED_RECORD, where, first_line(error))
+                self._lost_scans(plan.ranks[start : start + 1], kinds)
+                start += 1
         while waiting:
             yield from self._release(waiting.popleft(), track)
+
+    def _lost_scans(self, ranks: NDArray[np.int64], kinds: list[int]) -> None:
+        """Count the scans among the messages of ``ranks`` lost to damage."""
+        if lost := sum(1 for r in ranks.tolist() if kinds[r] == SCAN):
+            self.skipped[LOST_SCANS] = self.skipped.get(LOST_SCANS, 0) + lost
+            self._lean_index += lost
 
     def _lean_run(
         self, reader: Any, run: ChunkRun, times: NDArray[np.int64], connections: list[Any],

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from laser_corners.citation import CITATION
+from laser_corners.errors import InputError
 from laser_corners.io import KeypointWriter, open_keypoint_writer
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline.loop import RunSummary, detect_recording
@@ -112,6 +113,8 @@ def detect_file(
     ------
     InputError, InvalidParamsError, OutputError
         The recording cannot be read, the parameters are invalid, the output cannot be written.
+        Damage found after scans were written ends in an ``InputError`` that says what the
+        output keeps (it is kept, complete up to the damage, under its final name).
     """
     recording = open_recording(path, topic, params)
     if on_open is not None:
@@ -136,5 +139,14 @@ def detect_file(
             Path(f"{out}.params.yaml").unlink(missing_ok=True)
         summary = RunSummary(interrupted=True, seconds=time.perf_counter() - start)
         return DetectRun(recording, out, summary, removed=out is not None)
-    summary = detect_recording(recording, writer=writer, progress=progress, threads=threads)
+    try:
+        summary = detect_recording(recording, writer=writer, progress=progress, threads=threads)
+    except InputError as exc:  # damage mid-file: the writer was closed, its output kept
+        if out is None:
+            raise
+        kept = writer.summary()
+        raise InputError(
+            f"{exc}; {kept.path} is incomplete: it keeps the {kept.n_keypoints} keypoints of "
+            f"the {kept.n_scans} scans read before the error"
+        ) from None
     return DetectRun(recording, out, summary)
