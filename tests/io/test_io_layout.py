@@ -10,7 +10,7 @@ READERS = {"rosbag", "carmen", "arrays"}
 WRITERS = {"writers", "bagwriter"}
 HELPERS = {
     "poses", "ros1_decode", "ros1_chunks", "ros1_index", "ros1_lean", "ros1_runs", "bagfile",
-    "messages", "ros1_writer",
+    "messages", "ros1_writer", "ros1_legacy",
 }  # fmt: skip
 LAZY_OK = {"pyarrow", "pyarrow.parquet"}  # heavy: imported when a Parquet writer opens
 

@@ -22,7 +22,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from laser_corners.errors import InputError, first_line
 from laser_corners.io.ros1_chunks import ChunkOrderReader
-from laser_corners.io.ros1_index import LeanIndexReader
+from laser_corners.io.ros1_index import LeanIndexReader, ModernNamesReader
 
 __all__ = [
     "CHUNK_ERRORS",
@@ -76,8 +76,9 @@ def open_bag_reader(path: Path, kind: str, lean: bool = True) -> Iterator[AnyRea
     """An open rosbags ``AnyReader`` of the bag ``path`` of ``kind`` (closed on exit).
 
     A ROS 1 bag is read by :class:`~laser_corners.io.ros1_index.LeanIndexReader` (rosbags'
-    reader, its index read with numpy; ``lean=False``: rosbags' own); one whose index rosbags
-    refuses is read from its chunk records instead.
+    reader, its index read with numpy; ``lean=False``: rosbags' own), with today's names for
+    the types of bags recorded before ROS Electric (``roslib/Header``); one whose index
+    rosbags refuses is read from its chunk records instead.
 
     Raises
     ------
@@ -91,8 +92,8 @@ def open_bag_reader(path: Path, kind: str, lean: bool = True) -> Iterator[AnyRea
         )
     try:
         reader = AnyReader([path], default_typestore=stock_typestore(kind))
-        if kind == "ros1" and lean:  # the same reader, its index read with numpy
-            reader.readers = [LeanIndexReader(path)]
+        if kind == "ros1":  # rosbags' reader: old type names renamed, the index read with numpy
+            reader.readers = [LeanIndexReader(path) if lean else ModernNamesReader(path)]
         reader.open()
     except CORRUPT_ERRORS as exc:
         if kind != "ros1" or isinstance(exc, (FileNotFoundError, PermissionError)):
