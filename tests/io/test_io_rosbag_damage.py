@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rosbags.highlevel import AnyReader
 from rosbags.rosbag1 import Reader
 from typer.testing import CliRunner
 
@@ -15,6 +16,7 @@ from conftest import damaged_copy, real_file
 from laser_corners.cli import app
 from laser_corners.errors import InputError
 from laser_corners.io import open_scans
+from laser_corners.pipeline import detect_file
 
 pytestmark = pytest.mark.real
 runner = CliRunner()
@@ -95,3 +97,22 @@ def _scans_before_damage(log: Path) -> list[object]:
     with pytest.raises(InputError, match="truncated"):
         scans.extend(open_scans(log))
     return scans
+
+
+def test_a_bag_copy_of_a_damaged_bag_leaves_out_only_the_damaged_chunk(tmp_path: Path) -> None:
+    """``-o out.bag`` of the damaged intel.bag: the copy holds every message of the intact
+    chunks (the damaged one left out) and the keypoints of every scan read."""
+    intact = real_file("intel.bag")
+    bag = damaged_copy(intact, tmp_path / "intel.bag", flip=slice(FLIPPED, FLIPPED + 1))
+    pos, lost = _chunk_around(intact, FLIPPED)
+    with Reader(intact) as reader:
+        kept = {
+            c.topic: sum(1 for e in reader.indexes[c.id] if e.chunk_pos != pos)
+            for c in reader.connections
+        }
+    run = detect_file(bag, tmp_path / "out.bag")
+    assert run.summary.n_scans == kept["/scan"] == 13631 - len(lost)
+    with AnyReader([tmp_path / "out.bag"]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+    scans = kept["/scan"]
+    assert counts == {**kept, "/scan_corners": scans, "/scan_corner_markers": scans}

@@ -158,6 +158,7 @@ class BagKeypointWriter(KeypointWriter):
         self.corners_topic = f"{source.topic}_corners"
         self.markers_topic = f"{source.topic}_corner_markers"
         self.n_copied = 0
+        self.damaged: list[str] = []  # ROS 1: damaged chunks and records left out of the copy
         self._ros1 = source.kind == "ros1"
         self._partial = PartialOutput(path, overwrite=True, create=False, folder=not self._ros1)
         self._member: Path | None = None  # an .mcap output: the file of rosbags' bag folder
@@ -199,7 +200,11 @@ class BagKeypointWriter(KeypointWriter):
         def error(message: str) -> InputError:
             return InputError(f"{self.source.path}: {message} (copying it to {self.path})")
 
-        self._pending = iter_messages(reader, list(self.source.topics), error)
+        def damage(rows: slice, reason: str | None, where: str, detail: str) -> None:
+            if reason is not None:  # skipped in the copy too (the source counts its scans)
+                self.damaged.append(f"{where}: {reason} ({detail})")
+
+        self._pending = iter_messages(reader, list(self.source.topics), error, damage)
         self._next = next(self._pending, None)
 
     def _copy_until(self, log_time: int | None) -> None:

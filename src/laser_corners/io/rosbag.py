@@ -32,9 +32,9 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InputError, InvalidScanError, first_line
 from laser_corners.io.bagfile import (
-    CHUNK_ERRORS,
     CORRUPT_ERRORS,
     iter_messages,
+    lean_pieces,
     open_bag_reader,
     read_from_chunks,
 )
@@ -59,13 +59,10 @@ from laser_corners.io.ros1_decode import (
     transforms_of,
 )
 from laser_corners.io.ros1_index import LeanPlan
-from laser_corners.io.ros1_lean import finite_pose, locate
+from laser_corners.io.ros1_lean import finite_pose
 from laser_corners.io.ros1_runs import (
-    DAMAGED_CHUNK,
-    DAMAGED_RECORD,
     LOST_SCANS,
     SCAN,
-    ChunkCache,
     ChunkRun,
     RawScan,
     kind_of,
@@ -276,35 +273,20 @@ class BagSource(ScanSource):
         connections = [c for c in reader.connections if c.topic in topics]
         plan = LeanPlan.of(connections)
         kinds = [kind_of(c, self.topic) for c in connections]
-        ids = np.array([c.id for c in connections], dtype=np.int64)
-        chunks = ChunkCache(connections[0].owner) if connections else None
         waiting: deque[RawScan] = deque()
         self._lean_index = 0
-        damaged: set[int] = set()
-        for start, stop in plan.runs():
-            pos = int(plan.chunks[start])
-            try:
-                data = chunks.get(pos) if pos not in damaged else None  # type: ignore[union-attr]
-            except CHUNK_ERRORS as exc:
-                damaged.add(pos)
-                self._skip(DAMAGED_CHUNK, f"chunk at byte {pos}", first_line(exc))
-                data = None
-            if data is None:  # a damaged chunk: its scans are lost, counted
-                self._lost_scans(plan.ranks[start:stop], kinds)
-                continue
-            while start < stop:
-                times, ranks = plan.times[start:stop], plan.ranks[start:stop]
-                starts, lengths, error = locate(data, plan.offsets[start:stop], ids[ranks], times)
-                run = ChunkRun(data, starts, lengths, [kinds[r] for r in ranks[: starts.size]])
-                run.decode()
-                yield from self._lean_run(reader, run, times, connections, ranks, track, waiting)
-                if error is None:
-                    break
-                start += starts.size  # the damaged record: skipped, counted; then the rest
-                where = f"chunk at byte {pos}, record at offset {int(plan.offsets[start])}"
-                self._skip(DAMAGED_RECORD, where, first_line(error))
-                self._lost_scans(plan.ranks[start : start + 1], kinds)
-                start += 1
+
+        def damage(rows: slice, reason: str | None, where: str, detail: str) -> None:
+            if reason is not None:
+                self._skip(reason, where, detail)
+            self._lost_scans(plan.ranks[rows], kinds)
+
+        for piece in lean_pieces(plan, damage):
+            rows = slice(piece.first, piece.first + piece.starts.size)
+            times, ranks = plan.times[rows], plan.ranks[rows]
+            run = ChunkRun(piece.data, piece.starts, piece.lengths, [kinds[r] for r in ranks])
+            run.decode()
+            yield from self._lean_run(reader, run, times, connections, ranks, track, waiting)
         while waiting:
             yield from self._release(waiting.popleft(), track)
 
