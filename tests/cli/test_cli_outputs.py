@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import real_file
 from laser_corners import LaserScan
 from laser_corners.cli import app
 from laser_corners.io import write_scans_csv, write_scans_npz
@@ -72,3 +73,17 @@ def test_outputs_get_the_mode_of_any_new_file(tmp_path: Path) -> None:
     made = [recording, *outputs, *(Path(f"{o}.params.yaml") for o in outputs)]
     modes = {p.name: oct(p.stat().st_mode & 0o777) for p in made}
     assert modes == {p.name: oct(0o640) for p in made}
+
+
+@pytest.mark.real
+def test_detect_compression_option(tmp_path: Path) -> None:
+    """``--compression`` takes what rosbag offers and applies to ``.bag`` outputs only."""
+    bag = real_file("fr079.bag")
+    for args, needle in (
+        (["-o", str(tmp_path / "k.bag"), "--compression", "zstd"], "unknown bag compression"),
+        (["-o", str(tmp_path / "k.csv"), "--compression", "bz2"], "ROS 1 .bag output only"),
+    ):
+        result = runner.invoke(app, ["detect", str(bag), *args])
+        assert result.exit_code == 2, result.output
+        assert needle in result.stderr.strip().splitlines()[-1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
