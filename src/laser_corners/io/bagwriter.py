@@ -10,13 +10,14 @@ header (stamp and frame) and the scan's log time:
 
 A ROS 1 input gives a ``.bag`` (:class:`~laser_corners.io.ros1_writer.RosbagWriter`: rosbags'
 writer with rosbag's header layout, chunks compressed with ``lz4`` by default, or ``bz2`` or
-``none``); a ROS 2 or MCAP input gives one ``.mcap`` file (ROS 2 MCAP storage, every message
-type's definition inside, so rosbags, ``ros2 bag`` and Foxglove read it alone). The input is
+``none``); a ROS 2 or MCAP input gives one ``.mcap`` file (rosbags' ROS 2 MCAP storage, every
+message type's definition inside; rosbags and ``open_scans`` read it alone). The input is
 copied as the scans are processed, with their keypoint messages; ``close()`` copies the rest,
 writes the bag's index and renames the bag from its temporary name (``STEM.XXXXXXXX.partial.bag``
-beside it; an ``.mcap`` is written as ``STEM.XXXXXXXX.partial/NAME/NAME.mcap``, rosbags' ROS 2
-bag folder, and moved out of it) to the final one, replacing an older file of that name as the
-table outputs do, so an interrupted run (Ctrl-C) still leaves a complete bag with the keypoints
+beside it; an ``.mcap`` is written as rosbags' ROS 2 bag folder inside
+``STEM.XXXXXXXX.partial/`` and its ``.mcap`` file moved out) to the final one, replacing an
+older file of that name as the table outputs are replaced, so an interrupted run (Ctrl-C)
+still leaves a complete bag with the keypoints
 of the scans processed. A ROS 1 output's chunks are written every ``flush_every`` scans: after a
 kill, the temporary bag (no index) holds them and :func:`~laser_corners.io.open_scans` reads it.
 """

@@ -19,6 +19,7 @@ content size and linked blocks, which ``roslz4`` refuses ("malformed data to dec
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import BinaryIO
 
 import lz4.frame
@@ -76,8 +77,8 @@ class RosbagWriter(Writer):
         An unknown compression.
     """
 
-    def __init__(self, path: object, compression: str = "none") -> None:
-        super().__init__(path)  # type: ignore[arg-type]
+    def __init__(self, path: Path | str, compression: str = "none") -> None:
+        super().__init__(path)
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {', '.join(COMPRESSIONS)}")
         if compression != "none":
