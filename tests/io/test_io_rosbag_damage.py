@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
-from rosbags.rosbag1 import Reader
+from rosbags.rosbag1 import Reader, Writer
+from rosbags.typesys import Stores, get_typestore
 from typer.testing import CliRunner
 
 from conftest import damaged_copy, real_file
@@ -116,3 +117,47 @@ def test_a_bag_copy_of_a_damaged_bag_leaves_out_only_the_damaged_chunk(tmp_path:
         counts = {c.topic: c.msgcount for c in reader.connections}
     scans = kept["/scan"]
     assert counts == {**kept, "/scan_corners": scans, "/scan_corner_markers": scans}
+
+
+def test_a_damaged_message_record_is_skipped_and_the_rest_of_its_chunk_read(
+    tmp_path: Path,
+) -> None:
+    """An uncompressed bag whose 8th MESSAGE_DATA record header says op 9: that scan is a
+    counted skip, the other scans of the chunk (before and after it) are read."""
+    store = get_typestore(Stores.ROS1_NOETIC)
+    types = store.types
+    bag = tmp_path / "scans.bag"
+    angles = np.linspace(-1.5, 1.5, 301)
+    with Writer(bag) as writer:
+        scan = writer.add_connection("/scan", "sensor_msgs/msg/LaserScan", typestore=store)
+        for i in range(20):
+            time = types["builtin_interfaces/msg/Time"](sec=100 + i, nanosec=0)
+            msg = types["sensor_msgs/msg/LaserScan"](
+                header=types["std_msgs/msg/Header"](seq=i, stamp=time, frame_id="laser"),
+                angle_min=-1.5,
+                angle_max=1.5,
+                angle_increment=0.01,
+                time_increment=0.0,
+                scan_time=0.0,
+                range_min=0.1,
+                range_max=30.0,
+                ranges=(2.0 + 0.1 * np.cos(angles + i)).astype(np.float32),
+                intensities=np.zeros(0, np.float32),
+            )
+            writer.write(scan, (100 + i) * 10**9, store.serialize_ros1(msg, scan.msgtype))
+    data = bytearray(bag.read_bytes())
+    at, records = 0, []
+    while (at := data.find(b"op=\x02", at + 1)) > 0:
+        records.append(at)
+    assert len(records) == 20
+    data[records[7] + 3] = 9
+    bag.write_bytes(bytes(data))
+
+    source = open_scans(bag)
+    scans = list(source)
+    assert source.skipped == {
+        "damaged message record": 1,
+        "scans in damaged chunks or records": 1,
+    }
+    assert [round(s.stamp) for s in scans] == [100 + i for i in range(20) if i != 7]
+    assert source.skip_examples[0].startswith("chunk at byte ")

@@ -81,8 +81,9 @@ def _command(what: str, tmp: Path) -> tuple[list[str], dict[str, str], str]:
             import rclpy  # noqa: F401
         except ImportError as exc:
             skip_or_fail(f"rclpy not importable ({exc}); install with: pip install -e '.[ros2]'")
-        env.update(ROS_DOMAIN_ID=str(1 + os.getpid() % 101),
-                   ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")  # fmt: skip
+        env.update(
+            ROS_DOMAIN_ID=str(1 + os.getpid() % 101), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST"
+        )
         return cli_command("ros2"), env, ""
     if shutil.which("roscore") is None:
         skip_or_fail("ROS 1 not installed (no roscore on PATH): `make test` installs it")
@@ -98,10 +99,19 @@ def _command(what: str, tmp: Path) -> tuple[list[str], dict[str, str], str]:
 def test_started_processes_die_with_their_sigkilled_parent(tmp_path: Path, what: str) -> None:
     command, env, wait_for_child = _command(what, tmp_path)
     parent = subprocess.Popen(
-        [sys.executable, "-c", _PARENT, str(REPO_ROOT), str(tmp_path / "node.log"),
-         json.dumps(command)],
-        env=env, stdout=subprocess.PIPE, text=True, start_new_session=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-c",
+            _PARENT,
+            str(REPO_ROOT),
+            str(tmp_path / "node.log"),
+            json.dumps(command),
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     node = 0
     try:
         assert parent.stdout is not None
