@@ -155,7 +155,7 @@ def open_keypoint_writer(
     if path is None:
         return KeypointWriter()
     path = Path(path)
-    refuse_input(path, [source.path])
+    refuse_input(path, [source.path] if source is not None else [])
     suffix = path.suffix.lower()
     if options.get("compression") is not None and suffix != ".bag":
         raise OutputError(f"{path}: chunk compression applies to a ROS 1 .bag output only")
