@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
 import os
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import matplotlib
@@ -20,6 +22,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 REAL_DATA = (REPO_ROOT / ".." / "shared" / "data" / "real").resolve()
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
 
 @pytest.fixture(scope="session")
@@ -69,6 +72,27 @@ def random_keypoints(n: int, seed: int = 0) -> Keypoints:
     )
 
 
+def die_with_parent() -> Callable[[], None]:
+    """A ``preexec_fn`` that makes a child started by this thread get SIGTERM when it dies.
+
+    Linux ``prctl(PR_SET_PDEATHSIG, SIGTERM)``: a test's processes (nodes, roscore, writers)
+    end with the pytest process even when it is killed with SIGKILL (a CI timeout), when no
+    teardown runs. Elsewhere it does nothing (the tests' teardowns still stop them).
+    """
+    parent = os.getpid()
+
+    def preexec() -> None:
+        if not sys.platform.startswith("linux"):
+            return
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0) != 0:
+            raise OSError(ctypes.get_errno(), "prctl(PR_SET_PDEATHSIG) failed")
+        if os.getppid() != parent:  # the parent died before prctl: act as the signal would
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    return preexec
+
+
 def run_until_killed(script: str, *args: str) -> str:
     """Run ``script`` in a new Python, read its first output line, then SIGKILL it."""
     env = {
@@ -76,7 +100,11 @@ def run_until_killed(script: str, *args: str) -> str:
         "PYTHONPATH": os.pathsep.join([str(REPO_ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
     }
     process = subprocess.Popen(
-        [sys.executable, "-c", script, *args], stdout=subprocess.PIPE, text=True, env=env
+        [sys.executable, "-c", script, *args],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=die_with_parent(),
     )
     try:
         assert process.stdout is not None

@@ -18,7 +18,7 @@ from laser_corners.io import BagSource, WriterSummary, open_keypoint_writer, ope
 from laser_corners.io.messages import (
     MARKER_DELETEALL,
 )
-from laser_corners.pipeline import detect_recording
+from laser_corners.pipeline import detect_file, detect_recording
 
 
 def test_fr079_keypoint_bag_reads_back_with_the_scan_stamps(tmp_path: Path) -> None:
@@ -29,8 +29,8 @@ def test_fr079_keypoint_bag_reads_back_with_the_scan_stamps(tmp_path: Path) -> N
     writer = open_keypoint_writer(out, source, with_map=True)
     summary = detect_recording(source, detector, writer)
     assert summary.n_scans == 4934 and not summary.interrupted
-    with pytest.raises(OutputError, match="exists already"):
-        open_keypoint_writer(out, source, with_map=True)
+    with pytest.raises(OutputError, match="the output is the input"):
+        open_keypoint_writer(bag, source, with_map=True)
 
     with AnyReader([bag]) as original:
         counts = {c.topic: c.msgcount for c in original.connections}
@@ -125,9 +125,38 @@ def test_ros2_mcap_in_and_keypoint_mcap_out(tmp_path: Path) -> None:
         ]
     assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in poses] == source.stamps_ns
     assert sum(len(m.poses) for m in poses) == summary.n_keypoints
-    # written in a temporary folder, moved out when complete: inner names are the final ones
-    assert sorted(p.name for p in out.iterdir()) == ["corners.mcap.mcap", "metadata.yaml"]
+    # written in a temporary folder, its .mcap file moved out when complete
+    assert out.is_file() and open_scans(out).kind == "mcap"
     assert not list(tmp_path.glob("*.partial*"))
+
+
+def test_mcap_output_is_one_file_and_a_second_run_replaces_it(tmp_path: Path) -> None:
+    """``-o r.mcap`` writes the file r.mcap (not a folder r.mcap/ holding r.mcap.mcap), and
+    the same command again replaces it, as the table outputs are replaced."""
+    scans = list(open_scans(real_file("fr079-corrected.clf.gz")))[:30]
+    bag = tmp_path / "in.mcap"
+    _write_ros2_mcap(tmp_path / "ros2bag", scans)
+    next((tmp_path / "ros2bag").glob("*.mcap")).rename(bag)
+    out = tmp_path / "r.mcap"
+    for run in range(2):
+        result = detect_file(bag, out)
+        assert result.summary.n_scans == 30
+        assert out.is_file(), f"run {run}: {out} is not a file"
+        assert sorted(p.name for p in tmp_path.iterdir()) == [
+            "in.mcap",
+            "r.mcap",
+            "r.mcap.params.yaml",
+            "ros2bag",
+        ]
+        with AnyReader([out]) as reader:
+            counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts == {
+            "/base_scan": 30,
+            "/chatter": 30,
+            "/base_scan_corners": 30,
+            "/base_scan_corner_markers": 30,
+        }
+        assert len(list(open_scans(out))) == 30
 
 
 def test_ros2_sqlite_bag_is_read(tmp_path: Path) -> None:

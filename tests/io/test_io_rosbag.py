@@ -15,6 +15,7 @@ from rosbags.highlevel import AnyReader
 from conftest import damaged_copy, real_file
 from laser_corners import InputError, LaserScan
 from laser_corners.io import (
+    BagSource,
     TopicChoiceError,
     open_scans,
 )
@@ -171,11 +172,19 @@ def test_bag_with_a_damaged_index_record_is_read_from_its_chunks(tmp_path: Path)
         assert got.pose == want.pose
 
 
-def test_byte_flipped_bag_chunk_names_the_message(tmp_path: Path) -> None:
+def test_byte_flipped_bag_chunk_is_skipped_or_named(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The lean path (standard definitions) skips the damaged chunk and names it; the
+    per-message path stops with one line naming the message."""
     bag = damaged_copy(
         real_file("fr079.bag"), tmp_path / "flip.bag", flip=slice(1_200_000, 1_200_064)
     )
     source = open_scans(bag)  # the index is intact
+    assert len(list(source)) < source.n_scans
+    assert source.skipped["damaged bag chunk"] == 1
+    assert source.skip_examples[0].startswith("chunk at byte ")
+    monkeypatch.setattr(BagSource, "lean", False)
     with pytest.raises(InputError) as info:
         for _ in source:
             pass

@@ -3,6 +3,8 @@
 * :func:`skip_or_fail`: skip with a reason, but fail in CI (``CI=true``), where ``make test``
   installs ROS 1 (apt-get) and ROS 2 (the ``ros2`` extra), so a broken install step cannot
   hide behind a skip;
+* :func:`spawn`: start a node (or roscore) in its own process group that dies with this
+  process, also when pytest is killed with SIGKILL and no teardown runs;
 * :func:`wait_for`, :func:`stop`: bounded waits and teardown of the processes a test started;
 * :func:`isolated_message_packages`: ROS 1 (genpy) and ROS 2 (rosidl) message packages have the
   same names (``sensor_msgs``, ``geometry_msgs``, ...); a test module imports one family and
@@ -19,8 +21,11 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO
 
 import pytest
+
+from conftest import die_with_parent
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 FR079 = (REPO_ROOT / ".." / "shared" / "data" / "real" / "fr079.bag").resolve()
@@ -49,6 +54,19 @@ def wait_for(
             pytest.fail(f"{what}: process exited with code {proc.returncode}")
         time.sleep(0.05)
     pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}")
+
+
+def spawn(args: list[str], env: dict[str, str], log: IO[bytes]) -> subprocess.Popen[bytes]:
+    """Start ``args`` in a new process group, output to ``log``; it gets SIGTERM when this
+    process dies (``conftest.die_with_parent``), so no node outlives a killed pytest."""
+    return subprocess.Popen(
+        args,
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        preexec_fn=die_with_parent(),
+    )
 
 
 def stop(proc: subprocess.Popen[bytes], name: str) -> None:

@@ -29,10 +29,12 @@ from ros_helpers import (
     cli_command,
     isolated_message_packages,
     skip_or_fail,
+    spawn,
     stop,
     wait_for,
 )
 
+from conftest import die_with_parent
 from laser_corners import CornerDetector, DetectorParams, LaserScan
 from laser_corners.errors import LaserCornersError
 
@@ -82,10 +84,8 @@ class RosMaster:
 
     def start(self, args: list[str], name: str) -> subprocess.Popen[bytes]:
         """Start ``args`` in its own process group; stopped at teardown."""
-        log = (self.tmp / f"{name}.log").open("wb")
-        proc = subprocess.Popen(
-            args, env=self.env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
-        )
+        with (self.tmp / f"{name}.log").open("wb") as log:
+            proc = spawn(args, self.env, log)
         self.processes.append((proc, name))
         return proc
 
@@ -379,7 +379,7 @@ def test_signal_while_waiting_for_master_exits_cleanly(tmp_path: Path, sig: sign
     out, err = tmp_path / "stdout.log", tmp_path / "stderr.log"
     with out.open("wb") as stdout, err.open("wb") as stderr:
         proc = subprocess.Popen(cli_command("ros1"), env=env, stdout=stdout, stderr=stderr,
-                                start_new_session=True)  # fmt: skip
+                                start_new_session=True, preexec_fn=die_with_parent())  # fmt: skip
     try:
         wait_for(lambda: "Unable to register with master" in out.read_text(errors="replace"),
                  STARTUP_TIMEOUT, "rospy to say it waits for the master", proc)  # fmt: skip

@@ -45,6 +45,7 @@ from ros_helpers import (
     cli_command,
     isolated_message_packages,
     skip_or_fail,
+    spawn,
     stop,
     wait_for,
 )
@@ -79,8 +80,7 @@ class Ros2:
         args = cli_command("ros2", "--ros-args", "-r", f"__ns:={NAMESPACE}/{name}",
                            "-r", f"__node:={name}", *ros_args)  # fmt: skip
         with (self.tmp / f"{name}.log").open("wb") as log:
-            proc = subprocess.Popen(args, env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                    start_new_session=True)  # fmt: skip
+            proc = spawn(args, self.env, log)
         self.processes.append((proc, name))
         return proc
 

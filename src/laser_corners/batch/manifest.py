@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from laser_corners.io.base import PARTIAL_SUFFIX  # re-exported: batch's temporary names
+from laser_corners.io.partial import PARTIAL_SUFFIX  # re-exported: batch's temporary names
 
 __all__ = [
     "MANIFEST_NAME",

@@ -56,7 +56,9 @@ def _progress_bar() -> Any:
 def _summary_table(run: DetectRun) -> Any:
     summary, recording = run.summary, run.recording
     table = new_table(recording.description, "", "", show_header=False)
-    table.add_row("scans", str(summary.n_scans))
+    expected = recording.source.n_scans  # from the bag's index; None: unknown
+    read_all = expected is None or summary.interrupted or summary.n_scans == expected
+    table.add_row("scans", str(summary.n_scans) if read_all else f"{summary.n_scans} of {expected}")
     table.add_row("keypoints", str(summary.n_keypoints))
     table.add_row("keypoints/scan", f"{summary.keypoints_per_scan:.2f}")
     table.add_row("seconds", f"{summary.seconds:.2f} ({summary.scans_per_second:.0f} scans/s)")
@@ -83,6 +85,14 @@ def detect(
         ),
     ] = None,
     topic: TopicOption = None,
+    compression: Annotated[
+        str | None,
+        typer.Option(
+            "--compression",
+            help="Chunk compression of a .bag output: lz4 (default), bz2 or none, as rosbag "
+            "record offers.",
+        ),
+    ] = None,
     *,
     choice: ParamsChoice,
 ) -> None:
@@ -106,7 +116,8 @@ def detect(
 
     try:
         result = detect_file(
-            input_path, output, topic=topic, params=choice, on_open=opened, progress=update
+            input_path, output, topic=topic, params=choice, on_open=opened, progress=update,
+            compression=compression,
         )
     finally:
         stop_progress(bar)

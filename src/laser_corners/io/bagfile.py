@@ -3,7 +3,9 @@
 The bag source and the bag writer both read bags through :func:`open_bag_reader` and
 :func:`iter_messages`. A ROS 1 bag whose index rosbags refuses is read from its chunk records
 (:class:`~laser_corners.io.ros1_chunks.ChunkOrderReader`); only when that fails too is the
-file blamed.
+file blamed. In a ROS 1 bag, :func:`lean_pieces` locates the messages chunk by chunk and skips
+(reporting them) the chunks that cannot be decompressed and the damaged message records, so
+the source and the bag writer read on after damage.
 """
 
 from __future__ import annotations
@@ -12,9 +14,12 @@ import struct
 import zlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+import numpy as np
+from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag1 import ReaderError as Reader1Error
 from rosbags.rosbag2 import ReaderError as Reader2Error
@@ -22,13 +27,18 @@ from rosbags.typesys import Stores, get_typestore
 
 from laser_corners.errors import InputError, first_line
 from laser_corners.io.ros1_chunks import ChunkOrderReader
-from laser_corners.io.ros1_index import LeanIndexReader
+from laser_corners.io.ros1_index import LeanIndexReader, LeanPlan, ModernNamesReader
+from laser_corners.io.ros1_lean import locate
+from laser_corners.io.ros1_runs import DAMAGED_CHUNK, DAMAGED_RECORD, ChunkCache
 
 __all__ = [
     "CHUNK_ERRORS",
     "CORRUPT_ERRORS",
     "BagInput",
+    "Damage",
+    "Piece",
     "iter_messages",
+    "lean_pieces",
     "open_bag_reader",
     "read_from_chunks",
 ]
@@ -76,8 +86,9 @@ def open_bag_reader(path: Path, kind: str, lean: bool = True) -> Iterator[AnyRea
     """An open rosbags ``AnyReader`` of the bag ``path`` of ``kind`` (closed on exit).
 
     A ROS 1 bag is read by :class:`~laser_corners.io.ros1_index.LeanIndexReader` (rosbags'
-    reader, its index read with numpy; ``lean=False``: rosbags' own); one whose index rosbags
-    refuses is read from its chunk records instead.
+    reader, its index read with numpy; ``lean=False``: rosbags' own), with today's names for
+    the types of bags recorded before ROS Electric (``roslib/Header``); one whose index
+    rosbags refuses is read from its chunk records instead.
 
     Raises
     ------
@@ -91,8 +102,8 @@ def open_bag_reader(path: Path, kind: str, lean: bool = True) -> Iterator[AnyRea
         )
     try:
         reader = AnyReader([path], default_typestore=stock_typestore(kind))
-        if kind == "ros1" and lean:  # the same reader, its index read with numpy
-            reader.readers = [LeanIndexReader(path)]
+        if kind == "ros1":  # rosbags' reader: old type names renamed, the index read with numpy
+            reader.readers = [LeanIndexReader(path) if lean else ModernNamesReader(path)]
         reader.open()
     except CORRUPT_ERRORS as exc:
         if kind != "ros1" or isinstance(exc, (FileNotFoundError, PermissionError)):
@@ -112,15 +123,81 @@ def read_from_chunks(reader: AnyReader) -> bool:
     return any(isinstance(r, ChunkOrderReader) for r in reader.readers)
 
 
+Damage = Callable[[slice, "str | None", str, str], None]
+"""``damage(rows, reason, where, detail)``: plan rows lost to a damaged chunk or record
+(``reason`` None: a chunk already reported, met again)."""
+
+
+@dataclass
+class Piece:
+    """The located messages of plan rows ``first .. first + starts.size`` (one chunk)."""
+
+    data: bytes
+    first: int
+    starts: NDArray[np.int64]
+    lengths: NDArray[np.int64]
+
+
+def lean_pieces(plan: LeanPlan, damage: Damage) -> Iterator[Piece]:
+    """The messages of ``plan`` (one rosbags ROS 1 reader) located chunk run by chunk run.
+
+    A chunk that cannot be decompressed, and a message record that does not add up, are
+    handed to ``damage`` and skipped; the rest is read.
+    """
+    if not plan.connections:
+        return
+    chunks = ChunkCache(plan.connections[0].owner)
+    ids = np.array([c.id for c in plan.connections], dtype=np.int64)
+    damaged: set[int] = set()
+    for start, stop in plan.runs():
+        pos = int(plan.chunks[start])
+        if pos in damaged:
+            damage(slice(start, stop), None, "", "")
+            continue
+        try:
+            data = chunks.get(pos)
+        except CHUNK_ERRORS as exc:
+            damaged.add(pos)
+            damage(slice(start, stop), DAMAGED_CHUNK, f"chunk at byte {pos}", first_line(exc))
+            continue
+        while start < stop:
+            rows = slice(start, stop)
+            conns = ids[plan.ranks[rows]]
+            starts, lengths, error = locate(data, plan.offsets[rows], conns, plan.times[rows])
+            yield Piece(data, start, starts, lengths)
+            if error is None:
+                break
+            start += starts.size
+            where = f"chunk at byte {pos}, record at offset {int(plan.offsets[start])}"
+            damage(slice(start, start + 1), DAMAGED_RECORD, where, first_line(error))
+            start += 1
+
+
+def _ros1_messages(connections: list[Any], damage: Damage) -> Iterator[tuple[Any, int, bytes]]:
+    plan = LeanPlan.of(connections)
+    for piece in lean_pieces(plan, damage):
+        ends = piece.starts + piece.lengths
+        rows = range(piece.first, piece.first + piece.starts.size)
+        for i, start, end in zip(rows, piece.starts.tolist(), ends.tolist(), strict=True):
+            yield connections[plan.ranks[i]], int(plan.times[i]), piece.data[start:end]
+
+
 def iter_messages(
-    reader: AnyReader, topics: list[str], error: Callable[[str], InputError]
+    reader: AnyReader,
+    topics: list[str],
+    error: Callable[[str], InputError],
+    damage: Damage | None = None,
 ) -> Iterator[tuple[Any, int, bytes]]:
     """``(connection, log_time_ns, raw)`` of the messages of ``topics`` in log-time order.
 
     Damaged data raises ``error(message)`` (an :class:`InputError` naming the file and the
-    position of the caller).
+    position of the caller); with ``damage``, the damaged chunks and records of a ROS 1 bag
+    are handed to it and skipped instead (:func:`lean_pieces`).
     """
     connections = [c for c in reader.connections if c.topic in topics]
+    if damage is not None and not reader.is2 and len(reader.readers) == 1:
+        yield from _ros1_messages(connections, damage)
+        return
     iterator = reader.messages(connections=connections)
     while True:
         try:

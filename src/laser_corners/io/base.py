@@ -4,9 +4,10 @@
   a reading position for messages;
 * :class:`KeypointWriter`: ``write(scan_index, scan, keypoints)`` and ``close()`` (this base
   class writes nothing) plus :meth:`KeypointWriter.summary`, what the output keeps;
-* :class:`PartialOutput`: an output written under a temporary name in its folder and renamed
-  to its final name when complete, so a killed run never leaves a half-written file under the
-  final name;
+* :class:`~laser_corners.io.partial.PartialOutput` (from :mod:`laser_corners.io.partial`,
+  re-exported here): an output written under a temporary name in its folder and renamed to its
+  final name when complete, so a killed run never leaves a half-written file under the final
+  name; :func:`~laser_corners.io.partial.refuse_input`: an output that is an input is refused;
 * :func:`open_text`, :func:`read_head`: text lines (plain or gzip) and the first bytes of a file.
 
 This module imports no reader and no writer: readers and writers import it, and only
@@ -17,19 +18,16 @@ and its storage plugins are laid out the same way).
 from __future__ import annotations
 
 import gzip
-import os
-import shutil
-import tempfile
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
 from types import TracebackType
 from typing import Literal
 
-from laser_corners.errors import InputError, OutputError
+from laser_corners.errors import InputError
+from laser_corners.io.partial import PartialOutput, file_mode, refuse_input
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 
@@ -41,8 +39,10 @@ __all__ = [
     "SourceKind",
     "TopicChoiceError",
     "WriterSummary",
+    "file_mode",
     "open_text",
     "read_head",
+    "refuse_input",
 ]
 
 SourceKind = Literal["ros1", "ros2", "mcap", "carmen", "npz", "csv"]
@@ -51,8 +51,6 @@ KINDS: tuple[str, ...] = ("ros1", "ros2", "mcap", "carmen", "npz", "csv")
 BAG_KINDS: frozenset[str] = frozenset({"ros1", "ros2", "mcap"})
 """The kinds read through rosbags (they have topics)."""
 
-PARTIAL_SUFFIX = ".partial"
-"""An output path ending in this is a caller's own temporary name (see :class:`PartialOutput`)."""
 MAX_SKIP_EXAMPLES = 5
 """How many skipped records a source remembers the position of."""
 
@@ -255,130 +253,3 @@ class KeypointWriter:
         tb: TracebackType | None,
     ) -> None:
         self.close()
-
-
-class PartialOutput:
-    """An output written under a temporary name beside its final name, renamed when complete.
-
-    The temporary name is ``STEM.XXXXXXXX.partial.SUFFIX`` in the same folder (same file
-    system, so the rename is atomic). A process killed before :meth:`publish` leaves only that
-    file (or folder), never a half-written file under the final name.
-
-    A ``path`` whose name ends in :data:`PARTIAL_SUFFIX` is a temporary name already (its
-    caller's :class:`PartialOutput` renames it when it is done, as ``laser-corners batch``
-    does): it is written directly, so a kill leaves the one file the caller knows about.
-
-    Parameters
-    ----------
-    path : Path
-        The final name.
-    overwrite : bool
-        Replace an existing ``path`` when publishing (tables); with False an existing ``path``
-        is an :class:`OutputError`, checked now and when publishing (bags).
-    create : bool
-        Create the temporary file (empty). With False the name is reserved but left free,
-        for writers that create their output themselves and refuse an existing one (rosbags'
-        bag writers).
-    folder : bool
-        The output is a folder whose contents are named after it (a ROS 2 bag): it is written
-        as ``STEM.XXXXXXXX.partial/NAME`` (not created) and moved out of that folder when
-        published, so what is inside keeps its final names.
-    temporary : Path, optional
-        A fixed temporary name in the same folder, ending in :data:`PARTIAL_SUFFIX`, instead
-        of a new one (``batch``: ``NAME.parquet.partial``, so a re-run replaces the leftover
-        of a killed run); it is not created.
-
-    Raises
-    ------
-    OutputError
-        Missing folder, no permission, or an existing ``path`` with ``overwrite=False``.
-    """
-
-    def __init__(
-        self,
-        path: Path,
-        *,
-        overwrite: bool,
-        create: bool = True,
-        folder: bool = False,
-        temporary: Path | None = None,
-    ) -> None:
-        self.path = path
-        self.overwrite = overwrite
-        if not overwrite and path.exists():
-            raise OutputError(f"{path}: exists already; remove it or choose another name")
-        parent = path.parent
-        if not parent.is_dir():
-            raise OutputError(f"{path}: the folder {parent} does not exist")
-        if temporary is not None or path.name.endswith(PARTIAL_SUFFIX):
-            self.temporary, self._holder = temporary or path, None
-            return
-        self._holder: Path | None = None
-        try:
-            if folder:
-                self._holder = Path(
-                    tempfile.mkdtemp(prefix=f"{path.stem}.", suffix=".partial", dir=parent)
-                )
-                self.temporary = self._holder / path.name
-                return
-            handle, name = tempfile.mkstemp(
-                prefix=f"{path.stem}.", suffix=f".partial{path.suffix}", dir=parent
-            )
-        except OSError as exc:
-            raise OutputError(f"{path}: cannot write in {parent} ({exc.strerror})") from None
-        os.close(handle)
-        self.temporary = Path(name)
-        if not create:
-            self.temporary.unlink()  # the writer creates it itself
-
-    def publish(self) -> None:
-        """Give the complete output its final name.
-
-        Raises
-        ------
-        OutputError
-            ``path`` appeared meanwhile and must not be overwritten.
-        """
-        if self.temporary == self.path or not self.temporary.exists():
-            return
-        if self.path.exists() and not self.overwrite:
-            raise OutputError(
-                f"{self.path}: appeared while writing; the output is kept as {self.temporary}"
-            )
-        try:
-            os.replace(self.temporary, self.path)
-        except OSError as exc:
-            raise OutputError(
-                f"{self.path}: cannot give the output its name ({exc.strerror}); it is kept as "
-                f"{self.temporary}"
-            ) from None
-        if self._holder is not None:
-            self._holder.rmdir()
-
-    @contextmanager
-    def writing(self) -> Iterator[Path]:
-        """Yield the temporary path to write in one go; publish it on success, else remove it.
-
-        Raises
-        ------
-        OutputError
-            The file cannot be written (the ``OSError`` named in one line).
-        """
-        try:
-            yield self.temporary
-        except OSError as exc:
-            self.discard()
-            raise OutputError(f"{self.path}: cannot write ({exc.strerror or exc})") from None
-        except BaseException:
-            self.discard()
-            raise
-        self.publish()
-
-    def discard(self) -> None:
-        """Remove the temporary file or folder (a writer that failed to open)."""
-        if self._holder is not None:
-            shutil.rmtree(self._holder, ignore_errors=True)
-        elif self.temporary.is_dir():
-            shutil.rmtree(self.temporary, ignore_errors=True)
-        else:
-            self.temporary.unlink(missing_ok=True)

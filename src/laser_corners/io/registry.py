@@ -24,6 +24,7 @@ from laser_corners.io.base import (
     ScanSource,
     SourceKind,
     read_head,
+    refuse_input,
 )
 from laser_corners.io.carmen import CARMEN_SUFFIXES, CARMEN_WORDS, CarmenSource
 from laser_corners.io.rosbag import BagSource
@@ -141,19 +142,24 @@ def open_keypoint_writer(
     metadata : dict of str to str, optional
         Stored in the Parquet schema metadata.
     **options
-        Passed on to the writer (``flush_every``; ``ns``, ``lifetime`` for bags).
+        Passed on to the writer (``flush_every``; ``ns``, ``lifetime``, ``compression`` for
+        bags).
 
     Raises
     ------
     InputError
         A bag output for an input that is not a bag.
     OutputError
-        Unknown suffix, or a path that cannot be written.
+        Unknown suffix, a path that cannot be written, or the input itself.
     """
     if path is None:
         return KeypointWriter()
     path = Path(path)
+    refuse_input(path, [source.path] if source is not None else [])
     suffix = path.suffix.lower()
+    if options.get("compression") is not None and suffix != ".bag":
+        raise OutputError(f"{path}: chunk compression applies to a ROS 1 .bag output only")
+    options = {k: v for k, v in options.items() if v is not None}
     if suffix == ".csv":
         return CsvKeypointWriter(path, with_map, **options)
     if suffix in (".parquet", ".pq"):

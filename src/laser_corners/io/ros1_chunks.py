@@ -44,6 +44,8 @@ from rosbags.rosbag1.reader import (
 )
 from rosbags.typesys.msg import normalize_msgtype
 
+from laser_corners.io.ros1_legacy import modern_connection
+
 __all__ = ["ChunkOrderReader"]
 
 _MAGIC = re.compile(rb"#ROSBAG V2\.0\n")
@@ -52,7 +54,7 @@ _MAGIC = re.compile(rb"#ROSBAG V2\.0\n")
 def _connection(header: Header, data: Header, owner: Reader) -> Connection:
     """A rosbags ``Connection`` from the two headers of a CONNECTION record (count 0)."""
     latching = data.get_string("latching") if "latching" in data else None
-    return Connection(
+    connection = Connection(
         header.get_uint32("conn"),
         normalize(header.get_string("topic")),
         normalize_msgtype(data.get_string("type")),
@@ -65,6 +67,7 @@ def _connection(header: Header, data: Header, owner: Reader) -> Connection:
         ),
         owner,
     )
+    return modern_connection(connection)
 
 
 class ChunkOrderReader(Reader):

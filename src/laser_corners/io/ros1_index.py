@@ -19,13 +19,25 @@ from numpy.typing import NDArray
 from rosbags.rosbag1 import Reader, ReaderError
 from rosbags.rosbag1.reader import IndexData, deserialize_uint32
 
-__all__ = ["LeanIndexReader", "LeanPlan"]
+from laser_corners.io.ros1_legacy import modern_connection
+
+__all__ = ["LeanIndexReader", "LeanPlan", "ModernNamesReader"]
 
 _I64 = np.int64
 _ENTRY = np.dtype([("sec", "<u4"), ("nsec", "<u4"), ("offset", "<u4")])  # INDEX_DATA v1
 
 
-class LeanIndexReader(Reader):
+class ModernNamesReader(Reader):
+    """rosbags' ROS 1 reader whose connections carry today's type names (bags recorded before
+    ROS Electric, :mod:`laser_corners.io.ros1_legacy`)."""
+
+    def open(self) -> None:
+        """Open the bag and read its index (as ``Reader.open``), then rename old types."""
+        super().open()
+        self.connections = [modern_connection(c) for c in self.connections]
+
+
+class LeanIndexReader(ModernNamesReader):
     """rosbags' ROS 1 reader whose message index is read with numpy.
 
     ``Reader.open`` turns every INDEX_DATA entry into an ``IndexData`` tuple; here each

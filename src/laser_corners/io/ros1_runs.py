@@ -25,6 +25,9 @@ from laser_corners.io.ros1_lean import (
 )
 
 __all__ = [
+    "DAMAGED_CHUNK",
+    "DAMAGED_RECORD",
+    "LOST_SCANS",
     "ODOM",
     "SCAN",
     "TF",
@@ -55,6 +58,12 @@ class RawScan:
 
 SCAN, ODOM, TF, TF_STATIC = range(4)
 """Message kinds of a run."""
+DAMAGED_CHUNK = "damaged bag chunk"
+"""Skip reason: a chunk that cannot be decompressed (its messages are lost)."""
+DAMAGED_RECORD = "damaged message record"
+"""Skip reason: a message record whose header or length does not add up."""
+LOST_SCANS = "scans in damaged chunks or records"
+"""Skip reason: the scans of the damaged chunks and records (counted from the bag's index)."""
 
 
 def kind_of(connection: Any, scan_topic: str) -> int:

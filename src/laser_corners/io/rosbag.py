@@ -32,9 +32,9 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import InputError, InvalidScanError, first_line
 from laser_corners.io.bagfile import (
-    CHUNK_ERRORS,
     CORRUPT_ERRORS,
     iter_messages,
+    lean_pieces,
     open_bag_reader,
     read_from_chunks,
 )
@@ -59,10 +59,10 @@ from laser_corners.io.ros1_decode import (
     transforms_of,
 )
 from laser_corners.io.ros1_index import LeanPlan
-from laser_corners.io.ros1_lean import finite_pose, locate
+from laser_corners.io.ros1_lean import finite_pose
 from laser_corners.io.ros1_runs import (
+    LOST_SCANS,
     SCAN,
-    ChunkCache,
     ChunkRun,
     RawScan,
     kind_of,
@@ -268,37 +268,33 @@ class BagSource(ScanSource):
         self, reader: Any, topics: list[str], track: StreamingTrack | None
     ) -> Iterator[LaserScan]:
         """What the per-message loop of :meth:`_scans` yields, chunk run by chunk run
-        (:mod:`laser_corners.io.ros1_lean`)."""
+        (:mod:`laser_corners.io.ros1_lean`); an undecompressable chunk or a damaged record is
+        a counted skip (with its scans), and reading goes on after it."""
         connections = [c for c in reader.connections if c.topic in topics]
         plan = LeanPlan.of(connections)
         kinds = [kind_of(c, self.topic) for c in connections]
-        ids = np.array([c.id for c in connections], dtype=np.int64)
-        chunks = ChunkCache(connections[0].owner) if connections else None
         waiting: deque[RawScan] = deque()
         self._lean_index = 0
-        for start, stop in plan.runs():
-            try:
-                data = chunks.get(int(plan.chunks[start]))  # type: ignore[union-attr]
-            except CHUNK_ERRORS as exc:
-                raise self.error(
-                    f"damaged bag data ({type(exc).__name__}: {first_line(exc)})"
-                ) from None
-            ranks = plan.ranks[start:stop]
-            starts, lengths, error = locate(
-                data, plan.offsets[start:stop], ids[ranks], plan.times[start:stop]
-            )
-            run = ChunkRun(data, starts, lengths, [kinds[r] for r in ranks[: starts.size].tolist()])
+
+        def damage(rows: slice, reason: str | None, where: str, detail: str) -> None:
+            if reason is not None:
+                self._skip(reason, where, detail)
+            self._lost_scans(plan.ranks[rows], kinds)
+
+        for piece in lean_pieces(plan, damage):
+            rows = slice(piece.first, piece.first + piece.starts.size)
+            times, ranks = plan.times[rows], plan.ranks[rows]
+            run = ChunkRun(piece.data, piece.starts, piece.lengths, [kinds[r] for r in ranks])
             run.decode()
-            yield from self._lean_run(reader, run, plan.times[start:stop], connections,
-                                      ranks, track, waiting)  # fmt: skip
-            if error is not None:
-                if isinstance(error, CHUNK_ERRORS):
-                    raise self.error(
-                        f"damaged bag data ({type(error).__name__}: {first_line(error)})"
-                    ) from None
-                raise error
+            yield from self._lean_run(reader, run, times, connections, ranks, track, waiting)
         while waiting:
             yield from self._release(waiting.popleft(), track)
+
+    def _lost_scans(self, ranks: NDArray[np.int64], kinds: list[int]) -> None:
+        """Count the scans among the messages of ``ranks`` lost to damage."""
+        if lost := sum(1 for r in ranks.tolist() if kinds[r] == SCAN):
+            self.skipped[LOST_SCANS] = self.skipped.get(LOST_SCANS, 0) + lost
+            self._lean_index += lost
 
     def _lean_run(
         self, reader: Any, run: ChunkRun, times: NDArray[np.int64], connections: list[Any],

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from laser_corners.citation import CITATION
+from laser_corners.errors import InputError
 from laser_corners.io import KeypointWriter, open_keypoint_writer
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline.loop import RunSummary, detect_recording
@@ -79,6 +80,7 @@ def detect_file(
     on_open: Callable[[Recording], None] | None = None,
     progress: Callable[[RunSummary], None] | None = None,
     threads: int = 1,
+    compression: str | None = None,
 ) -> DetectRun:
     """Detect keypoints in every scan of ``path`` and write them to ``output``.
 
@@ -99,6 +101,9 @@ def detect_file(
         Progress hook of :func:`~laser_corners.pipeline.detect_recording`.
     threads : int
         numba threads (see :func:`~laser_corners.pipeline.detect_recording`).
+    compression : {"lz4", "bz2", "none"}, optional
+        Chunk compression of a ``.bag`` output (default
+        :data:`~laser_corners.io.bagwriter.BAG_COMPRESSION`).
 
     Returns
     -------
@@ -108,6 +113,8 @@ def detect_file(
     ------
     InputError, InvalidParamsError, OutputError
         The recording cannot be read, the parameters are invalid, the output cannot be written.
+        Damage found after scans were written ends in an ``InputError`` that says what the
+        output keeps (it is kept, complete up to the damage, under its final name).
     """
     recording = open_recording(path, topic, params)
     if on_open is not None:
@@ -121,6 +128,7 @@ def detect_file(
             out, recording.source, with_map=recording.has_poses,
             metadata={"laser_corners.params": params_yaml, "laser_corners.input": str(path),
                       "laser_corners.method": CITATION},
+            compression=compression,
         )  # fmt: skip
         if out is not None:
             Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")
@@ -131,5 +139,14 @@ def detect_file(
             Path(f"{out}.params.yaml").unlink(missing_ok=True)
         summary = RunSummary(interrupted=True, seconds=time.perf_counter() - start)
         return DetectRun(recording, out, summary, removed=out is not None)
-    summary = detect_recording(recording, writer=writer, progress=progress, threads=threads)
+    try:
+        summary = detect_recording(recording, writer=writer, progress=progress, threads=threads)
+    except InputError as exc:  # damage mid-file: the writer was closed, its output kept
+        if out is None:
+            raise
+        kept = writer.summary()
+        raise InputError(
+            f"{exc}; {kept.path} is incomplete: it keeps the {kept.n_keypoints} keypoints of "
+            f"the {kept.n_scans} scans read before the error"
+        ) from None
     return DetectRun(recording, out, summary)
