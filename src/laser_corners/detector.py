@@ -66,8 +66,9 @@ from laser_corners.merge import (
     M_X,
     M_Y,
     NM,
+    OUT_PER_BEAM,
     detect_batch,
-    detect_into,
+    detect_scan,
     finish,
     raw_rows,
 )
@@ -89,16 +90,14 @@ def _cov_options(params: DetectorParams) -> tuple:
             params.max_gap_beams)  # fmt: skip
 
 
-def _keypoints_from_rows(
+def _arrays_from_rows(
     rows: NDArray[np.float64],
-    stamp: float | None,
-    frame_id: str,
     points: tuple[NDArray[np.float64], NDArray[np.float64], float],
     scales: NDArray[np.float64],
     cov_options: tuple,
-) -> Keypoints:
-    """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`),
-    computed on the first access of ``Keypoints.cov``.
+) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
+    """The arrays of :class:`Keypoints` from kernel rows, and the deferred covariance of each
+    (:mod:`laser_corners.covariance`).
 
     ``points`` are the scan's x, y (NaN for gaps, not modified afterwards) and its beam
     spacing in radians; ``cov_options`` from :func:`_cov_options`.
@@ -109,19 +108,54 @@ def _keypoints_from_rows(
     beam, n_scales, n_merged, k0 = ints
     x, y, spacing = points
     cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, scales, spacing, *cov_options)
-    return Keypoints._from_valid_arrays(
-        stamp,
-        frame_id,
-        cov,
-        xy=xy,
-        beam_index=beam,
-        opening_angle_deg=columns[M_OPEN],
-        orientation=columns[M_ORIENT],
-        n_scales=n_scales,
-        rmse=columns[M_RMSE],
-        n_merged=n_merged,
-        scale_index=k0,
-    )
+    arrays = {
+        "xy": xy,
+        "beam_index": beam,
+        "opening_angle_deg": columns[M_OPEN],
+        "orientation": columns[M_ORIENT],
+        "n_scales": n_scales,
+        "rmse": columns[M_RMSE],
+        "n_merged": n_merged,
+        "scale_index": k0,
+    }
+    return arrays, cov
+
+
+def _keypoints_from_rows(
+    rows: NDArray[np.float64],
+    stamp: float | None,
+    frame_id: str,
+    points: tuple[NDArray[np.float64], NDArray[np.float64], float],
+    scales: NDArray[np.float64],
+    cov_options: tuple,
+) -> Keypoints:
+    """Keypoints from kernel rows (:func:`_arrays_from_rows`), with the covariances computed
+    on the first access of ``Keypoints.cov``."""
+    arrays, cov = _arrays_from_rows(rows, points, scales, cov_options)
+    return Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
+
+
+class _ScanOutput:
+    """One scan's output buffer of :func:`~laser_corners.merge.detect_scan` (x, y, then
+    ``count`` rows), turned into the arrays of :class:`Keypoints` when first read: ``detect``
+    itself only wraps it."""
+
+    __slots__ = ("count", "cov_args", "n", "out", "spacing")
+
+    def __init__(
+        self, out: NDArray[np.float64], n: int, count: int, spacing: float, cov_args: tuple
+    ) -> None:
+        self.out = out
+        self.n = n
+        self.count = count
+        self.spacing = spacing
+        self.cov_args = cov_args
+
+    def __call__(self) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
+        out, n = self.out, self.n
+        rows = out[2 * n : 2 * n + self.count * NM].reshape(self.count, NM)
+        points = (out[:n], out[n : 2 * n], self.spacing)
+        return _arrays_from_rows(rows, points, *self.cov_args)
 
 
 def _beam_spacing(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
@@ -194,9 +228,10 @@ class CornerDetector:
         self._config = kernel_config(params)
         self._scales = np.asarray(params.scales, dtype=np.float64)
         self._cov_args = (self._scales, _cov_options(params))  # for covariances
-        self._geometry: tuple[int, float, float] | None = None
-        self._cos = np.empty(0)
-        self._sin = np.empty(0)
+        # (n_beams, angle_min, angle_increment, range_min, range_max) and the kernel's
+        # geometry array of the last scan (cosines, sines, range limits): one attribute, so
+        # that threads sharing the detector always read a matching pair
+        self._geometry: tuple[tuple, NDArray[np.float64]] = ((-1,), np.empty(0))
 
     @classmethod
     def from_preset(cls, name: str, scan: LaserScan | None = None) -> CornerDetector:
@@ -212,16 +247,26 @@ class CornerDetector:
         return f"CornerDetector({self.params!r})"
 
     # ----------------------------------------------------------------- helpers
-    def _trig(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def _geometry_of(self, scan: LaserScan) -> NDArray[np.float64]:
+        """The kernel's geometry array of ``scan`` (cached for the last geometry)."""
         if not isinstance(scan, LaserScan):
             raise InvalidScanError(f"expected a LaserScan, got {type(scan).__name__}")
-        geometry = (scan.n_beams, scan.angle_min, scan.angle_increment)
-        if geometry != self._geometry:
+        key = scan.geometry
+        cached = self._geometry
+        if key != cached[0]:
+            n = key[0]
             angles = scan.angles
-            self._cos = np.cos(angles)
-            self._sin = np.sin(angles)
-            self._geometry = geometry
-        return self._cos, self._sin
+            geometry = np.empty(2 * n + 2)
+            geometry[:n] = np.cos(angles)
+            geometry[n : 2 * n] = np.sin(angles)
+            geometry[2 * n :] = (scan.range_min, scan.range_max)
+            cached = self._geometry = (key, geometry)
+        return cached[1]
+
+    def _trig(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        geometry = self._geometry_of(scan)
+        n = scan.n_beams
+        return geometry[:n], geometry[n : 2 * n]
 
     def _scan_xy(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         cos_a, sin_a = self._trig(scan)
@@ -287,16 +332,19 @@ class CornerDetector:
         if return_candidates:
             x, y = self._scan_xy(scan)
             return self._detect_xy(x, y, scan.stamp, scan.frame_id, True, scan.angle_increment)
-        cos_a, sin_a = self._trig(scan)
-        n = scan.n_beams
-        x = np.empty(n)  # the scan's points, kept for the covariances
-        y = np.empty(n)
-        rows = np.empty((n, NM))
-        n_out = detect_into(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max,
-                            self._config, x, y, rows)  # fmt: skip
-        points = (x, y, abs(scan.angle_increment))
-        return _keypoints_from_rows(rows[:n_out], scan.stamp, scan.frame_id, points,
-                                    *self._cov_args)  # fmt: skip
+        cached = self._geometry  # the fast path of _geometry_of, inline
+        key = None
+        if type(scan) is LaserScan:
+            ranges = scan.ranges
+            key = (ranges.shape[0], scan.angle_min, scan.angle_increment)
+            key += (scan.range_min, scan.range_max)
+        geometry = cached[1] if key == cached[0] else self._geometry_of(scan)
+        ranges = scan.ranges
+        n = ranges.shape[0]
+        out = np.empty(n * OUT_PER_BEAM)  # the scan's points and the keypoint rows
+        count = detect_scan(ranges, geometry, self._config, out)
+        source = _ScanOutput(out, n, count, abs(scan.angle_increment), self._cov_args)
+        return Keypoints._deferred(scan.stamp, scan.frame_id, count, source)
 
     def detect_points(
         self, xy: NDArray[np.float64], return_candidates: bool = False
@@ -349,17 +397,16 @@ class CornerDetector:
                     "call detect() per scan instead"
                 )
         ranges = np.stack([scan.ranges for scan in scans])
-        cos_a, sin_a = self._trig(first)
-        rows = np.empty((len(scans), first.n_beams, NM))
+        geometry = self._geometry_of(first)
+        n = first.n_beams
+        out = np.empty((len(scans), n * OUT_PER_BEAM))  # per scan: its points, its rows
         counts = np.zeros(len(scans), dtype=np.int64)
-        xs = np.empty(ranges.shape)  # the scans' points, kept for the covariances
-        ys = np.empty(ranges.shape)
-        detect_batch(ranges, cos_a, sin_a, first.range_min, first.range_max, self._config,
-                     xs, ys, rows, counts)  # fmt: skip
+        detect_batch(ranges, geometry, self._config, out, counts)
         spacing = abs(first.angle_increment)
-        out = []
-        for s, scan in enumerate(scans):
-            points = (xs[s], ys[s], spacing)
-            out.append(_keypoints_from_rows(rows[s, : counts[s]], scan.stamp, scan.frame_id,
-                                            points, *self._cov_args))  # fmt: skip
-        return out
+        cov_args = self._cov_args
+        return [
+            Keypoints._deferred(
+                scan.stamp, scan.frame_id, count, _ScanOutput(row, n, count, spacing, cov_args)
+            )
+            for scan, row, count in zip(scans, out, counts.tolist(), strict=True)
+        ]

@@ -35,6 +35,7 @@ __all__ = [
     "NM",
     "detect_batch",
     "detect_into",
+    "detect_scan",
     "detect_xy",
     "finish",
     "merge",
@@ -45,6 +46,7 @@ __all__ = [
 # columns of the keypoint rows (float64, shape (M, NM))
 M_X, M_Y, M_BEAM, M_OPEN, M_ORIENT, M_NSC, M_RMSE, M_NMERGED, M_K0 = range(9)
 NM = 9
+OUT_PER_BEAM = 2 + NM  # :func:`detect_scan`'s output: x, y, then up to one row per beam
 # largest move of a keypoint by the refinement when merging is off (merge_radius = 0), metres
 REFINE_MAX_SHIFT = 0.05
 
@@ -335,8 +337,23 @@ def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
                 rows: NDArray[np.float64]) -> int:  # fmt: skip
     """One scan's ranges -> keypoint rows (returns their count), handing back the scan's points
     in ``x``, ``y`` (the detector keeps them for the covariances)."""
-    polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
+    n_valid = polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
+    if n_valid < 2 * unpack(packed).min_points - 1:  # no neighbourhood pair can be filled
+        return 0
     return detect_xy(x, y, packed, rows)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def detect_scan(ranges: NDArray[np.float64], geometry: NDArray[np.float64],
+                packed: NDArray[np.float64], out: NDArray[np.float64]) -> int:  # fmt: skip
+    """:func:`detect_into` with four arguments (the per-call cost of numba's dispatcher grows
+    with their number): ``geometry`` holds the N beams' cosines, their sines, then range_min
+    and range_max; ``out`` (N * :data:`OUT_PER_BEAM`) receives x (N), y (N), then the keypoint
+    rows (row-major, NM values each). Returns the number of rows."""
+    n = ranges.shape[0]
+    rows = out[2 * n : 2 * n + n * NM].reshape((n, NM))
+    return detect_into(ranges, geometry[:n], geometry[n : 2 * n], geometry[2 * n],
+                       geometry[2 * n + 1], packed, out[:n], out[n : 2 * n], rows)  # fmt: skip
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -349,11 +366,10 @@ def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def detect_batch(ranges, cos_a, sin_a, range_min: float, range_max: float,
-                 packed: NDArray[np.float64], xs: NDArray[np.float64], ys: NDArray[np.float64],
-                 rows: NDArray[np.float64], counts: NDArray[np.int64]) -> None:  # fmt: skip
-    """Detect keypoints in every row of ``ranges`` (S, N), in parallel over scans; the scans'
-    points go to ``xs``, ``ys`` (S, N)."""
+def detect_batch(ranges: NDArray[np.float64], geometry: NDArray[np.float64],
+                 packed: NDArray[np.float64], out: NDArray[np.float64],
+                 counts: NDArray[np.int64]) -> None:  # fmt: skip
+    """:func:`detect_scan` of every row of ``ranges`` (S, N) into the same row of ``out``
+    (S, N * :data:`OUT_PER_BEAM`), in parallel over scans; the row counts go to ``counts``."""
     for s in nb.prange(ranges.shape[0]):
-        counts[s] = detect_into(ranges[s], cos_a, sin_a, range_min, range_max, packed, xs[s],
-                                ys[s], rows[s])  # fmt: skip
+        counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
