@@ -41,6 +41,7 @@ module is the public API around it.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from functools import partial
 from typing import Literal, overload
 
 import numpy as np
@@ -80,6 +81,8 @@ __all__ = ["CornerDetector", "ScaleTable"]
 
 
 _INT_COLUMNS = np.array([M_BEAM, M_NSC, M_NMERGED, M_K0])  # integer fields of the rows
+_FIELDS = ("xy", "beam_index", "opening_angle_deg", "orientation", "rmse", "n_scales")
+_FIELDS += ("n_merged", "scale_index")  # the order of _arrays_from_rows
 
 
 def _cov_options(params: DetectorParams) -> tuple:
@@ -108,54 +111,28 @@ def _arrays_from_rows(
     beam, n_scales, n_merged, k0 = ints
     x, y, spacing = points
     cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, scales, spacing, *cov_options)
-    arrays = {
-        "xy": xy,
-        "beam_index": beam,
-        "opening_angle_deg": columns[M_OPEN],
-        "orientation": columns[M_ORIENT],
-        "n_scales": n_scales,
-        "rmse": columns[M_RMSE],
-        "n_merged": n_merged,
-        "scale_index": k0,
-    }
+    floats = columns[M_OPEN], columns[M_ORIENT], columns[M_RMSE]
+    arrays = dict(zip(_FIELDS, (xy, beam, *floats, n_scales, n_merged, k0), strict=True))
     return arrays, cov
 
 
-def _keypoints_from_rows(
-    rows: NDArray[np.float64],
-    stamp: float | None,
-    frame_id: str,
-    points: tuple[NDArray[np.float64], NDArray[np.float64], float],
-    scales: NDArray[np.float64],
-    cov_options: tuple,
-) -> Keypoints:
-    """Keypoints from kernel rows (:func:`_arrays_from_rows`), with the covariances computed
-    on the first access of ``Keypoints.cov``."""
-    arrays, cov = _arrays_from_rows(rows, points, scales, cov_options)
-    return Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
+def _arrays_from_output(
+    out: NDArray[np.float64], n: int, count: int, spacing: float, *cov_args: object
+) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
+    """:func:`_arrays_from_rows` of an output buffer of :func:`~laser_corners.merge.detect_scan`
+    (x, y, then ``count`` rows): the source of ``detect``'s keypoints, called on first read."""
+    rows = out[2 * n : 2 * n + count * NM].reshape(count, NM)
+    return _arrays_from_rows(rows, (out[:n], out[n : 2 * n], spacing), *cov_args)  # type: ignore[arg-type]
 
 
-class _ScanOutput:
-    """One scan's output buffer of :func:`~laser_corners.merge.detect_scan` (x, y, then
-    ``count`` rows), turned into the arrays of :class:`Keypoints` when first read: ``detect``
-    itself only wraps it."""
+def _no_covariances() -> NDArray[np.float64]:
+    return np.zeros((0, 2, 2))
 
-    __slots__ = ("count", "cov_args", "n", "out", "spacing")
 
-    def __init__(
-        self, out: NDArray[np.float64], n: int, count: int, spacing: float, cov_args: tuple
-    ) -> None:
-        self.out = out
-        self.n = n
-        self.count = count
-        self.spacing = spacing
-        self.cov_args = cov_args
-
-    def __call__(self) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
-        out, n = self.out, self.n
-        rows = out[2 * n : 2 * n + self.count * NM].reshape(self.count, NM)
-        points = (out[:n], out[n : 2 * n], self.spacing)
-        return _arrays_from_rows(rows, points, *self.cov_args)
+def _no_keypoints() -> tuple[dict[str, NDArray[np.generic]], object]:
+    """The arrays of a scan without keypoints (no buffer kept for them)."""
+    empty = np.empty(0)
+    return _arrays_from_rows(np.empty((0, NM)), (empty, empty, 0.0), empty, ())[0], _no_covariances
 
 
 def _beam_spacing(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
@@ -254,12 +231,9 @@ class CornerDetector:
         key = scan.geometry
         cached = self._geometry
         if key != cached[0]:
-            n = key[0]
             angles = scan.angles
-            geometry = np.empty(2 * n + 2)
-            geometry[:n] = np.cos(angles)
-            geometry[n : 2 * n] = np.sin(angles)
-            geometry[2 * n :] = (scan.range_min, scan.range_max)
+            limits = (scan.range_min, scan.range_max)
+            geometry = np.concatenate((np.cos(angles), np.sin(angles), limits))
             cached = self._geometry = (key, geometry)
         return cached[1]
 
@@ -290,14 +264,15 @@ class CornerDetector:
         rows = np.empty((n, NM))
         n_out = finish(x, y, cand, self._config, rows)
         points = (x, y, spacing)
-        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id, points, *self._cov_args)
+        arrays, cov = _arrays_from_rows(rows[:n_out], points, *self._cov_args)
+        keypoints = Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
         if not with_raw:
             return keypoints
         raw = np.empty((n, NM))
         n_raw = raw_rows(cand, raw)
         unrefined = self.params.model_copy(update={"refine_radius": 0.0})  # raw: not refined
-        raw_kp = _keypoints_from_rows(raw[:n_raw], stamp, frame_id, points, self._scales,
-                                      _cov_options(unrefined))  # fmt: skip
+        arrays, cov = _arrays_from_rows(raw[:n_raw], points, self._scales, _cov_options(unrefined))
+        raw_kp = Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
         return keypoints, raw_kp
 
     # ----------------------------------------------------------------- public API
@@ -335,15 +310,19 @@ class CornerDetector:
         cached = self._geometry  # the fast path of _geometry_of, inline
         key = None
         if type(scan) is LaserScan:
-            ranges = scan.ranges
-            key = (ranges.shape[0], scan.angle_min, scan.angle_increment)
+            key = (scan.ranges.shape[0], scan.angle_min, scan.angle_increment)
             key += (scan.range_min, scan.range_max)
         geometry = cached[1] if key == cached[0] else self._geometry_of(scan)
         ranges = scan.ranges
         n = ranges.shape[0]
         out = np.empty(n * OUT_PER_BEAM)  # the scan's points and the keypoint rows
         count = detect_scan(ranges, geometry, self._config, out)
-        source = _ScanOutput(out, n, count, abs(scan.angle_increment), self._cov_args)
+        spacing = abs(scan.angle_increment)
+        source = (
+            partial(_arrays_from_output, out, n, count, spacing, *self._cov_args)
+            if count
+            else _no_keypoints
+        )
         return Keypoints._deferred(scan.stamp, scan.frame_id, count, source)
 
     def detect_points(
@@ -403,10 +382,9 @@ class CornerDetector:
         counts = np.zeros(len(scans), dtype=np.int64)
         detect_batch(ranges, geometry, self._config, out, counts)
         spacing = abs(first.angle_increment)
-        cov_args = self._cov_args
-        return [
-            Keypoints._deferred(
-                scan.stamp, scan.frame_id, count, _ScanOutput(row, n, count, spacing, cov_args)
-            )
-            for scan, row, count in zip(scans, out, counts.tolist(), strict=True)
-        ]
+        out_kp = []
+        for scan, row, count in zip(scans, out, counts.tolist(), strict=True):
+            source = partial(_arrays_from_output, row, n, count, spacing, *self._cov_args)
+            source = source if count else _no_keypoints
+            out_kp.append(Keypoints._deferred(scan.stamp, scan.frame_id, count, source))
+        return out_kp
