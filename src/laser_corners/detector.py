@@ -129,10 +129,14 @@ def _no_covariances() -> NDArray[np.float64]:
     return np.zeros((0, 2, 2))
 
 
+_EMPTY = np.empty(0)
+_NO_ARRAYS = _arrays_from_rows(np.empty((0, NM)), (_EMPTY, _EMPTY, 0.0), _EMPTY, ())[0]
+
+
 def _no_keypoints() -> tuple[dict[str, NDArray[np.generic]], object]:
-    """The arrays of a scan without keypoints (no buffer kept for them)."""
-    empty = np.empty(0)
-    return _arrays_from_rows(np.empty((0, NM)), (empty, empty, 0.0), empty, ())[0], _no_covariances
+    """The arrays of a scan without keypoints (no buffer kept for them; zero-length arrays
+    shared by all such keypoints: nothing can be written into them)."""
+    return dict(_NO_ARRAYS), _no_covariances
 
 
 def _beam_spacing(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:

@@ -180,6 +180,8 @@ def merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.flo
         if cand[j, C_NSC] > 0.0:
             idx[m] = j
             m += 1
+    if m == 0:  # no candidates: none of the tables below
+        return 0
     idx = idx[:m]
     parent = _link(cand, idx, merge_radius * merge_radius)
     label = np.empty(m, dtype=np.int64)
