@@ -52,6 +52,7 @@ from laser_corners.covariance import (
     COV_FLOOR,
     SCALE_RUN_FACTOR,
     DeferredCovariances,
+    DeferredScanCovariances,
 )
 from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.kernel import NC, candidates, kernel_config, polar_to_xy
@@ -80,6 +81,7 @@ from laser_corners.scan import LaserScan
 __all__ = ["CornerDetector", "ScaleTable"]
 
 
+_KEEP_WORK = 1 << 21  # largest work buffer (floats) a detector keeps between calls: 16 MB
 _INT_COLUMNS = np.array([M_BEAM, M_NSC, M_NMERGED, M_K0])  # integer fields of the rows
 _FIELDS = ("xy", "beam_index", "opening_angle_deg", "orientation", "rmse", "n_scales")
 _FIELDS += ("n_merged", "scale_index")  # the order of _arrays_from_rows
@@ -94,43 +96,40 @@ def _cov_options(params: DetectorParams) -> tuple:
 
 
 def _arrays_from_rows(
-    rows: NDArray[np.float64],
-    points: tuple[NDArray[np.float64], NDArray[np.float64], float],
-    scales: NDArray[np.float64],
-    cov_options: tuple,
+    rows: NDArray[np.float64], cov_class: type, cov_lead: tuple, cov_args: tuple
 ) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
     """The arrays of :class:`Keypoints` from kernel rows, and the deferred covariance of each
-    (:mod:`laser_corners.covariance`).
-
-    ``points`` are the scan's x, y (NaN for gaps, not modified afterwards) and its beam
-    spacing in radians; ``cov_options`` from :func:`_cov_options`.
+    (:mod:`laser_corners.covariance`): ``cov_class(*cov_lead, xy, beam_index, scale_index,
+    n_scales, *cov_args)``, with ``cov_lead`` the scan's x, y (NaN for gaps, not modified
+    afterwards) for :class:`DeferredCovariances` and ``cov_args`` the scales, the beam
+    spacing in radians and :func:`_cov_options`.
     """
     columns = rows.T.copy()  # one row per field, each contiguous: views below
     xy = rows[:, M_X : M_Y + 1].copy()
     ints = columns.take(_INT_COLUMNS, axis=0).astype(np.int64)
     beam, n_scales, n_merged, k0 = ints
-    x, y, spacing = points
-    cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, scales, spacing, *cov_options)
+    cov = cov_class(*cov_lead, xy, beam, k0, n_scales, *cov_args)
     floats = columns[M_OPEN], columns[M_ORIENT], columns[M_RMSE]
     arrays = dict(zip(_FIELDS, (xy, beam, *floats, n_scales, n_merged, k0), strict=True))
     return arrays, cov
 
 
-def _arrays_from_output(
-    out: NDArray[np.float64], n: int, count: int, spacing: float, *cov_args: object
+def _arrays_from_scan(
+    rows: NDArray[np.float64],
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    *cov_args: object,
 ) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
-    """:func:`_arrays_from_rows` of an output buffer of :func:`~laser_corners.merge.detect_scan`
-    (x, y, then ``count`` rows): the source of ``detect``'s keypoints, called on first read."""
-    rows = out[2 * n : 2 * n + count * NM].reshape(count, NM)
-    return _arrays_from_rows(rows, (out[:n], out[n : 2 * n], spacing), *cov_args)  # type: ignore[arg-type]
+    """:func:`_arrays_from_rows` of ``detect``'s rows of a scan (its ranges and the detector's
+    geometry array, shared, are all the covariances need): called on first read."""
+    return _arrays_from_rows(rows, DeferredScanCovariances, (ranges, geometry), cov_args)
 
 
 def _no_covariances() -> NDArray[np.float64]:
     return np.zeros((0, 2, 2))
 
 
-_EMPTY = np.empty(0)
-_NO_ARRAYS = _arrays_from_rows(np.empty((0, NM)), (_EMPTY, _EMPTY, 0.0), _EMPTY, ())[0]
+_NO_ARRAYS = _arrays_from_rows(np.empty((0, NM)), DeferredCovariances, (), ())[0]
 
 
 def _no_keypoints() -> tuple[dict[str, NDArray[np.generic]], object]:
@@ -213,6 +212,7 @@ class CornerDetector:
         # geometry array of the last scan (cosines, sines, range limits): one attribute, so
         # that threads sharing the detector always read a matching pair
         self._geometry: tuple[tuple, NDArray[np.float64]] = ((-1,), np.empty(0))
+        self._work: NDArray[np.float64] | None = None  # see _checkout
 
     @classmethod
     def from_preset(cls, name: str, scan: LaserScan | None = None) -> CornerDetector:
@@ -241,16 +241,17 @@ class CornerDetector:
             cached = self._geometry = (key, geometry)
         return cached[1]
 
-    def _trig(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        geometry = self._geometry_of(scan)
-        n = scan.n_beams
-        return geometry[:n], geometry[n : 2 * n]
+    def _checkout(self, size: int) -> NDArray[np.float64]:
+        """A work buffer of >= ``size`` floats, the detector's own (taken while in use: a thread
+        finding none makes one): reuse spares fresh memory's page faults (slow on a batch)."""
+        work, self._work = self._work, None
+        return work if work is not None and work.shape[0] >= size else np.empty(size)
 
     def _scan_xy(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        cos_a, sin_a = self._trig(scan)
-        x = np.empty(scan.n_beams)
-        y = np.empty(scan.n_beams)
-        polar_to_xy(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max, x, y)
+        geometry = self._geometry_of(scan)
+        n = scan.n_beams
+        x, y = np.empty(n), np.empty(n)
+        polar_to_xy(scan.ranges, geometry[:n], geometry[n : 2 * n], *geometry[2 * n :], x, y)
         return x, y
 
     def _detect_xy(
@@ -267,15 +268,17 @@ class CornerDetector:
         candidates(x, y, self._config, cand, np.empty((0, 0, 3)))
         rows = np.empty((n, NM))
         n_out = finish(x, y, cand, self._config, rows)
-        points = (x, y, spacing)
-        arrays, cov = _arrays_from_rows(rows[:n_out], points, *self._cov_args)
+        scales, options = self._cov_args
+        cov_args = (scales, spacing, *options)
+        arrays, cov = _arrays_from_rows(rows[:n_out], DeferredCovariances, (x, y), cov_args)
         keypoints = Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
         if not with_raw:
             return keypoints
         raw = np.empty((n, NM))
         n_raw = raw_rows(cand, raw)
         unrefined = self.params.model_copy(update={"refine_radius": 0.0})  # raw: not refined
-        arrays, cov = _arrays_from_rows(raw[:n_raw], points, self._scales, _cov_options(unrefined))
+        raw_args = (scales, spacing, *_cov_options(unrefined))
+        arrays, cov = _arrays_from_rows(raw[:n_raw], DeferredCovariances, (x, y), raw_args)
         raw_kp = Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
         return keypoints, raw_kp
 
@@ -319,14 +322,14 @@ class CornerDetector:
         geometry = cached[1] if key == cached[0] else self._geometry_of(scan)
         ranges = scan.ranges
         n = ranges.shape[0]
-        out = np.empty(n * OUT_PER_BEAM)  # the scan's points and the keypoint rows
-        count = detect_scan(ranges, geometry, self._config, out)
-        spacing = abs(scan.angle_increment)
-        source = (
-            partial(_arrays_from_output, out, n, count, spacing, *self._cov_args)
-            if count
-            else _no_keypoints
-        )
+        work = self._checkout(n * OUT_PER_BEAM)  # the scan's points, then its keypoint rows
+        count = detect_scan(ranges, geometry, self._config, work)
+        rows = work[2 * n : 2 * n + count * NM].reshape(count, NM).copy()
+        self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
+        if not count:
+            return Keypoints._deferred(scan.stamp, scan.frame_id, 0, _no_keypoints)
+        cov_args = (self._scales, abs(scan.angle_increment), *self._cov_args[1])
+        source = partial(_arrays_from_scan, rows, ranges, geometry, *cov_args)
         return Keypoints._deferred(scan.stamp, scan.frame_id, count, source)
 
     def detect_points(
@@ -379,16 +382,19 @@ class CornerDetector:
                     f"detect_many: scan {i} has a different geometry from scan 0; "
                     "call detect() per scan instead"
                 )
-        ranges = np.stack([scan.ranges for scan in scans])
         geometry = self._geometry_of(first)
-        n = first.n_beams
-        out = np.empty((len(scans), n * OUT_PER_BEAM))  # per scan: its points, its rows
-        counts = np.zeros(len(scans), dtype=np.int64)
+        n, size = first.n_beams, len(scans)
+        work = self._checkout(size * n * (1 + OUT_PER_BEAM))  # the ranges, then the outputs
+        ranges = np.stack([scan.ranges for scan in scans], out=work[: size * n].reshape(size, n))
+        out = work[size * n : size * n * (1 + OUT_PER_BEAM)].reshape(size, n * OUT_PER_BEAM)
+        counts = np.zeros(size, dtype=np.int64)
         detect_batch(ranges, geometry, self._config, out, counts)
-        spacing = abs(first.angle_increment)
+        cov_args = (self._scales, abs(first.angle_increment), *self._cov_args[1])
         out_kp = []
         for scan, row, count in zip(scans, out, counts.tolist(), strict=True):
-            source = partial(_arrays_from_output, row, n, count, spacing, *self._cov_args)
+            rows = row[2 * n : 2 * n + count * NM].reshape(count, NM).copy()
+            source = partial(_arrays_from_scan, rows, scan.ranges, geometry, *cov_args)
             source = source if count else _no_keypoints
             out_kp.append(Keypoints._deferred(scan.stamp, scan.frame_id, count, source))
+        self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
         return out_kp
