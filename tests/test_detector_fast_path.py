@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pickle
 
+import numba
 import numpy as np
 
 from laser_corners import CornerDetector, DetectorParams, LaserScan
@@ -111,4 +112,19 @@ def test_detect_many_defers_like_detect() -> None:
     batch = detector.detect_many(scans)
     for scan, got in zip(scans, batch, strict=True):
         assert "_source" in got.__dict__ and got._cov_is_lazy()
+        _assert_same(got, detector.detect(scan))
+
+
+def test_detect_many_with_one_numba_thread_equals_detect() -> None:
+    """With one numba thread ``detect_many`` runs its batch without a parallel region."""
+    scans = [_scan(), corner_scan(corner=(1.5, -1.0)), corner_scan(corner=(2.5, 0.5))]
+    detector = CornerDetector()
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        batch = detector.detect_many(scans)
+    finally:
+        numba.set_num_threads(threads)
+    assert sum(len(kps) for kps in batch) == 3
+    for scan, got in zip(scans, batch, strict=True):
         _assert_same(got, detector.detect(scan))

@@ -44,6 +44,7 @@ from collections.abc import Iterable, Sequence
 from functools import partial
 from typing import Literal, overload
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -70,6 +71,7 @@ from laser_corners.merge import (
     NM,
     OUT_PER_BEAM,
     detect_batch,
+    detect_batch_serial,
     detect_scan,
     finish,
     raw_rows,
@@ -125,17 +127,14 @@ def _arrays_from_scan(
     return _arrays_from_rows(rows, DeferredScanCovariances, (ranges, geometry), cov_args)
 
 
-def _no_covariances() -> NDArray[np.float64]:
-    return np.zeros((0, 2, 2))
-
-
+_NO_COVARIANCES = partial(np.zeros, (0, 2, 2))
 _NO_ARRAYS = _arrays_from_rows(np.empty((0, NM)), DeferredCovariances, (), ())[0]
 
 
 def _no_keypoints() -> tuple[dict[str, NDArray[np.generic]], object]:
     """The arrays of a scan without keypoints (no buffer kept for them; zero-length arrays
     shared by all such keypoints: nothing can be written into them)."""
-    return dict(_NO_ARRAYS), _no_covariances
+    return dict(_NO_ARRAYS), _NO_COVARIANCES
 
 
 def _beam_spacing(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
@@ -388,7 +387,8 @@ class CornerDetector:
         ranges = np.stack([scan.ranges for scan in scans], out=work[: size * n].reshape(size, n))
         out = work[size * n : size * n * (1 + OUT_PER_BEAM)].reshape(size, n * OUT_PER_BEAM)
         counts = np.zeros(size, dtype=np.int64)
-        detect_batch(ranges, geometry, self._config, out, counts)
+        batch = detect_batch if numba.get_num_threads() > 1 else detect_batch_serial
+        batch(ranges, geometry, self._config, out, counts)
         cov_args = (self._scales, abs(first.angle_increment), *self._cov_args[1])
         out_kp = []
         for scan, row, count in zip(scans, out, counts.tolist(), strict=True):

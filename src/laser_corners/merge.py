@@ -34,6 +34,7 @@ from laser_corners.linefit import intersect, select_from_sums
 __all__ = [
     "NM",
     "detect_batch",
+    "detect_batch_serial",
     "detect_into",
     "detect_scan",
     "detect_xy",
@@ -346,16 +347,21 @@ def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def detect_scan(ranges: NDArray[np.float64], geometry: NDArray[np.float64],
-                packed: NDArray[np.float64], out: NDArray[np.float64]) -> int:  # fmt: skip
+def detect_scan(
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> int:
     """:func:`detect_into` with four arguments (the per-call cost of numba's dispatcher grows
     with their number): ``geometry`` holds the N beams' cosines, their sines, then range_min
     and range_max; ``out`` (N * :data:`OUT_PER_BEAM`) receives x (N), y (N), then the keypoint
     rows (row-major, NM values each). Returns the number of rows."""
     n = ranges.shape[0]
+    cos_a, sin_a, limits = geometry[:n], geometry[n : 2 * n], geometry[2 * n :]
     rows = out[2 * n : 2 * n + n * NM].reshape((n, NM))
-    return detect_into(ranges, geometry[:n], geometry[n : 2 * n], geometry[2 * n],
-                       geometry[2 * n + 1], packed, out[:n], out[n : 2 * n], rows)  # fmt: skip
+    x, y = out[:n], out[n : 2 * n]
+    return detect_into(ranges, cos_a, sin_a, limits[0], limits[1], packed, x, y, rows)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -368,10 +374,27 @@ def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def detect_batch(ranges: NDArray[np.float64], geometry: NDArray[np.float64],
-                 packed: NDArray[np.float64], out: NDArray[np.float64],
-                 counts: NDArray[np.int64]) -> None:  # fmt: skip
+def detect_batch(
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    out: NDArray[np.float64],
+    counts: NDArray[np.int64],
+) -> None:
     """:func:`detect_scan` of every row of ``ranges`` (S, N) into the same row of ``out``
     (S, N * :data:`OUT_PER_BEAM`), in parallel over scans; the row counts go to ``counts``."""
     for s in nb.prange(ranges.shape[0]):
+        counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def detect_batch_serial(
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    out: NDArray[np.float64],
+    counts: NDArray[np.int64],
+) -> None:
+    """:func:`detect_batch` in the calling thread (for one numba thread: no parallel start)."""
+    for s in range(ranges.shape[0]):
         counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
