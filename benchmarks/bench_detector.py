@@ -176,21 +176,28 @@ def compare(old: object, new: CornerDetector, scans: list[LaserScan], repeats: i
 def batch_ratio(new: CornerDetector, scans: list[LaserScan], repeats: int, size: int = 10):
     """``detect_many`` over ``detect``, time per scan: CPU time of the process (robust to
     other processes, and it counts numba's worker threads), batches of 10 interleaved with
-    ``detect`` of the same scans, best over the repeats, median over the scans."""
+    ``detect`` of the same scans (each first on alternate repeats), best over the repeats,
+    median over the scans."""
     new.detect_many(scans[:size])  # warm-up
     many = np.full(len(scans), np.inf)
     one = np.full(len(scans), np.inf)
     clock = time.process_time_ns
-    for _ in range(repeats):
-        for b in range(0, len(scans), size):
-            batch = scans[b : b + size]
+
+    def time_many(b: int, batch: list[LaserScan]) -> None:
+        t0 = clock()
+        new.detect_many(batch)
+        many[b : b + len(batch)] = np.minimum(many[b : b + len(batch)], (clock() - t0) / len(batch))
+
+    def time_one(b: int, batch: list[LaserScan]) -> None:
+        for i, scan in enumerate(batch, start=b):
             t0 = clock()
-            new.detect_many(batch)
-            many[b : b + size] = np.minimum(many[b : b + size], (clock() - t0) / len(batch))
-            for i, scan in enumerate(batch, start=b):
-                t0 = clock()
-                new.detect(scan)
-                one[i] = min(one[i], clock() - t0)
+            new.detect(scan)
+            one[i] = min(one[i], clock() - t0)
+
+    for r in range(repeats):  # which goes first (warm caches) alternates over the repeats
+        for b in range(0, len(scans), size):
+            for timer in (time_many, time_one) if r % 2 == 0 else (time_one, time_many):
+                timer(b, scans[b : b + size])
     return float(np.median(many) / np.median(one))
 
 

@@ -368,14 +368,13 @@ class CornerDetector:
         ``range_min`` and ``range_max``; use :meth:`detect` otherwise.
         """
         scans = list(scans)
-        for i, scan in enumerate(scans):
-            if not isinstance(scan, LaserScan):
-                raise InvalidScanError(f"detect_many: item {i} is a {type(scan).__name__}")
         if not scans:
             return []
         first = scans[0]
-        geometry = first.geometry
+        geometry = first.geometry if isinstance(first, LaserScan) else None
         for i, scan in enumerate(scans):
+            if not isinstance(scan, LaserScan):
+                raise InvalidScanError(f"detect_many: item {i} is a {type(scan).__name__}")
             if scan.geometry != geometry:
                 raise InvalidScanError(
                     f"detect_many: scan {i} has a different geometry from scan 0; "
@@ -392,9 +391,10 @@ class CornerDetector:
         cov_args = (self._scales, abs(first.angle_increment), *self._cov_args[1])
         out_kp = []
         for scan, row, count in zip(scans, out, counts.tolist(), strict=True):
-            rows = row[2 * n : 2 * n + count * NM].reshape(count, NM).copy()
-            source = partial(_arrays_from_scan, rows, scan.ranges, geometry, *cov_args)
-            source = source if count else _no_keypoints
+            source = _no_keypoints
+            if count:  # the rows, copied out of the work buffer
+                rows = row[2 * n : 2 * n + count * NM].reshape(count, NM).copy()
+                source = partial(_arrays_from_scan, rows, scan.ranges, geometry, *cov_args)
             out_kp.append(Keypoints._deferred(scan.stamp, scan.frame_id, count, source))
         self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
         return out_kp
