@@ -323,9 +323,9 @@ class CornerDetector:
         n = ranges.shape[0]
         work = self._checkout(n * OUT_PER_BEAM)  # the scan's points, then its keypoint rows
         count = detect_scan(ranges, geometry, self._config, work)
-        rows = work[2 * n : 2 * n + count * NM].reshape(count, NM).copy()
+        rows = work[2 * n : 2 * n + count * NM].reshape(count, NM).copy() if count else None
         self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
-        if not count:
+        if rows is None:
             return Keypoints._deferred(scan.stamp, scan.frame_id, 0, _no_keypoints)
         cov_args = (self._scales, abs(scan.angle_increment), *self._cov_args[1])
         source = partial(_arrays_from_scan, rows, ranges, geometry, *cov_args)

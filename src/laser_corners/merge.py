@@ -341,9 +341,8 @@ def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
     """One scan's ranges -> keypoint rows (returns their count), handing back the scan's points
     in ``x``, ``y`` (the detector keeps them for the covariances)."""
     n_valid = polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
-    if n_valid < 2 * unpack(packed).min_points - 1:  # no neighbourhood pair can be filled
-        return 0
-    return detect_xy(x, y, packed, rows)
+    enough = n_valid >= 2 * unpack(packed).min_points - 1  # else no neighbourhood pair fills
+    return detect_xy(x, y, packed, rows) if enough else 0
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -353,10 +352,9 @@ def detect_scan(
     packed: NDArray[np.float64],
     out: NDArray[np.float64],
 ) -> int:
-    """:func:`detect_into` with four arguments (the per-call cost of numba's dispatcher grows
-    with their number): ``geometry`` holds the N beams' cosines, their sines, then range_min
-    and range_max; ``out`` (N * :data:`OUT_PER_BEAM`) receives x (N), y (N), then the keypoint
-    rows (row-major, NM values each). Returns the number of rows."""
+    """:func:`detect_into` with four arguments (numba's dispatch cost grows with their number):
+    ``geometry`` = the N cosines, the N sines, range_min, range_max; ``out`` (N ·
+    :data:`OUT_PER_BEAM`) gets x (N), y (N), then the rows (NM each). Returns their count."""
     n = ranges.shape[0]
     cos_a, sin_a, limits = geometry[:n], geometry[n : 2 * n], geometry[2 * n :]
     rows = out[2 * n : 2 * n + n * NM].reshape((n, NM))
@@ -381,8 +379,7 @@ def detect_batch(
     out: NDArray[np.float64],
     counts: NDArray[np.int64],
 ) -> None:
-    """:func:`detect_scan` of every row of ``ranges`` (S, N) into the same row of ``out``
-    (S, N * :data:`OUT_PER_BEAM`), in parallel over scans; the row counts go to ``counts``."""
+    """:func:`detect_scan` of every row of ``ranges`` into that row of ``out``, in parallel."""
     for s in nb.prange(ranges.shape[0]):
         counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
 
@@ -395,6 +392,9 @@ def detect_batch_serial(
     out: NDArray[np.float64],
     counts: NDArray[np.int64],
 ) -> None:
-    """:func:`detect_batch` in the calling thread (for one numba thread: no parallel start)."""
+    """:func:`detect_batch` in this thread, through one scan's (cache-warm) work buffer."""
+    n = ranges.shape[1]
+    work = np.empty(n * OUT_PER_BEAM)
     for s in range(ranges.shape[0]):
-        counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
+        counts[s] = c = detect_scan(ranges[s], geometry, packed, work)
+        out[s, 2 * n : 2 * n + c * NM] = work[2 * n : 2 * n + c * NM]
