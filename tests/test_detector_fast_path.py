@@ -116,7 +116,7 @@ def test_detect_many_defers_like_detect() -> None:
 
 
 def test_detect_many_with_one_numba_thread_equals_detect() -> None:
-    """With one numba thread ``detect_many`` runs its batch without a parallel region."""
+    """With one numba thread ``detect_many`` takes ``detect``'s path, scan by scan."""
     scans = [_scan(), corner_scan(corner=(1.5, -1.0)), corner_scan(corner=(2.5, 0.5))]
     detector = CornerDetector()
     threads = numba.get_num_threads()

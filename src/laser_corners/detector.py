@@ -71,7 +71,6 @@ from laser_corners.merge import (
     NM,
     OUT_PER_BEAM,
     detect_batch,
-    detect_batch_serial,
     detect_scan,
     finish,
     raw_rows,
@@ -380,14 +379,15 @@ class CornerDetector:
                     f"detect_many: scan {i} has a different geometry from scan 0; "
                     "call detect() per scan instead"
                 )
+        if numba.get_num_threads() == 1:  # nothing to run in parallel: detect's path
+            return [self.detect(scan) for scan in scans]
         geometry = self._geometry_of(first)
         n, size = first.n_beams, len(scans)
         work = self._checkout(size * n * (1 + OUT_PER_BEAM))  # the ranges, then the outputs
         ranges = np.stack([scan.ranges for scan in scans], out=work[: size * n].reshape(size, n))
         out = work[size * n : size * n * (1 + OUT_PER_BEAM)].reshape(size, n * OUT_PER_BEAM)
         counts = np.zeros(size, dtype=np.int64)
-        batch = detect_batch if numba.get_num_threads() > 1 else detect_batch_serial
-        batch(ranges, geometry, self._config, out, counts)
+        detect_batch(ranges, geometry, self._config, out, counts)
         cov_args = (self._scales, abs(first.angle_increment), *self._cov_args[1])
         out_kp = []
         for scan, row, count in zip(scans, out, counts.tolist(), strict=True):

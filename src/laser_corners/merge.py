@@ -34,7 +34,6 @@ from laser_corners.linefit import intersect, select_from_sums
 __all__ = [
     "NM",
     "detect_batch",
-    "detect_batch_serial",
     "detect_into",
     "detect_scan",
     "detect_xy",
@@ -382,19 +381,3 @@ def detect_batch(
     """:func:`detect_scan` of every row of ``ranges`` into that row of ``out``, in parallel."""
     for s in nb.prange(ranges.shape[0]):
         counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def detect_batch_serial(
-    ranges: NDArray[np.float64],
-    geometry: NDArray[np.float64],
-    packed: NDArray[np.float64],
-    out: NDArray[np.float64],
-    counts: NDArray[np.int64],
-) -> None:
-    """:func:`detect_batch` in this thread, through one scan's (cache-warm) work buffer."""
-    n = ranges.shape[1]
-    work = np.empty(n * OUT_PER_BEAM)
-    for s in range(ranges.shape[0]):
-        counts[s] = c = detect_scan(ranges[s], geometry, packed, work)
-        out[s, 2 * n : 2 * n + c * NM] = work[2 * n : 2 * n + c * NM]
