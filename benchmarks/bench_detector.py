@@ -5,24 +5,34 @@ Usage::
     PYTHONPATH=src .venv/bin/python benchmarks/bench_detector.py [--repeats 5]
 
 Data sets: simulated Hokuyo UST-10LX scans (1081 beams, 270 deg, 0.25 deg) from random poses
-in the demo world (an L-shaped room with a pillar) at range noise 0, 0.01 and 0.03 m, and the
-first scans of fr079.bag, intel.bag (180/360 beams) and hokuyo270_rooms.bag /left_scan
-(768 beams) in ../shared/data/real (read once, not timed). The paper preset, one
-``detect`` call per scan, on one core (``os.sched_setaffinity``, numba threads 1), after a
-warm-up; the old and the new kernel alternate scan by scan. Per data set: the median over the
-scans of each scan's best time over the repeats, for the frozen kernel
-(``benchmarks/frozen_kernel_91ca792.py``) and the new one, and their ratio new/old. The
-keypoints of both kernels are compared on every scan (count and position to 1e-9 m).
+in the demo world (an L-shaped room with a pillar) at range noise 0, 0.01 and 0.03 m; the
+first scans of every log in ../shared/data/real (aces.bag, intel.bag: 180 beams; fr079.bag:
+360; hokuyo270_rooms.bag /left_scan, /rear_scan, /right_scan: 768) (read once, not timed);
+and a mostly-empty 180-beam set: the intel.bag scans with 85 % of their beams (drawn with a
+fixed seed) replaced by max-range readings, i.e. no return (what a 180-beam scanner sees in
+open space). The paper preset, one ``detect`` call per scan, on one core
+(``os.sched_setaffinity``, numba threads 1), after a warm-up; the old and the new kernel
+alternate scan by scan. Per data set: the median over the scans of each scan's best time
+over the repeats, for the frozen kernel (``benchmarks/frozen_kernel_91ca792.py``) and the new
+one, and their ratio new/old. The keypoints of both kernels are compared on every scan
+(count and position to 1e-9 m).
 
-``Keypoints.cov`` is computed on first access, not by ``detect``; its cost is timed apart
-(accessing ``.cov`` of freshly detected keypoints, best over the repeats per scan): the median
-per scan and the total over the total number of keypoints (us per keypoint). A user who
-reads the covariances pays ``new ms`` plus that.
+``detect`` returns keypoints whose arrays are made on the first access of any of them and
+whose covariances on the first access of ``Keypoints.cov``: ``+xy ms`` is ``detect`` then
+reading ``.xy`` (what a user of the positions pays), and the covariances are timed apart
+(accessing ``.cov`` of freshly detected keypoints, best over the repeats per scan): the
+median per scan and the total over the total number of keypoints (us per keypoint).
+``many/one`` is ``detect_many`` over ``detect``, time per scan in CPU time of the process
+(:func:`batch_ratio`). ``FALKO ms`` is falkolib (the FALKO authors'
+C++, ``-O3``, one core, best of 5 per scan), measured earlier on this machine type, not in
+this run (issue 21); ``new/FALKO`` compares it with this run's ``new ms``, ``adj new/FALKO``
+with this run's new/old times the frozen kernel's ms on the unloaded machine of FALKO's
+figures (:data:`OLD_MS_UNLOADED`; a fair yardstick when other processes slow this run).
 
 Then the scaling in beam count: a synthetic 360-degree scan of a polygonal room (the demo
-world) with 100,000 and 400,000 beams at range noise 0.001 m, time(400k)/time(100k), in CPU
-time of the thread (these calls take seconds, long enough for other processes on a shared
-machine to distort wall-clock times).
+world) with 100,000, 400,000 and 1,000,000 beams at range noise 0.001 m, time(400k)/time(100k)
+and time(1M)/time(400k), in CPU time of the thread (these calls take seconds, long enough for
+other processes on a shared machine to distort wall-clock times).
 """
 
 from __future__ import annotations
@@ -44,7 +54,34 @@ from laser_corners.sim import UST_10LX
 
 HERE = Path(__file__).resolve().parent
 REAL = HERE.parent / ".." / "shared" / "data" / "real"
-REAL_SETS = [("fr079.bag", "/scan"), ("intel.bag", "/scan"), ("hokuyo270_rooms.bag", "/left_scan")]
+REAL_SETS = [
+    ("aces.bag", "/scan"),
+    ("intel.bag", "/scan"),
+    ("fr079.bag", "/scan"),
+    ("hokuyo270_rooms.bag", "/left_scan"),
+    ("hokuyo270_rooms.bag", "/rear_scan"),
+    ("hokuyo270_rooms.bag", "/right_scan"),
+]
+EMPTY_LABEL = "intel.bag, 85 % of beams no return"
+# the frozen kernel's ms per scan on an unloaded machine (README's run of 2026-12-01 17:24 UTC,
+# load average below 0.5, the conditions of FALKO_MS): on a loaded machine, FALKO's time is
+# compared with new/old of this run times these (``adj new/FALKO``)
+OLD_MS_UNLOADED = {
+    "simulated UST-10LX, noise 0.01 m": 0.2609,
+    "intel.bag /scan": 0.0284,
+    "fr079.bag /scan": 0.0683,
+    "hokuyo270_rooms.bag /left_scan": 0.1027,
+}
+# falkolib ms per scan (C++ -O3, one core, best of 5 per scan), measured side by side with
+# this project's detector on this machine type before this release (issue 21), not in this run
+FALKO_MS = {
+    "simulated UST-10LX, noise 0.01 m": 0.133,
+    "aces.bag /scan": 0.013,
+    "intel.bag /scan": 0.012,
+    "fr079.bag /scan": 0.041,
+    "hokuyo270_rooms.bag /left_scan": 0.059,
+    EMPTY_LABEL: 0.008,
+}
 
 
 def frozen_detector_class() -> type:
@@ -84,6 +121,19 @@ def real_scans(name: str, topic: str, limit: int) -> list[LaserScan] | str:
     return scans
 
 
+def mostly_empty(scans: list[LaserScan], fraction: float = 0.85, seed: int = 0) -> list[LaserScan]:
+    """The scans with ``fraction`` of their beams (drawn with ``seed``) replaced by max-range
+    readings: no return, as a scanner sees in open space."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for scan in scans:
+        ranges = np.array(scan.ranges)
+        ranges[rng.random(ranges.shape[0]) < fraction] = scan.range_max
+        geometry = (scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max)
+        out.append(LaserScan(ranges, *geometry, scan.stamp, scan.frame_id))
+    return out
+
+
 def dense_scan(n_beams: int, noise_sigma: float = 0.001, seed: int = 0) -> LaserScan:
     """A 360-degree scan of the demo world with ``n_beams`` beams."""
     inc = 2 * np.pi / n_beams
@@ -98,9 +148,11 @@ def same_keypoints(a: object, b: object) -> bool:
 
 
 def compare(old: object, new: CornerDetector, scans: list[LaserScan], repeats: int) -> tuple:
-    """Per-scan best times (ms) of both detectors, alternating, and whether they agree."""
+    """Per-scan best times (ms) of both detectors, alternating, of ``detect`` then ``.xy``,
+    and whether they agree."""
     best_old = np.full(len(scans), np.inf)
     best_new = np.full(len(scans), np.inf)
+    best_xy = np.full(len(scans), np.inf)
     agree = True
     for scan in scans[:20]:  # warm-up
         old.detect(scan)  # type: ignore[attr-defined]
@@ -112,10 +164,41 @@ def compare(old: object, new: CornerDetector, scans: list[LaserScan], repeats: i
             t1 = time.perf_counter()
             b = new.detect(scan)
             t2 = time.perf_counter()
+            new.detect(scan).xy  # noqa: B018  (the first access makes the arrays)
+            t3 = time.perf_counter()
             best_old[i] = min(best_old[i], t1 - t0)
             best_new[i] = min(best_new[i], t2 - t1)
+            best_xy[i] = min(best_xy[i], t3 - t2)
             agree &= same_keypoints(a, b)
-    return best_old * 1e3, best_new * 1e3, agree
+    return best_old * 1e3, best_new * 1e3, best_xy * 1e3, agree
+
+
+def batch_ratio(new: CornerDetector, scans: list[LaserScan], repeats: int, size: int = 10):
+    """``detect_many`` over ``detect``, time per scan: CPU time of the process (robust to
+    other processes, and it counts numba's worker threads), batches of 10 interleaved with
+    ``detect`` of the same 10 scans, timed as a whole too (the best of a sum is not the sum of
+    the bests), each first on alternate repeats, best over the repeats, median over scans."""
+    new.detect_many(scans[:size])  # warm-up
+    many = np.full(len(scans), np.inf)
+    one = np.full(len(scans), np.inf)
+    clock = time.process_time_ns
+
+    def time_many(b: int, batch: list[LaserScan]) -> None:
+        t0 = clock()
+        new.detect_many(batch)
+        many[b : b + len(batch)] = np.minimum(many[b : b + len(batch)], (clock() - t0) / len(batch))
+
+    def time_one(b: int, batch: list[LaserScan]) -> None:  # the batch as a whole, like many
+        t0 = clock()
+        for scan in batch:
+            new.detect(scan)
+        one[b : b + len(batch)] = np.minimum(one[b : b + len(batch)], (clock() - t0) / len(batch))
+
+    for r in range(repeats):  # which goes first (warm caches) alternates over the repeats
+        for b in range(0, len(scans), size):
+            for timer in (time_many, time_one) if r % 2 == 0 else (time_one, time_many):
+                timer(b, scans[b : b + size])
+    return float(np.median(many) / np.median(one))
 
 
 def covariance_cost(new: CornerDetector, scans: list[LaserScan], repeats: int) -> tuple:
@@ -134,14 +217,15 @@ def covariance_cost(new: CornerDetector, scans: list[LaserScan], repeats: int) -
 
 def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
     print("\nScaling, synthetic 360-degree scan of the demo world, noise 0.001 m, best of 3,")
-    print("CPU time of the calling thread (time.thread_time: robust to other processes):")
+    print("CPU time of the calling thread (time.thread_time: robust to other processes);")
+    print("the frozen kernel at 100,000 and 400,000 beams only (it takes minutes at 1,000,000):")
     print("| beams | keypoints | new s | old s |")
     print("|---:|---:|---:|---:|")
     times: dict[str, list[float]] = {"new": [], "old": []}
-    for n in (100_000, 400_000):
+    for n in (100_000, 400_000, 1_000_000):
         scan = dense_scan(n)
         runs = {"new": new}
-        if with_old:
+        if with_old and n <= 400_000:
             runs["old"] = old
         kp = {}
         for label, detector in runs.items():
@@ -151,14 +235,15 @@ def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
                 kp[label] = detector.detect(scan)  # type: ignore[attr-defined]
                 best = min(best, time.thread_time() - t0)
             times[label].append(best)
-        old_s = f"{times['old'][-1]:.3f}" if with_old else "-"
+        old_s = f"{times['old'][-1]:.3f}" if "old" in runs else "-"
         print(f"| {n:,} | {len(kp['new'])} | {times['new'][-1]:.3f} | {old_s} |")
-        if with_old and not same_keypoints(kp["old"], kp["new"]):
+        if "old" in kp and not same_keypoints(kp["old"], kp["new"]):
             print(f"  WARNING: keypoints differ at {n} beams")
-    print(f"\ntime(400k)/time(100k): new {times['new'][1] / times['new'][0]:.1f}", end="")
+    new_t = times["new"]
+    print(f"\ntime(400k)/time(100k): new {new_t[1] / new_t[0]:.1f}", end="")
     if with_old:
         print(f", old {times['old'][1] / times['old'][0]:.1f}", end="")
-    print()
+    print(f"; time(1M)/time(400k): new {new_t[2] / new_t[1]:.2f}")
 
 
 def main() -> int:
@@ -181,24 +266,35 @@ def main() -> int:
     ]
     for name, topic in REAL_SETS:
         sets.append((f"{name} {topic}", real_scans(name, topic, args.real_scans)))
+    intel = dict(sets).get("intel.bag /scan")
+    empty = mostly_empty(intel) if isinstance(intel, list) else "skipped: intel.bag not found"
+    sets.append((EMPTY_LABEL, empty))
 
     print(f"python {platform.python_version()}, numba {numba.__version__}, pinned to one core, "
           f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
           "per scan, median over scans\n")  # fmt: skip
-    print("| data set | beams | scans | kp/scan | old ms | new ms | new/old | same kp "
-          "| cov us/scan | cov us/kp |")  # fmt: skip
-    print("|---|---:|---:|---:|---:|---:|---:|---|---:|---:|")
+    columns = ["data set", "beams", "scans", "kp/scan", "old ms", "new ms", "new/old", "same kp"]
+    columns += ["+xy ms", "many/one", "FALKO ms", "new/FALKO", "adj new/FALKO", "cov us/scan"]
+    columns += ["cov us/kp"]
+    print("| " + " | ".join(columns) + " |")
+    print("|---|" + "---:|" * 6 + "---|" + "---:|" * 7)
     for label, scans in sets:
         if isinstance(scans, str):
-            print(f"| {label} | | | | {scans} | | | | | |")
+            print(f"| {label} | | | | {scans} |" + " |" * 10)
             continue
-        ms_old, ms_new, agree = compare(old, new, scans, args.repeats)
+        ms_old, ms_new, ms_xy, agree = compare(old, new, scans, args.repeats)
         kp = np.mean([len(new.detect(s)) for s in scans])
-        m_old, m_new = np.median(ms_old), np.median(ms_new)
+        m_old, m_new, m_xy = np.median(ms_old), np.median(ms_new), np.median(ms_xy)
+        many = batch_ratio(new, scans, args.repeats)
+        falko = FALKO_MS.get(label)
+        falko_s = f"{falko:.3f} | {m_new / falko:.2f}" if falko else "- | -"
+        unloaded = OLD_MS_UNLOADED.get(label)
+        adjusted = f"{m_new / m_old * unloaded / falko:.2f}" if falko and unloaded else "-"
         cov_scan, cov_kp = covariance_cost(new, scans, args.repeats)
-        print(f"| {label} | {scans[0].n_beams} | {len(scans)} | {kp:.2f} | {m_old:.4f} | "
-              f"{m_new:.4f} | {m_new / m_old:.2f} | {'yes' if agree else 'NO'} | "
-              f"{cov_scan:.1f} | {cov_kp:.2f} |")  # fmt: skip
+        cells = [label, scans[0].n_beams, len(scans), f"{kp:.2f}", f"{m_old:.4f}", f"{m_new:.4f}"]
+        cells += [f"{m_new / m_old:.2f}", "yes" if agree else "NO", f"{m_xy:.4f}", f"{many:.2f}"]
+        cells += [falko_s, adjusted, f"{cov_scan:.1f}", f"{cov_kp:.2f}"]
+        print("| " + " | ".join(str(c) for c in cells) + " |")
     scaling(old, new, not args.skip_old_scaling)
     return 0
 

@@ -58,7 +58,7 @@ from laser_corners.fit_covariance import (
     scale_covariance,
     scan_range_noise,
 )
-from laser_corners.kernel import unpack
+from laser_corners.kernel import polar_to_xy, unpack
 from laser_corners.merge import nearest, wall_sums
 
 __all__ = [
@@ -66,6 +66,7 @@ __all__ = [
     "COV_FLOOR",
     "SCALE_RUN_FACTOR",
     "DeferredCovariances",
+    "DeferredScanCovariances",
     "keypoint_covariances",
     "line_fit_covariance",
     "scan_range_noise",
@@ -243,3 +244,24 @@ class DeferredCovariances:
 
     def __reduce__(self) -> tuple[type, tuple[object, ...]]:
         return (DeferredCovariances, self.args)
+
+
+class DeferredScanCovariances(DeferredCovariances):
+    """:class:`DeferredCovariances` whose first two arguments are the scan's ranges and the
+    detector's geometry array (cosines, sines, range_min, range_max) instead of its points:
+    the points are made again when the covariances are computed, so the keypoints of a scan
+    keep no copy of them (``ranges`` and the geometry are read-only and shared)."""
+
+    __slots__ = ()
+
+    def __call__(self) -> NDArray[np.float64]:
+        ranges, geometry, *rest = self.args
+        n = ranges.shape[0]
+        x = np.empty(n)
+        y = np.empty(n)
+        limits = geometry[2 * n], geometry[2 * n + 1]
+        polar_to_xy(ranges, geometry[:n], geometry[n : 2 * n], *limits, x, y)
+        return keypoint_covariances(x, y, *rest)  # type: ignore[arg-type]
+
+    def __reduce__(self) -> tuple[type, tuple[object, ...]]:
+        return (DeferredScanCovariances, self.args)

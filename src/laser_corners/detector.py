@@ -41,13 +41,15 @@ module is the public API around it.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from functools import partial
 from typing import Literal, overload
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.choice import ParamsChoice
-from laser_corners.covariance import DeferredCovariances
+from laser_corners.covariance import DeferredCovariances, DeferredScanCovariances
 from laser_corners.errors import InvalidParamsError, InvalidScanError
 from laser_corners.kernel import NC, candidates, kernel_config, polar_to_xy
 from laser_corners.keypoints import Keypoints
@@ -62,8 +64,9 @@ from laser_corners.merge import (
     M_X,
     M_Y,
     NM,
+    OUT_PER_BEAM,
     detect_batch,
-    detect_into,
+    detect_scan,
     finish,
     raw_rows,
 )
@@ -73,41 +76,50 @@ from laser_corners.scan import LaserScan
 __all__ = ["CornerDetector", "ScaleTable"]
 
 
+_KEEP_WORK = 1 << 21  # largest work buffer (floats) a detector keeps between calls: 16 MB
 _INT_COLUMNS = np.array([M_BEAM, M_NSC, M_NMERGED, M_K0])  # integer fields of the rows
+_FIELDS = ("xy", "beam_index", "opening_angle_deg", "orientation", "rmse", "n_scales")
+_FIELDS += ("n_merged", "scale_index")  # the order of _arrays_from_rows
 
 
-def _keypoints_from_rows(
-    rows: NDArray[np.float64],
-    stamp: float | None,
-    frame_id: str,
-    points: tuple[NDArray[np.float64], NDArray[np.float64], float],
-    config: NDArray[np.float64],
-) -> Keypoints:
-    """Keypoints from kernel rows, with the covariance of each (:mod:`laser_corners.covariance`),
-    computed on the first access of ``Keypoints.cov``.
-
-    ``points`` are the scan's x, y (NaN for gaps, not modified afterwards) and its beam
-    spacing in radians; ``config`` the parameters from :func:`~laser_corners.kernel.kernel_config`.
+def _arrays_from_rows(
+    rows: NDArray[np.float64], cov_class: type, cov_lead: tuple, cov_args: tuple
+) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
+    """The arrays of :class:`Keypoints` from kernel rows, and the deferred covariance of each
+    (:mod:`laser_corners.covariance`): ``cov_class(*cov_lead, xy, beam_index, scale_index,
+    n_scales, *cov_args)``, with ``cov_lead`` the scan's x, y (NaN for gaps, not modified
+    afterwards) for :class:`DeferredCovariances` and ``cov_args`` the beam spacing in
+    radians and the parameters from :func:`~laser_corners.kernel.kernel_config`.
     """
     columns = rows.T.copy()  # one row per field, each contiguous: views below
     xy = rows[:, M_X : M_Y + 1].copy()
     ints = columns.take(_INT_COLUMNS, axis=0).astype(np.int64)
     beam, n_scales, n_merged, k0 = ints
-    x, y, spacing = points
-    cov = DeferredCovariances(x, y, xy, beam, k0, n_scales, spacing, config)
-    return Keypoints._from_valid_arrays(
-        stamp,
-        frame_id,
-        cov,
-        xy=xy,
-        beam_index=beam,
-        opening_angle_deg=columns[M_OPEN],
-        orientation=columns[M_ORIENT],
-        n_scales=n_scales,
-        rmse=columns[M_RMSE],
-        n_merged=n_merged,
-        scale_index=k0,
-    )
+    cov = cov_class(*cov_lead, xy, beam, k0, n_scales, *cov_args)
+    floats = columns[M_OPEN], columns[M_ORIENT], columns[M_RMSE]
+    arrays = dict(zip(_FIELDS, (xy, beam, *floats, n_scales, n_merged, k0), strict=True))
+    return arrays, cov
+
+
+def _arrays_from_scan(
+    rows: NDArray[np.float64],
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    *cov_args: object,
+) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
+    """:func:`_arrays_from_rows` of ``detect``'s rows of a scan (its ranges and the detector's
+    geometry array, shared, are all the covariances need): called on first read."""
+    return _arrays_from_rows(rows, DeferredScanCovariances, (ranges, geometry), cov_args)
+
+
+_NO_COVARIANCES = partial(np.zeros, (0, 2, 2))
+_NO_ARRAYS = _arrays_from_rows(np.empty((0, NM)), DeferredCovariances, (), ())[0]
+
+
+def _no_keypoints() -> tuple[dict[str, NDArray[np.generic]], object]:
+    """The arrays of a scan without keypoints (no buffer kept for them; zero-length arrays
+    shared by all such keypoints: nothing can be written into them)."""
+    return dict(_NO_ARRAYS), _NO_COVARIANCES
 
 
 def _beam_spacing(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
@@ -177,9 +189,11 @@ class CornerDetector:
         self.params = params
         self._config = kernel_config(params)
         self._scales = np.asarray(params.scales, dtype=np.float64)
-        self._geometry: tuple[int, float, float] | None = None
-        self._cos = np.empty(0)
-        self._sin = np.empty(0)
+        # (n_beams, angle_min, angle_increment, range_min, range_max) and the kernel's
+        # geometry array of the last scan (cosines, sines, range limits): one attribute, so
+        # that threads sharing the detector always read a matching pair
+        self._geometry: tuple[tuple, NDArray[np.float64]] = ((-1,), np.empty(0))
+        self._work: NDArray[np.float64] | None = None  # see _checkout
 
     @classmethod
     def from_preset(cls, name: str, scan: LaserScan | None = None) -> CornerDetector:
@@ -195,22 +209,30 @@ class CornerDetector:
         return f"CornerDetector({self.params!r})"
 
     # ----------------------------------------------------------------- helpers
-    def _trig(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    def _geometry_of(self, scan: LaserScan) -> NDArray[np.float64]:
+        """The kernel's geometry array of ``scan`` (cached for the last geometry)."""
         if not isinstance(scan, LaserScan):
             raise InvalidScanError(f"expected a LaserScan, got {type(scan).__name__}")
-        geometry = (scan.n_beams, scan.angle_min, scan.angle_increment)
-        if geometry != self._geometry:
+        key = scan.geometry
+        cached = self._geometry
+        if key != cached[0]:
             angles = scan.angles
-            self._cos = np.cos(angles)
-            self._sin = np.sin(angles)
-            self._geometry = geometry
-        return self._cos, self._sin
+            limits = (scan.range_min, scan.range_max)
+            geometry = np.concatenate((np.cos(angles), np.sin(angles), limits))
+            cached = self._geometry = (key, geometry)
+        return cached[1]
+
+    def _checkout(self, size: int) -> NDArray[np.float64]:
+        """A work buffer of >= ``size`` floats, the detector's own (taken while in use: a thread
+        finding none makes one): reuse spares fresh memory's page faults (slow on a batch)."""
+        work, self._work = self._work, None
+        return work if work is not None and work.shape[0] >= size else np.empty(size)
 
     def _scan_xy(self, scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        cos_a, sin_a = self._trig(scan)
-        x = np.empty(scan.n_beams)
-        y = np.empty(scan.n_beams)
-        polar_to_xy(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max, x, y)
+        geometry = self._geometry_of(scan)
+        n = scan.n_beams
+        x, y = np.empty(n), np.empty(n)
+        polar_to_xy(scan.ranges, geometry[:n], geometry[n : 2 * n], *geometry[2 * n :], x, y)
         return x, y
 
     def _detect_xy(
@@ -227,15 +249,17 @@ class CornerDetector:
         candidates(x, y, self._config, cand, np.empty((0, 0, 3)))
         rows = np.empty((n, NM))
         n_out = finish(x, y, cand, self._config, rows)
-        points = (x, y, spacing)
-        keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id, points, self._config)
+        cov_args = (spacing, self._config)
+        arrays, cov = _arrays_from_rows(rows[:n_out], DeferredCovariances, (x, y), cov_args)
+        keypoints = Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
         if not with_raw:
             return keypoints
         raw = np.empty((n, NM))
         n_raw = raw_rows(cand, raw)
         unrefined = self.params.model_copy(update={"refine_radius": 0.0})  # raw: not refined
-        raw_kp = _keypoints_from_rows(raw[:n_raw], stamp, frame_id, points,
-                                      kernel_config(unrefined))  # fmt: skip
+        raw_args = (spacing, kernel_config(unrefined))
+        arrays, cov = _arrays_from_rows(raw[:n_raw], DeferredCovariances, (x, y), raw_args)
+        raw_kp = Keypoints._from_valid_arrays(stamp, frame_id, cov, **arrays)
         return keypoints, raw_kp
 
     # ----------------------------------------------------------------- public API
@@ -270,16 +294,23 @@ class CornerDetector:
         if return_candidates:
             x, y = self._scan_xy(scan)
             return self._detect_xy(x, y, scan.stamp, scan.frame_id, True, scan.angle_increment)
-        cos_a, sin_a = self._trig(scan)
-        n = scan.n_beams
-        x = np.empty(n)  # the scan's points, kept for the covariances
-        y = np.empty(n)
-        rows = np.empty((n, NM))
-        n_out = detect_into(scan.ranges, cos_a, sin_a, scan.range_min, scan.range_max,
-                            self._config, x, y, rows)  # fmt: skip
-        points = (x, y, abs(scan.angle_increment))
-        return _keypoints_from_rows(rows[:n_out], scan.stamp, scan.frame_id, points,
-                                    self._config)  # fmt: skip
+        cached = self._geometry  # the fast path of _geometry_of, inline
+        key = None
+        if type(scan) is LaserScan:
+            key = (scan.ranges.shape[0], scan.angle_min, scan.angle_increment)
+            key += (scan.range_min, scan.range_max)
+        geometry = cached[1] if key == cached[0] else self._geometry_of(scan)
+        ranges = scan.ranges
+        n = ranges.shape[0]
+        work = self._checkout(n * OUT_PER_BEAM)  # the scan's points, then its keypoint rows
+        count = detect_scan(ranges, geometry, self._config, work)
+        rows = work[2 * n : 2 * n + count * NM].reshape(count, NM).copy() if count else None
+        self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
+        if rows is None:
+            return Keypoints._deferred(scan.stamp, scan.frame_id, 0, _no_keypoints)
+        cov_args = (abs(scan.angle_increment), self._config)
+        source = partial(_arrays_from_scan, rows, ranges, geometry, *cov_args)
+        return Keypoints._deferred(scan.stamp, scan.frame_id, count, source)
 
     def detect_points(
         self, xy: NDArray[np.float64], return_candidates: bool = False
@@ -318,31 +349,34 @@ class CornerDetector:
         ``range_min`` and ``range_max``; use :meth:`detect` otherwise.
         """
         scans = list(scans)
-        for i, scan in enumerate(scans):
-            if not isinstance(scan, LaserScan):
-                raise InvalidScanError(f"detect_many: item {i} is a {type(scan).__name__}")
         if not scans:
             return []
         first = scans[0]
-        geometry = first.geometry
+        geometry = first.geometry if isinstance(first, LaserScan) else None
         for i, scan in enumerate(scans):
+            if not isinstance(scan, LaserScan):
+                raise InvalidScanError(f"detect_many: item {i} is a {type(scan).__name__}")
             if scan.geometry != geometry:
                 raise InvalidScanError(
                     f"detect_many: scan {i} has a different geometry from scan 0; "
                     "call detect() per scan instead"
                 )
-        ranges = np.stack([scan.ranges for scan in scans])
-        cos_a, sin_a = self._trig(first)
-        rows = np.empty((len(scans), first.n_beams, NM))
-        counts = np.zeros(len(scans), dtype=np.int64)
-        xs = np.empty(ranges.shape)  # the scans' points, kept for the covariances
-        ys = np.empty(ranges.shape)
-        detect_batch(ranges, cos_a, sin_a, first.range_min, first.range_max, self._config,
-                     xs, ys, rows, counts)  # fmt: skip
-        spacing = abs(first.angle_increment)
-        out = []
-        for s, scan in enumerate(scans):
-            points = (xs[s], ys[s], spacing)
-            out.append(_keypoints_from_rows(rows[s, : counts[s]], scan.stamp, scan.frame_id,
-                                            points, self._config))  # fmt: skip
-        return out
+        if numba.get_num_threads() == 1:  # nothing to run in parallel: detect's path
+            return [self.detect(scan) for scan in scans]
+        geometry = self._geometry_of(first)
+        n, size = first.n_beams, len(scans)
+        work = self._checkout(size * n * (1 + OUT_PER_BEAM))  # the ranges, then the outputs
+        ranges = np.stack([scan.ranges for scan in scans], out=work[: size * n].reshape(size, n))
+        out = work[size * n : size * n * (1 + OUT_PER_BEAM)].reshape(size, n * OUT_PER_BEAM)
+        counts = np.zeros(size, dtype=np.int64)
+        detect_batch(ranges, geometry, self._config, out, counts)
+        cov_args = (abs(first.angle_increment), self._config)
+        out_kp = []
+        for scan, row, count in zip(scans, out, counts.tolist(), strict=True):
+            source = _no_keypoints
+            if count:  # the rows, copied out of the work buffer
+                rows = row[2 * n : 2 * n + count * NM].reshape(count, NM).copy()
+                source = partial(_arrays_from_scan, rows, scan.ranges, geometry, *cov_args)
+            out_kp.append(Keypoints._deferred(scan.stamp, scan.frame_id, count, source))
+        self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
+        return out_kp

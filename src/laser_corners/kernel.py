@@ -135,16 +135,20 @@ def polar_to_xy(
     range_max: float,
     x: NDArray[np.float64],
     y: NDArray[np.float64],
-) -> None:
-    """Polar -> Cartesian in beam order; gaps (NaN, inf, <= range_min, >= range_max) -> NaN."""
+) -> int:
+    """Polar -> Cartesian in beam order; gaps (NaN, inf, <= range_min, >= range_max) -> NaN.
+    Returns the number of valid points."""
+    n_valid = 0
     for i in range(ranges.shape[0]):
         r = ranges[i]
         if math.isfinite(r) and r > range_min and r < range_max:
             x[i] = r * cos_a[i]
             y[i] = r * sin_a[i]
+            n_valid += 1
         else:
             x[i] = math.nan
             y[i] = math.nan
+    return n_valid
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

@@ -126,8 +126,46 @@ class Keypoints:
         state["frame_id"] = frame_id
         return keypoints
 
+    @classmethod
+    def _deferred(
+        cls,
+        stamp: float | None,
+        frame_id: str,
+        count: int,
+        source: Callable[[], tuple[dict[str, NDArray[np.generic]], Callable[[], Any]]],
+    ) -> Keypoints:
+        """Keypoints whose arrays are made on the first access of any of them (the detector's
+        per-scan fast path: ``detect`` only wraps its output buffer).
+
+        ``source()`` returns the arrays of every field but ``cov`` (right dtypes and lengths,
+        ``count`` keypoints) and the ``cov_source`` of :meth:`_from_valid_arrays`.
+        """
+        keypoints = object.__new__(cls)
+        keypoints.__dict__.update(stamp=stamp, frame_id=frame_id, _count=count, _source=source)
+        return keypoints
+
+    def _materialise(self) -> None:
+        """Make the arrays of keypoints from :meth:`_deferred` (once)."""
+        state = self.__dict__
+        source = state.pop("_source", None)
+        if source is None:
+            return
+        arrays, cov_source = source()
+        state.update(arrays)
+        if "cov" not in state:
+            state["_cov_source"] = cov_source
+            state.setdefault("_cov_rotations", ())
+
+    def __getstate__(self) -> dict[str, Any]:
+        self._materialise()  # pickles hold the arrays, not the detector's buffers
+        return self.__dict__
+
     def __getattr__(self, name: str) -> Any:
-        # only reached for attributes not in the instance: ``cov`` of lazy keypoints
+        # only reached for attributes not in the instance: the arrays of deferred keypoints,
+        # ``cov`` of lazy keypoints
+        if name in _DEFERRED and "_source" in self.__dict__:
+            self._materialise()
+            return getattr(self, name)
         if name != "cov":
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         compute = self.__dict__.get("_cov_source")
@@ -154,7 +192,8 @@ class Keypoints:
                    scale_index=zi)  # fmt: skip
 
     def __len__(self) -> int:
-        return int(self.xy.shape[0])
+        xy = self.__dict__.get("xy")
+        return int(self.__dict__["_count"] if xy is None else xy.shape[0])
 
     def to_records(self) -> np.recarray:
         """One record per keypoint with the fields of :data:`KEYPOINT_DTYPE`."""
@@ -200,6 +239,9 @@ class Keypoints:
         return f"Keypoints(n={len(self)}, stamp={self.stamp}, frame_id={self.frame_id!r})"
 
 
-# ``cov`` is a dataclass field (constructor argument, ``fields()``), but without a class
-# attribute, so that an instance without one reaches ``__getattr__`` (lazy covariance)
+# ``cov`` and ``scale_index`` are dataclass fields (constructor arguments, ``fields()``), but
+# without a class attribute, so that an instance without one reaches ``__getattr__`` (lazy
+# covariance, deferred arrays)
 del Keypoints.cov
+del Keypoints.scale_index
+_DEFERRED = frozenset(f.name for f in fields(Keypoints)) - {"stamp", "frame_id"}

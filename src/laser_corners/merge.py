@@ -35,6 +35,7 @@ __all__ = [
     "NM",
     "detect_batch",
     "detect_into",
+    "detect_scan",
     "detect_xy",
     "finish",
     "merge",
@@ -45,6 +46,7 @@ __all__ = [
 # columns of the keypoint rows (float64, shape (M, NM))
 M_X, M_Y, M_BEAM, M_OPEN, M_ORIENT, M_NSC, M_RMSE, M_NMERGED, M_K0 = range(9)
 NM = 9
+OUT_PER_BEAM = 2 + NM  # :func:`detect_scan`'s output: x, y, then up to one row per beam
 # largest move of a keypoint by the refinement when merging is off (merge_radius = 0), metres
 REFINE_MAX_SHIFT = 0.05
 
@@ -178,6 +180,8 @@ def merge(cand: NDArray[np.float64], merge_radius: float, merged: NDArray[np.flo
         if cand[j, C_NSC] > 0.0:
             idx[m] = j
             m += 1
+    if m == 0:  # no candidates: none of the tables below
+        return 0
     idx = idx[:m]
     parent = _link(cand, idx, merge_radius * merge_radius)
     label = np.empty(m, dtype=np.int64)
@@ -335,8 +339,26 @@ def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
                 rows: NDArray[np.float64]) -> int:  # fmt: skip
     """One scan's ranges -> keypoint rows (returns their count), handing back the scan's points
     in ``x``, ``y`` (the detector keeps them for the covariances)."""
-    polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
-    return detect_xy(x, y, packed, rows)
+    n_valid = polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
+    enough = n_valid >= 2 * unpack(packed).min_points - 1  # else no neighbourhood pair fills
+    return detect_xy(x, y, packed, rows) if enough else 0
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def detect_scan(
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> int:
+    """:func:`detect_into` with four arguments (numba's dispatch cost grows with their number):
+    ``geometry`` = the N cosines, the N sines, range_min, range_max; ``out`` (N ·
+    :data:`OUT_PER_BEAM`) gets x (N), y (N), then the rows (NM each). Returns their count."""
+    n = ranges.shape[0]
+    cos_a, sin_a, limits = geometry[:n], geometry[n : 2 * n], geometry[2 * n :]
+    rows = out[2 * n : 2 * n + n * NM].reshape((n, NM))
+    x, y = out[:n], out[n : 2 * n]
+    return detect_into(ranges, cos_a, sin_a, limits[0], limits[1], packed, x, y, rows)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -349,11 +371,13 @@ def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def detect_batch(ranges, cos_a, sin_a, range_min: float, range_max: float,
-                 packed: NDArray[np.float64], xs: NDArray[np.float64], ys: NDArray[np.float64],
-                 rows: NDArray[np.float64], counts: NDArray[np.int64]) -> None:  # fmt: skip
-    """Detect keypoints in every row of ``ranges`` (S, N), in parallel over scans; the scans'
-    points go to ``xs``, ``ys`` (S, N)."""
+def detect_batch(
+    ranges: NDArray[np.float64],
+    geometry: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    out: NDArray[np.float64],
+    counts: NDArray[np.int64],
+) -> None:
+    """:func:`detect_scan` of every row of ``ranges`` into that row of ``out``, in parallel."""
     for s in nb.prange(ranges.shape[0]):
-        counts[s] = detect_into(ranges[s], cos_a, sin_a, range_min, range_max, packed, xs[s],
-                                ys[s], rows[s])  # fmt: skip
+        counts[s] = detect_scan(ranges[s], geometry, packed, out[s])
