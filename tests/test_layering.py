@@ -9,7 +9,7 @@ Layers, lowest first (a module may import its own layer and the layers below):
 1. ``io``
 2. ``pipeline``
 3. ``sim``, ``matching``
-4. ``eval``
+4. ``eval``, ``slam``
 5. ``viz``
 6. ``ros``, ``batch``, ``cli``, ``demo``
 """
@@ -30,6 +30,7 @@ ROOM_LAYERS = {
     "sim": 3,
     "matching": 3,
     "eval": 4,
+    "slam": 4,
     "viz": 5,
     "ros": 6,
     "batch": 6,
