@@ -5,7 +5,8 @@
 * :mod:`~laser_corners.cli.common`: shared options, option checks, known-error handling;
 * :mod:`~laser_corners.cli.detect` (``detect``, ``info``, ``plot``, ``params``),
   :mod:`~laser_corners.cli.evaluate` (``evaluate sim|real``),
-  :mod:`~laser_corners.cli.loops` (``evaluate loops``), :mod:`~laser_corners.cli.batch`,
+  :mod:`~laser_corners.cli.loops` (``evaluate loops``), :mod:`~laser_corners.cli.slam`
+  (``slam``, ``evaluate slam``), :mod:`~laser_corners.cli.batch`,
   :mod:`~laser_corners.cli.view`, :mod:`~laser_corners.cli.sim` (``simulate``, ``demo``),
   :mod:`~laser_corners.cli.ros` (``ros1``, ``ros2``).
 
@@ -15,7 +16,7 @@ inside the commands, so ``--help`` stays instant. Known errors
 (:class:`~laser_corners.errors.LaserCornersError`) print one line and exit 2.
 """
 
-from laser_corners.cli import batch, detect, evaluate, loops, ros, sim, view
+from laser_corners.cli import batch, detect, evaluate, loops, ros, sim, slam, view
 from laser_corners.cli.app import app, evaluate_app, fail, main
 
 __all__ = [
@@ -29,5 +30,6 @@ __all__ = [
     "main",
     "ros",
     "sim",
+    "slam",
     "view",
 ]

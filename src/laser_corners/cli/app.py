@@ -34,7 +34,8 @@ app = typer.Typer(
 )
 
 evaluate_app = typer.Typer(
-    help="Evaluate detectors: on simulated scans (sim) or real recordings with poses (real).",
+    help="Evaluate detectors: on simulated scans (sim) or real recordings with poses (real); "
+    "SLAM trajectories against relations (slam).",
     no_args_is_help=True,
     context_settings={"max_content_width": HELP_WIDTH, "terminal_width": HELP_WIDTH},
 )
