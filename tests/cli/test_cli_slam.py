@@ -9,6 +9,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import yaml
 from typer.testing import CliRunner
 
 import laser_corners.slam
@@ -26,6 +27,8 @@ FILES = [
     "map.pgm",
     "map.png",
     "map.yaml",
+    "odometry.tum",
+    "options.yaml",
     "report.md",
     "summary.json",
     "trajectory.tum",
@@ -88,6 +91,23 @@ def test_slam_writes_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
     with (out / "landmarks.csv").open() as handle:
         assert next(csv.reader(handle))[:3] == ["x", "y", "cov_xx"]
     assert "relation metric" in result.stdout and "trajectory" in result.stdout
+    # the options written beside the result repeat the run
+    again = _invoke(
+        "slam",
+        bag,
+        "-o",
+        tmp_path / "again",
+        "--config",
+        out / "options.yaml",
+        "--stop-scan",
+        "20",
+        "--resolution",
+        "0.1",
+    )
+    assert again.exit_code == 0, again.output
+    assert (tmp_path / "again" / "options.yaml").read_text() == (out / "options.yaml").read_text()
+    assert yaml.safe_load((tmp_path / "again" / "map.yaml").read_text())["resolution"] == 0.1
+    assert len(read_tum(tmp_path / "again" / "trajectory.tum")[0]) < len(stamps)
 
 
 def test_ctrl_c_writes_what_was_mapped_and_exits_130(tmp_path: Path, monkeypatch) -> None:
@@ -155,6 +175,11 @@ def test_bad_inputs_are_one_line(tmp_path: Path) -> None:
     _one_line_error(
         _invoke("slam", bag, "-o", tmp_path / "o", "--set", "no_such_option=1"), "no_such_option"
     )
+    config = tmp_path / "bad.yaml"
+    config.write_text("no_such_field: 1\n")
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path / "o", "--config", config), "no_such_field")
+    config.write_text("a: [1\n")
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path / "o", "--config", config), "bad.yaml")
 
 
 def _carmen(path: Path, laser: bool, odometry: bool) -> Path:

@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
@@ -56,6 +57,8 @@ def test_folder_holds_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
             "landmarks.csv",
             "map.pgm",
             "map.yaml",
+            "odometry.tum",
+            "options.yaml",
             "map.png",
             "summary.json",
             "report.md",
@@ -69,6 +72,9 @@ def test_folder_holds_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
         rows = list(csv.DictReader(handle))
     assert tuple(rows[0]) == LANDMARK_COLUMNS and len(rows) == len(result.landmarks.xy)
     assert float(rows[0]["cov_xx"]) == 1e-4 and rows[0]["observations"] == "3"
+    _, odometry = read_tum(tmp_path / "odometry.tum")
+    np.testing.assert_allclose(odometry[:, :2], result.odometry[:, :2], atol=1e-6)
+    assert yaml.safe_load((tmp_path / "options.yaml").read_text()) == {"keyframe_distance": 0.3}
     assert "VERTEX_SE2" in (tmp_path / "graph.g2o").read_text()
     grid = read_map(tmp_path / "map.yaml")
     assert grid.resolution == 0.05

@@ -3,12 +3,14 @@
 =================  ===========================================================================
 ``trajectory.tum`` one line per scan: the pose of the odometry's child frame (``base``) in the
                    map frame, TUM ``stamp x y z qx qy qz qw`` (evo reads it)
+``odometry.tum``   the odometry at the same stamps, same format (``evaluate slam --odometry``)
 ``graph.g2o``      the pose graph (``SlamResult.write_g2o``)
 ``landmarks.csv``  ``x, y, cov_xx, cov_xy, cov_yy, observations, first_stamp, last_stamp``
 ``map.pgm``        occupancy grid, ROS map_server format (see :mod:`laser_corners.io.occupancy`)
 ``map.yaml``       its map_server metadata
 ``map.png``        grid, trajectory, landmarks, loop closures
 ``summary.json``   counts, timings, options, relation metrics, closure consistency, citation
+``options.yaml``   the SLAM options of the run (``laser-corners slam --config`` reads it)
 ``report.md``      the same numbers as a page, linking ``map.png``
 =================  ===========================================================================
 
@@ -29,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from laser_corners.citation import CITATION
 from laser_corners.io.base import PartialOutput
@@ -258,8 +261,9 @@ def slam_markdown(summary: dict[str, Any]) -> str:
         "",
         "![map](map.png)",
         "",
-        "Files: `trajectory.tum`, `graph.g2o`, `landmarks.csv`, `map.pgm` + `map.yaml`, "
-        "`summary.json`, options in `summary.json` under `options`.",
+        "Files: `trajectory.tum` (and `odometry.tum`), `graph.g2o`, `landmarks.csv`, "
+        "`map.pgm` + `map.yaml`, `summary.json`, `options.yaml` (the options of this run: "
+        "`laser-corners slam --config options.yaml` repeats it).",
         "",
         f"Keypoint detector: {summary['citation']}",
         "",
@@ -285,8 +289,8 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     Returns
     -------
     dict of str to Path
-        ``trajectory``, ``graph``, ``landmarks``, ``map_yaml``, ``map_pgm``, ``map_png``,
-        ``summary``, ``report``.
+        ``trajectory``, ``odometry``, ``graph``, ``landmarks``, ``map_yaml``, ``map_pgm``,
+        ``map_png``, ``options``, ``summary``, ``report``.
 
     Raises
     ------
@@ -296,6 +300,13 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     paths = {"trajectory": folder / "trajectory.tum"}
     header = f"laser-corners slam {info.source}: base pose in the map frame, one line per scan"
     write_tum(paths["trajectory"], result.stamps, result.poses, header=header)
+    write_tum(
+        folder / "odometry.tum",
+        result.stamps,
+        result.odometry,
+        header=f"laser-corners slam {info.source}: odometry, one line per scan",
+    )
+    paths["odometry"] = folder / "odometry.tum"
     paths["graph"] = folder / "graph.g2o"
     with PartialOutput(paths["graph"], overwrite=True).writing() as temporary:
         result.write_g2o(temporary)
@@ -306,6 +317,8 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     title = Path(info.source).name + (" (interrupted)" if result.interrupted else "")
     paths["map_png"] = save_slam_map(folder / "map.png", result, grid, title)
     summary = slam_summary(result, info)
+    options = yaml.safe_dump(summary["options"], sort_keys=False)
+    paths["options"] = _write_text(folder / "options.yaml", options)
     summary["files"] = {k: p.name for k, p in paths.items()}
     paths["summary"] = _write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
     paths["report"] = _write_text(folder / "report.md", slam_markdown(summary))
