@@ -5,14 +5,20 @@ from __future__ import annotations
 import csv
 import json
 import math
+import signal
+import subprocess
+import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from typer.testing import CliRunner
 
 import laser_corners.slam
+from conftest import real_file
 from fake_slam import fake_result
 from laser_corners.cli import app
 from laser_corners.io.trajectory import read_tum, write_tum
@@ -21,6 +27,7 @@ from laser_corners.sim import UST_10LX, rectangular_room, trajectory
 from laser_corners.sim.export import simulate_sequence, write_bag
 
 runner = CliRunner()
+CLI = [str(Path(sys.executable).with_name("laser-corners"))]
 FILES = [
     "graph.g2o",
     "landmarks.csv",
@@ -127,6 +134,35 @@ def test_ctrl_c_writes_what_was_mapped_and_exits_130(tmp_path: Path, monkeypatch
     assert sorted(p.name for p in out.iterdir()) == FILES
     assert len(read_tum(out / "trajectory.tum")[0]) == 40
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+
+
+@pytest.mark.real
+@pytest.mark.slow
+def test_sigint_during_a_real_run_keeps_the_map(tmp_path: Path) -> None:
+    # intel.bag holds 2691 s of data: 8 s after the output folder appears (it is created just
+    # before the run starts) the run is under way and far from its end
+    bag = real_file("intel.bag")
+    out = tmp_path / "intel"
+    process = subprocess.Popen(
+        [*CLI, "slam", str(bag), "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and process.poll() is None and not out.exists():
+        time.sleep(0.05)
+    time.sleep(8.0)
+    assert process.poll() is None, "the run ended before it could be interrupted"
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "interrupted after" in stderr and "holds the map up to there" in stderr, stderr
+    assert sorted(p.name for p in out.iterdir()) == FILES
+    summary = json.loads((out / "summary.json").read_text())
+    n_scans = summary["counts"]["scans"]
+    assert summary["interrupted"] is True and 0 < n_scans
+    assert len(read_tum(out / "trajectory.tum")[0]) == n_scans
 
 
 def _line(folder: Path, speed: float) -> Path:

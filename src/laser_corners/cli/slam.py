@@ -191,8 +191,9 @@ def slam_command(
 ) -> None:
     """Map a recording with odometry: trajectory, pose graph, corner landmarks, occupancy grid.
 
-    Writes trajectory.tum, graph.g2o, landmarks.csv, map.pgm + map.yaml, map.png, summary.json
-    and report.md into the output folder. Ctrl-C writes what was mapped so far (exit 130).
+    Writes trajectory.tum, odometry.tum, graph.g2o, landmarks.csv, map.pgm + map.yaml, map.png,
+    options.yaml, summary.json and report.md into the output folder (docs/slam.md). Ctrl-C
+    writes what was mapped so far (exit 130).
     """
     with known_errors():
         check_number("--resolution", resolution, minimum=0.001)
