@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import yaml
 from pydantic import BaseModel, ConfigDict
 
 from laser_corners.scan import LaserScan, compose
@@ -27,6 +28,9 @@ class FakeOptions(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
     keyframe_distance: float = 0.3
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump({"slam": self.model_dump()}, sort_keys=False)
 
 
 @dataclass

@@ -74,7 +74,9 @@ def test_folder_holds_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
     assert float(rows[0]["cov_xx"]) == 1e-4 and rows[0]["observations"] == "3"
     _, odometry = read_tum(tmp_path / "odometry.tum")
     np.testing.assert_allclose(odometry[:, :2], result.odometry[:, :2], atol=1e-6)
-    assert yaml.safe_load((tmp_path / "options.yaml").read_text()) == {"keyframe_distance": 0.3}
+    assert yaml.safe_load((tmp_path / "options.yaml").read_text()) == {
+        "slam": {"keyframe_distance": 0.3}
+    }
     assert "VERTEX_SE2" in (tmp_path / "graph.g2o").read_text()
     grid = read_map(tmp_path / "map.yaml")
     assert grid.resolution == 0.05

@@ -46,37 +46,28 @@ _Resolution = Annotated[
 
 
 def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOptions:
-    """``SlamOptions`` from a YAML file (or the defaults) and ``key=value`` overrides.
+    """``SlamOptions`` from a YAML file (or the defaults), then ``key=value`` overrides.
 
     Raises
     ------
     InvalidParamsError, InputError
-        (through the library) an unknown key or a bad value, naming it; an unreadable file.
+        An unknown key or a bad value (named); a file that cannot be read or is not YAML.
     """
-    import pydantic
     import yaml
 
-    from laser_corners.errors import InputError, InvalidParamsError
+    from laser_corners.errors import InputError
     from laser_corners.slam import SlamOptions
 
     options = SlamOptions()
     if config is not None:
-        if hasattr(SlamOptions, "from_file"):
-            options = SlamOptions.from_file(config)
-        else:
-            try:
-                data = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-            except OSError as exc:
-                raise InputError(f"{config}: cannot read ({exc.strerror})") from None
-            except yaml.YAMLError as exc:
-                raise InputError(f"{config}: not valid YAML: {str(exc).splitlines()[0]}") from None
-            try:
-                options = SlamOptions.model_validate(data)
-            except pydantic.ValidationError as exc:
-                error = exc.errors()[0]
-                where = ".".join(str(p) for p in error["loc"]) or "(top level)"
-                raise InvalidParamsError(f"{config}: {where}: {error['msg']}") from None
-    return options.with_overrides(list(overrides)) if overrides else options
+        try:
+            data = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
+        except OSError as exc:
+            raise InputError(f"{config}: cannot read ({exc.strerror})") from None
+        except yaml.YAMLError as exc:
+            raise InputError(f"{config}: not valid YAML: {str(exc).splitlines()[0]}") from None
+        options = SlamOptions.from_mapping(data, source=str(config))
+    return SlamOptions.with_overrides(overrides, base=options) if overrides else options
 
 
 def _progress_bar() -> Any:
@@ -104,14 +95,14 @@ def _run(
     start = time.perf_counter()
     first: list[float] = []
 
-    def progress(i_scan: int, n_scans: int | None, stamp: float) -> None:
+    def progress(done: int, n_scans: int | None, stamp: float) -> None:
         if not first:
             first.append(stamp)
             bar.start()
         elapsed = time.perf_counter() - start
         total = n_scans if stop_scan is None or n_scans is None else min(n_scans, stop_scan)
         rtf = (stamp - first[0]) / elapsed if elapsed > 0 else 0.0
-        bar.update(task, completed=i_scan + 1, total=total, rtf=rtf)
+        bar.update(task, completed=done, total=total, rtf=rtf)
 
     try:
         result = run_slam(input_path, options, topic=topic, progress=progress, stop_scan=stop_scan)

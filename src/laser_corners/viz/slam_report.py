@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from laser_corners.citation import CITATION
 from laser_corners.io.base import PartialOutput
@@ -317,8 +316,7 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     title = Path(info.source).name + (" (interrupted)" if result.interrupted else "")
     paths["map_png"] = save_slam_map(folder / "map.png", result, grid, title)
     summary = slam_summary(result, info)
-    options = yaml.safe_dump(summary["options"], sort_keys=False)
-    paths["options"] = _write_text(folder / "options.yaml", options)
+    paths["options"] = _write_text(folder / "options.yaml", result.options.to_yaml())
     summary["files"] = {k: p.name for k, p in paths.items()}
     paths["summary"] = _write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
     paths["report"] = _write_text(folder / "report.md", slam_markdown(summary))
