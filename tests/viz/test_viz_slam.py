@@ -150,3 +150,22 @@ def test_map_plot_draws_closures_between_keyframes_on_a_given_ax() -> None:
     ax2 = fig2.subplots()
     plot_ms_per_scan(ax2, {"a": np.ones(100), "b": np.ones(10)})
     assert len(ax2.get_legend().get_texts()) == 2
+
+
+def test_a_graph_the_library_cannot_write_does_not_cost_the_other_files(tmp_path: Path) -> None:
+    result = fake_result(n_scans=30)
+
+    def refuse(path) -> None:
+        Path(path).write_text("VERTEX_SE2 0 0 0 0\n")  # half-written, then the writer fails
+        raise ValueError("writeG2o: invalid noise model!")
+
+    result.write_g2o = refuse
+    info = _info()
+    paths = write_slam_outputs(result, tmp_path, info)
+    assert "graph" not in paths and not (tmp_path / "graph.g2o").exists()
+    assert not list(tmp_path.glob("*partial*"))
+    assert {"trajectory", "landmarks", "map_yaml", "map_png", "summary", "report"} <= set(paths)
+    assert info.warnings == ["graph.g2o not written: writeG2o: invalid noise model!"]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["warnings"] == info.warnings and "graph" not in summary["files"]
+    assert "**Warning: graph.g2o not written" in (tmp_path / "report.md").read_text()

@@ -215,6 +215,8 @@ def slam_command(
         if any(c.accepted for c in result.closures):
             info.closure_consistency = float(closure_consistency(result))
         write_slam_outputs(result, folder, info)
+        for warning in info.warnings:
+            typer.echo(f"laser-corners: warning: {warning}", err=True)
         console = Console()
         console.print(_summary_table(slam_summary(result, info), folder))
         if info.relations:

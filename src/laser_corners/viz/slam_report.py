@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from laser_corners.citation import CITATION
+from laser_corners.errors import OutputError, first_line
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import write_map
 from laser_corners.io.trajectory import write_tum
@@ -94,6 +95,8 @@ class SlamRunInfo:
         Share of accepted loop closures the final map contradicts (> 0.2 m or 1°).
     resolution : float
         Grid cell size, metres.
+    warnings : list of str
+        Problems met while writing (an output the library could not write), one line each.
     """
 
     source: str
@@ -103,6 +106,7 @@ class SlamRunInfo:
     relations: dict[str, dict[str, float]] = field(default_factory=dict)
     closure_consistency: float | None = None
     resolution: float = 0.05
+    warnings: list[str] = field(default_factory=list)
 
 
 def write_landmarks(path: Path, landmarks: Any) -> Path:
@@ -158,6 +162,7 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
     return {
         "input": info.source,
         "interrupted": bool(result.interrupted),
+        "warnings": list(info.warnings),
         "counts": {
             "scans": len(stamps),
             "keyframes": len(result.keyframes),
@@ -213,6 +218,7 @@ def slam_markdown(summary: dict[str, Any]) -> str:
             "processed, not the whole recording.**",
             "",
         ]
+    lines += [f"**Warning: {w}**" for w in summary["warnings"]] + [""] * bool(summary["warnings"])
     rtf = timings["real_time_factor"]
     lines += _markdown_table(
         ["", "value"],
@@ -282,6 +288,17 @@ def _write_text(path: Path, text: str) -> Path:
     return path
 
 
+def _write_graph(result: Any, path: Path, paths: dict[str, Path], info: SlamRunInfo) -> None:
+    """``graph.g2o``; a graph the writer refuses is a warning, not the loss of every other file."""
+    try:
+        with PartialOutput(path, overwrite=True).writing() as temporary:
+            result.write_g2o(temporary)
+    except (ValueError, RuntimeError, OutputError) as exc:
+        info.warnings.append(f"{path.name} not written: {first_line(exc)}")
+    else:
+        paths["graph"] = path
+
+
 def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str, Path]:
     """Write every file of the table above into ``folder`` (which must exist).
 
@@ -294,7 +311,9 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     Raises
     ------
     OutputError
-        A file cannot be written.
+        A file cannot be written (``graph.g2o`` excepted: a graph the library cannot write is
+        recorded in ``info.warnings``, ``summary.json`` and ``report.md``, and the other files
+        are still written).
     """
     paths = {"trajectory": folder / "trajectory.tum"}
     header = f"laser-corners slam {info.source}: base pose in the map frame, one line per scan"
@@ -306,9 +325,7 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
         header=f"laser-corners slam {info.source}: odometry, one line per scan",
     )
     paths["odometry"] = folder / "odometry.tum"
-    paths["graph"] = folder / "graph.g2o"
-    with PartialOutput(paths["graph"], overwrite=True).writing() as temporary:
-        result.write_g2o(temporary)
+    _write_graph(result, folder / "graph.g2o", paths, info)
     paths["landmarks"] = write_landmarks(folder / "landmarks.csv", result.landmarks)
     grid = result_grid(result, info.resolution) if len(result.scans) else None
     if grid is not None:
