@@ -102,7 +102,8 @@ def fake_result(n_scans: int = 120, every: int = 6, interrupted: bool = False) -
     closures = [
         FakeClosure(k - 1, 0, np.zeros(3), True, "accepted"),
         FakeClosure(k - 2, 1, np.zeros(3), True, "accepted"),
-        FakeClosure(k - 3, 2, np.zeros(3), False, "residual"),
+        FakeClosure(k - 3, 2, np.zeros(3), False, "low overlap 0.43"),
+        FakeClosure(k - 4, 3, np.zeros(3), False, "low overlap 0.2"),
     ]
     return FakeResult(
         stamps,

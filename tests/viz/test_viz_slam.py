@@ -96,10 +96,10 @@ def test_summary_and_report_hold_the_numbers(tmp_path: Path) -> None:
     assert summary["counts"]["scans"] == 120 and summary["counts"]["keyframes"] == 20
     assert summary["counts"]["keypoints"] == 1234
     assert summary["closures"] == {
-        "proposed": 3,
+        "proposed": 4,
         "accepted": 2,
-        "rejected": 1,
-        "rejected_by_reason": {"residual": 1},
+        "rejected": 2,
+        "rejected_by_reason": {"low overlap": 2},
     }
     timings = summary["timings"]
     assert timings["data_s"] == 11.9 or abs(timings["data_s"] - 11.9) < 1e-9
@@ -142,7 +142,7 @@ def test_map_plot_draws_closures_between_keyframes_on_a_given_ax() -> None:
     collections = [c for c in ax.collections if isinstance(c, LineCollection)]
     by_label = {c.get_label(): c for c in collections}
     accepted = by_label["2 accepted loop closures"]
-    rejected = by_label["1 rejected loop closures"]
+    rejected = by_label["2 rejected loop closures"]
     assert accepted.get_alpha() > rejected.get_alpha()
     first = accepted.get_segments()[0]
     np.testing.assert_allclose(first, result.keyframe_poses[[-1, 0], :2])

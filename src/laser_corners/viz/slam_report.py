@@ -23,6 +23,7 @@ come in a :class:`SlamRunInfo`; this module computes nothing about the map itsel
 from __future__ import annotations
 
 import json
+import re
 import resource
 import sys
 from collections import Counter
@@ -143,9 +144,15 @@ def _options_record(options: Any) -> dict[str, Any]:
     return dict(options) if options is not None else {}
 
 
+def _reason_kind(reason: object) -> str:
+    """A rejection reason without its numbers (``"low overlap 0.43"`` -> ``"low overlap"``)."""
+    text = re.sub(r"\s*[-+]?\d[\d.eE+-]*(\s?(m|deg|°))?(?=\W|$)", "", str(reason)).strip()
+    return text.removesuffix(" by").strip() or str(reason)
+
+
 def _closure_counts(closures: list[Any]) -> dict[str, Any]:
     accepted = sum(1 for c in closures if c.accepted)
-    reasons = Counter(str(c.reason) for c in closures if not c.accepted)
+    reasons = Counter(_reason_kind(c.reason) for c in closures if not c.accepted)
     return {
         "proposed": len(closures),
         "accepted": accepted,
