@@ -160,6 +160,7 @@ def test_a_graph_the_library_cannot_write_does_not_cost_the_other_files(tmp_path
         raise ValueError("writeG2o: invalid noise model!")
 
     result.write_g2o = refuse
+    (tmp_path / "graph.g2o").write_text("an earlier run's graph\n")
     info = _info()
     paths = write_slam_outputs(result, tmp_path, info)
     assert "graph" not in paths and not (tmp_path / "graph.g2o").exists()

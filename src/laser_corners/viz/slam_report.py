@@ -302,6 +302,7 @@ def _write_graph(result: Any, path: Path, paths: dict[str, Path], info: SlamRunI
             result.write_g2o(temporary)
     except (ValueError, RuntimeError, OutputError) as exc:
         info.warnings.append(f"{path.name} not written: {first_line(exc)}")
+        path.unlink(missing_ok=True)  # no stale graph of an earlier run beside this run's files
     else:
         paths["graph"] = path
 
@@ -337,6 +338,9 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     grid = result_grid(result, info.resolution) if len(result.scans) else None
     if grid is not None:
         paths["map_yaml"], paths["map_pgm"] = write_map(grid, folder / "map.yaml")
+    else:  # no keyframe, no grid: no stale map of an earlier run either
+        (folder / "map.yaml").unlink(missing_ok=True)
+        (folder / "map.pgm").unlink(missing_ok=True)
     title = Path(info.source).name + (" (interrupted)" if result.interrupted else "")
     paths["map_png"] = save_slam_map(folder / "map.png", result, grid, title)
     summary = slam_summary(result, info)
