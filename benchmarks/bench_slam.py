@@ -20,7 +20,7 @@ log: the cost must stay flat as the map grows) and ``DIR/bench_slam.json`` (ever
 
 ``--mount x,y,theta`` overrides the base -> laser mounting for every log given (the bags'
 ``/tf_static`` otherwise): fr079 is reported both ways by running it twice, e.g.
-``bench_slam.py ../shared/data/real/fr079.bag --mount -0.04,0,0`` (the original CARMEN log's
+``bench_slam.py ../shared/data/real/fr079.bag --mount=-0.04,0,0`` (the original CARMEN log's
 mounting, 0.04 m behind the robot centre) and without ``--mount`` (the bag's, 0.04 m ahead).
 Timings are of this machine under whatever else runs on it.
 """
@@ -134,7 +134,9 @@ def main() -> None:
         default=[],
         help="SLAM option key=value (repeatable)",
     )
-    parser.add_argument("--mount", help="base -> laser x,y,theta for every log")
+    parser.add_argument(
+        "--mount", help="base -> laser x,y,theta for every log (negative: --mount=-0.04,0,0)"
+    )
     parser.add_argument("--out", type=Path, default=Path("bench_slam_out"))
     parser.add_argument("--worker", nargs=2, metavar=("LOG", "JSON"), help=argparse.SUPPRESS)
     args = parser.parse_args()
