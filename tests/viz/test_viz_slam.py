@@ -122,6 +122,16 @@ def test_an_interrupted_result_says_so(tmp_path: Path) -> None:
     assert len(read_tum(tmp_path / "trajectory.tum")[0]) == 30
 
 
+def test_uncovered_relations_are_dashes_and_json_has_no_nan(tmp_path: Path) -> None:
+    nan = float("nan")
+    empty = {**dict.fromkeys(METRICS, nan), "n_total": 10, "n_covered": 0}
+    assert relation_cells(empty) == ["0 / 10", "-", "-", "-", "-"]
+    info = _info(relations_file="x.relations", relations={"trajectory": empty})
+    write_slam_outputs(fake_result(n_scans=20), tmp_path, info)
+    text = (tmp_path / "summary.json").read_text()
+    assert "NaN" not in text and json.loads(text)["relations"]["trajectory"]["trans_mean"] is None
+
+
 def test_relation_cells_format_mean_and_std() -> None:
     assert relation_cells(METRICS) == [
         "9 / 10",

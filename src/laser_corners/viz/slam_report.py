@@ -23,6 +23,7 @@ come in a :class:`SlamRunInfo`; this module computes nothing about the map itsel
 from __future__ import annotations
 
 import json
+import math
 import re
 import resource
 import sys
@@ -199,7 +200,10 @@ def relation_cells(metrics: dict[str, float]) -> list[str]:
     ``RelationMetrics.to_dict()``."""
 
     def pm(key: str, digits: int) -> str:
-        return f"{metrics[key + '_mean']:.{digits}f} ± {metrics[key + '_std']:.{digits}f}"
+        mean, std = metrics[key + "_mean"], metrics[key + "_std"]
+        if mean is None or not math.isfinite(mean):  # no relation covered
+            return "-"
+        return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
     return [
         f"{int(metrics['n_covered'])} / {int(metrics['n_total'])}",
@@ -288,6 +292,17 @@ def _ms(timings: dict[str, Any]) -> str:
     return "-" if mean is None else f"{mean:.2f} / {p95:.2f}"
 
 
+def _json_safe(value: Any) -> Any:
+    """``value`` with NaN and infinities as ``None`` (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _write_text(path: Path, text: str) -> Path:
     partial = PartialOutput(path, overwrite=True)
     with partial.writing() as temporary:
@@ -346,6 +361,8 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     summary = slam_summary(result, info)
     paths["options"] = _write_text(folder / "options.yaml", result.options.to_yaml())
     summary["files"] = {k: p.name for k, p in paths.items()}
-    paths["summary"] = _write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n")
+    paths["summary"] = _write_text(
+        folder / "summary.json", json.dumps(_json_safe(summary), indent=2, allow_nan=False) + "\n"
+    )
     paths["report"] = _write_text(folder / "report.md", slam_markdown(summary))
     return paths
