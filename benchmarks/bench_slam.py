@@ -16,7 +16,8 @@ relation error trans m (ours, odometry) | rot deg (ours, odometry) | closures pr
 accepted / rejected | contradicted closures
 
 and writes ``DIR/ms_per_scan.png`` (milliseconds per scan against scan index, one line per
-log: the cost must stay flat as the map grows) and ``DIR/bench_slam.json`` (every number).
+log: the cost must stay flat as the map grows), ``DIR/ms_per_scan.npz`` (the values, one array
+per log in the order given) and ``DIR/bench_slam.json`` (every number).
 
 ``--mount x,y,theta`` overrides the base -> laser mounting for every log given (the bags'
 ``/tf_static`` otherwise): fr079 is reported both ways by running it twice, e.g.
@@ -167,8 +168,9 @@ def main() -> None:
     if overrides:
         print(f"\noptions: {' '.join(overrides)}")
     _plot(records, series, args.out / "ms_per_scan.png")
+    np.savez_compressed(args.out / "ms_per_scan.npz", *series)
     (args.out / "bench_slam.json").write_text(json.dumps(records, indent=2))
-    print(f"\nwrote {args.out / 'ms_per_scan.png'} and {args.out / 'bench_slam.json'}")
+    print(f"\nwrote ms_per_scan.png, ms_per_scan.npz and bench_slam.json in {args.out}")
 
 
 if __name__ == "__main__":

@@ -158,8 +158,11 @@ def test_map_plot_draws_closures_between_keyframes_on_a_given_ax() -> None:
     np.testing.assert_allclose(first, result.keyframe_poses[[-1, 0], :2])
     fig2 = Figure()
     ax2 = fig2.subplots()
-    plot_ms_per_scan(ax2, {"a": np.ones(100), "b": np.ones(10)})
-    assert len(ax2.get_legend().get_texts()) == 2
+    slow_start = np.r_[5000.0, np.ones(999)]
+    plot_ms_per_scan(ax2, {"a": slow_start, "b": np.ones(10)})
+    texts = [t.get_text() for t in ax2.get_legend().get_texts()]
+    assert texts == ["a (mean 6.00 ms; 1 above the axis, max 5000 ms)", "b (mean 1.00 ms)"]
+    assert ax2.get_ylim() == (0.0, 1.2)
 
 
 def test_a_graph_the_library_cannot_write_does_not_cost_the_other_files(tmp_path: Path) -> None:

@@ -133,25 +133,29 @@ def save_slam_map(
 
 
 def plot_ms_per_scan(ax: Axes, series: dict[str, ArrayLike], window: int = 50) -> None:
-    """Milliseconds per scan against scan index, one line per run (a running mean over
-    ``window`` scans drawn over the raw values)."""
+    """Milliseconds per scan against scan index, one line per run: the raw values faint, a
+    running mean over ``window`` scans drawn over them. The y axis stops at 1.2 x the 99.5th
+    percentile, so a few slow scans (the first one loads the compiled kernels) do not flatten
+    the rest; the legend says how many scans lie above and the slowest."""
+    top = 0.0
     for name, values in series.items():
         ms = np.asarray(values, dtype=np.float64).reshape(-1)
         if not len(ms):
             continue
+        limit = 1.2 * float(np.percentile(ms, 99.5))
+        top = max(top, limit)
+        above = int(np.count_nonzero(ms > limit))
+        label = f"{name} (mean {ms.mean():.2f} ms"
+        label += f"; {above} above the axis, max {ms.max():.0f} ms)" if above else ")"
         (line,) = ax.plot(np.arange(len(ms)), ms, lw=0.3, alpha=0.35)
         if len(ms) >= window:
             mean = np.convolve(ms, np.ones(window) / window, mode="valid")
             ax.plot(
-                np.arange(window - 1, len(ms)),
-                mean,
-                color=line.get_color(),
-                lw=1.2,
-                label=f"{name} (mean {ms.mean():.2f} ms)",
+                np.arange(window - 1, len(ms)), mean, color=line.get_color(), lw=1.2, label=label
             )
         else:
-            line.set_label(f"{name} (mean {ms.mean():.2f} ms)")
+            line.set_label(label)
     ax.set_xlabel("scan index")
     ax.set_ylabel("ms per scan")
-    ax.set_ylim(bottom=0.0)
+    ax.set_ylim(0.0, top if top > 0.0 else None)
     ax.legend(fontsize="small")
