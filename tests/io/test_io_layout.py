@@ -7,7 +7,7 @@ from pathlib import Path
 
 IO = Path(__file__).resolve().parents[2] / "src" / "laser_corners" / "io"
 READERS = {"rosbag", "carmen", "arrays"}
-WRITERS = {"writers", "bagwriter"}
+WRITERS = {"writers", "bagwriter", "trajectory", "occupancy"}  # + TUM poses, map_server grids
 HELPERS = {
     "poses", "ros1_decode", "ros1_chunks", "ros1_index", "ros1_lean", "ros1_runs", "bagfile",
     "messages", "ros1_writer", "ros1_legacy",

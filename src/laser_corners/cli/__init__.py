@@ -5,7 +5,8 @@
 * :mod:`~laser_corners.cli.common`: shared options and option checks;
 * :mod:`~laser_corners.cli.detect` (``detect``, ``info``, ``plot``, ``params``),
   :mod:`~laser_corners.cli.evaluate` (``evaluate sim|real``),
-  :mod:`~laser_corners.cli.loops` (``evaluate loops``), :mod:`~laser_corners.cli.batch`,
+  :mod:`~laser_corners.cli.loops` (``evaluate loops``), :mod:`~laser_corners.cli.slam`
+  (``slam``, ``evaluate slam``), :mod:`~laser_corners.cli.batch`,
   :mod:`~laser_corners.cli.view`,
   :mod:`~laser_corners.cli.sim` (``simulate``, ``demo``, ``warmup``),
   :mod:`~laser_corners.cli.ros` (``ros1``, ``ros2``),
@@ -18,7 +19,7 @@ inside the commands, so ``--help`` stays instant. Known errors
 in one place: :class:`~laser_corners.cli.app.ErrorLineGroup`.
 """
 
-from laser_corners.cli import batch, detect, evaluate, kernels, loops, ros, sim, view
+from laser_corners.cli import batch, detect, evaluate, kernels, loops, ros, sim, slam, view
 from laser_corners.cli.app import app, evaluate_app, fail, main
 
 __all__ = [
@@ -33,5 +34,6 @@ __all__ = [
     "main",
     "ros",
     "sim",
+    "slam",
     "view",
 ]

@@ -132,7 +132,8 @@ app = typer.Typer(
 
 evaluate_app = typer.Typer(
     help="Evaluate detectors: on simulated scans (sim), on real recordings with poses (real), "
-    "and place recognition on a log with corrected poses (loops).",
+    "place recognition on a log with corrected poses (loops); SLAM trajectories against "
+    "relations (slam).",
     no_args_is_help=True,
     context_settings=_CONTEXT,
 )

@@ -1,0 +1,264 @@
+"""``slam`` (a map and a trajectory from a recording) and ``evaluate slam`` (the relation metric).
+
+See docs/slam.md. ``slam`` parses its options, makes one call (``slam.run_slam``), measures
+the relation metric when asked, and writes the output folder
+(:func:`~laser_corners.viz.slam_report.write_slam_outputs`). Ctrl-C stops the run; what was
+mapped so far is written and the command exits with 130, as ``detect`` does.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from laser_corners.cli.app import app, evaluate_app, fail
+from laser_corners.cli.common import InputArg, TopicOption, check_number, new_folder
+
+if TYPE_CHECKING:
+    from laser_corners.slam import SlamOptions, SlamResult
+
+__all__ = ["evaluate_slam_command", "relations_table", "slam_command", "slam_options"]
+
+_Relations = Annotated[
+    Path | None,
+    typer.Option(
+        "--relations",
+        help="Ground-truth relative poses (t1 t2 x y z roll pitch yaw per line, the Freiburg "
+        "benchmark's .relations): report the relation metric of the trajectory and of odometry.",
+    ),
+]
+_Set = Annotated[
+    list[str] | None, typer.Option("--set", help="Override a SLAM option: key=value (repeatable).")
+]
+_Config = Annotated[
+    Path | None, typer.Option("--config", help="YAML file of SLAM options (before --set).")
+]
+_StopScan = Annotated[
+    int | None,
+    typer.Option("--stop-scan", min=1, help="Stop before this scan index (map the first N scans)."),
+]
+_Resolution = Annotated[
+    float, typer.Option("--resolution", help="Occupancy grid cell size, metres (map.pgm).")
+]
+
+
+def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOptions:
+    """``SlamOptions`` from a YAML file (or the defaults), then ``key=value`` overrides.
+
+    Raises
+    ------
+    InvalidParamsError, InputError
+        An unknown key or a bad value (named); a file that cannot be read or is not YAML.
+    """
+    import yaml
+
+    from laser_corners.errors import InputError
+    from laser_corners.slam import SlamOptions
+
+    options = SlamOptions()
+    if config is not None:
+        try:
+            data = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
+        except OSError as exc:
+            raise InputError(f"{config}: cannot read ({exc.strerror})") from None
+        except yaml.YAMLError as exc:
+            raise InputError(f"{config}: not valid YAML: {str(exc).splitlines()[0]}") from None
+        options = SlamOptions.from_mapping(data, source=str(config))
+    return SlamOptions.with_overrides(overrides, base=options) if overrides else options
+
+
+def _progress_bar() -> Any:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rtf]:.1f}x real time"),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+    )
+
+
+def _run(
+    input_path: Path, options: SlamOptions, topic: str | None, stop_scan: int | None
+) -> tuple[SlamResult, float]:
+    """``run_slam`` under a progress bar showing the real-time factor; the result, wall s."""
+    from laser_corners.slam import run_slam
+
+    bar = _progress_bar()
+    task = bar.add_task(input_path.name, total=None, rtf=0.0)
+    start = time.perf_counter()
+    first: list[float] = []
+
+    def progress(done: int, n_scans: int | None, stamp: float) -> None:
+        if not first:
+            first.append(stamp)
+            bar.start()
+        elapsed = time.perf_counter() - start
+        total = n_scans if stop_scan is None or n_scans is None else min(n_scans, stop_scan)
+        rtf = (stamp - first[0]) / elapsed if elapsed > 0 else 0.0
+        bar.update(task, completed=done, total=total, rtf=rtf)
+
+    try:
+        result = run_slam(input_path, options, topic=topic, progress=progress, stop_scan=stop_scan)
+    finally:
+        bar.stop()
+    return result, time.perf_counter() - start
+
+
+def _relation_metrics(result: SlamResult, relations: Any) -> dict[str, dict[str, float]]:
+    from laser_corners.eval.relations import relation_metrics
+
+    return {
+        "trajectory": relation_metrics(result.stamps, result.poses, relations).to_dict(),
+        "odometry": relation_metrics(result.stamps, result.odometry, relations).to_dict(),
+    }
+
+
+def relations_table(rows: dict[str, dict[str, float]], title: str) -> Any:
+    """A rich table of relation metrics: one column per trajectory (``RelationMetrics.to_dict()``
+    per name), one row per quantity (mean ± std)."""
+    from rich.table import Table
+
+    from laser_corners.viz.slam_report import RELATION_COLUMNS, relation_cells
+
+    table = Table(title=title)
+    table.add_column("", no_wrap=True)
+    for name in rows:
+        table.add_column(name, no_wrap=True)
+    cells = [relation_cells(metrics) for metrics in rows.values()]
+    for i, quantity in enumerate(RELATION_COLUMNS):
+        table.add_row(quantity, *(column[i] for column in cells))
+    return table
+
+
+def _summary_table(summary: dict[str, Any], folder: Path) -> Any:
+    from rich.table import Table
+
+    counts, timings, closures = summary["counts"], summary["timings"], summary["closures"]
+    table = Table(title=summary["input"], show_header=False)
+    table.add_row("scans / keyframes", f"{counts['scans']} / {counts['keyframes']}")
+    table.add_row("landmarks", str(counts["landmarks"]))
+    table.add_row(
+        "loop closures",
+        f"{closures['proposed']} proposed, {closures['accepted']} accepted, "
+        f"{closures['rejected']} rejected",
+    )
+    if summary["closure_consistency"] is not None:
+        table.add_row("contradicted closures", f"{100 * summary['closure_consistency']:.1f} %")
+    rtf = timings["real_time_factor"]
+    table.add_row(
+        "time",
+        f"{timings['total_s']:.1f} s for {timings['data_s']:.1f} s of data"
+        + ("" if rtf is None else f" ({rtf:.1f}x real time)"),
+    )
+    if timings["ms_per_scan_mean"] is not None:
+        table.add_row(
+            "ms per scan",
+            f"{timings['ms_per_scan_mean']:.2f} mean, {timings['ms_per_scan_p95']:.2f} p95",
+        )
+    table.add_row("peak memory", f"{timings['peak_rss_mb']:.0f} MB")
+    table.add_row("output", str(folder))
+    return table
+
+
+@app.command("slam")
+def slam_command(
+    input_path: InputArg,
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="Output folder (created).", show_default=False)
+    ],
+    relations: _Relations = None,
+    topic: TopicOption = None,
+    set_: _Set = None,
+    config: _Config = None,
+    stop_scan: _StopScan = None,
+    resolution: _Resolution = 0.05,
+) -> None:
+    """Map a recording with odometry: trajectory, pose graph, corner landmarks, occupancy grid.
+
+    Writes trajectory.tum, odometry.tum, graph.g2o, landmarks.csv, map.pgm + map.yaml, map.png,
+    options.yaml, summary.json and report.md into the output folder (docs/slam.md). Ctrl-C
+    writes what was mapped so far (exit 130).
+    """
+    check_number("--resolution", resolution, minimum=0.001)
+    if not input_path.exists():
+        raise fail(f"{input_path}: no such file or folder")
+    from rich.console import Console
+
+    from laser_corners.eval.relations import closure_consistency, read_relations
+    from laser_corners.viz.slam_report import (
+        SlamRunInfo,
+        peak_rss_mb,
+        slam_summary,
+        write_slam_outputs,
+    )
+
+    options = slam_options(config, set_)
+    table = read_relations(relations) if relations is not None else None
+    folder = new_folder(output)
+    try:
+        result, wall = _run(input_path, options, topic, stop_scan)
+    except KeyboardInterrupt:  # before the first scan (run_slam keeps later interrupts)
+        typer.echo(f"interrupted before the first scan; nothing written to {folder}", err=True)
+        raise typer.Exit(130) from None
+    info = SlamRunInfo(str(input_path), wall, peak_rss_mb(), resolution=resolution)
+    if table is not None:
+        info.relations_file = str(relations)
+        info.relations = _relation_metrics(result, table)
+    if any(c.accepted for c in result.closures):
+        info.closure_consistency = float(closure_consistency(result))
+    write_slam_outputs(result, folder, info)
+    for warning in info.warnings:
+        typer.echo(f"laser-corners: warning: {warning}", err=True)
+    console = Console()
+    console.print(_summary_table(slam_summary(result, info), folder))
+    if info.relations:
+        console.print(relations_table(info.relations, f"relation metric ({relations})"))
+    if result.interrupted:
+        stamp = f" (t = {result.stamps[-1]:.3f} s)" if len(result.stamps) else ""
+        typer.echo(
+            f"interrupted after {len(result.stamps)} scans{stamp}; {folder} holds the map "
+            "up to there",
+            err=True,
+        )
+        raise typer.Exit(130)
+
+
+@evaluate_app.command("slam")
+def evaluate_slam_command(
+    trajectory: Annotated[
+        Path,
+        typer.Argument(
+            metavar="TRAJECTORY", help="TUM trajectory (stamp x y z qx qy qz qw): trajectory.tum."
+        ),
+    ],
+    relations: Annotated[
+        Path,
+        typer.Argument(
+            metavar="RELATIONS", help="Relations file (t1 t2 x y z roll pitch yaw per line)."
+        ),
+    ],
+    odometry: Annotated[
+        Path | None, typer.Option("--odometry", help="A second TUM trajectory to compare with.")
+    ] = None,
+) -> None:
+    """The relation metric of a trajectory (Kümmerle et al. 2009): mean ± std of |t|, t², |θ|, θ²
+    over the relative poses between the stamps of a .relations file."""
+    from rich.console import Console
+
+    from laser_corners.eval.relations import read_relations, relation_metrics
+    from laser_corners.io.trajectory import read_tum
+
+    table = read_relations(relations)
+    rows: dict[str, dict[str, float]] = {}
+    for name, path in (("trajectory", trajectory), ("odometry", odometry)):
+        if path is not None:
+            stamps, poses = read_tum(path)
+            rows[f"{name} ({path.name})"] = relation_metrics(stamps, poses, table).to_dict()
+    Console().print(relations_table(rows, f"relation metric ({relations})"))

@@ -1,0 +1,178 @@
+"""TUM trajectories: ``stamp x y z qx qy qz qw`` per line, the format evo and the TUM tools read.
+
+A planar pose ``(x, y, yaw)`` is written with ``z = 0`` and the quaternion of a rotation by
+``yaw`` about z, ``(0, 0, sin(yaw/2), cos(yaw/2))``; reading takes x, y and the yaw of the
+quaternion (a tilted quaternion is read for its yaw only). ``#`` starts a comment; blank lines
+are skipped.
+
+:class:`TumWriter` writes one pose at a time under a temporary name and gives the file its
+final name on :meth:`~TumWriter.close` (:class:`~laser_corners.io.base.PartialOutput`), so a
+killed run never leaves a half-written ``trajectory.tum``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import TracebackType
+from typing import TextIO
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from laser_corners.errors import InputError, OutputError
+from laser_corners.io.base import PartialOutput
+
+__all__ = ["TumWriter", "read_tum", "write_tum", "yaw_quaternion"]
+
+
+def yaw_quaternion(yaw: ArrayLike) -> NDArray[np.float64]:
+    """Unit quaternions ``(qx, qy, qz, qw)`` of rotations by ``yaw`` about z, shape (..., 4)."""
+    half = 0.5 * np.asarray(yaw, dtype=np.float64)
+    zeros = np.zeros_like(half)
+    return np.stack([zeros, zeros, np.sin(half), np.cos(half)], axis=-1)
+
+
+def _line(stamp: float, x: float, y: float, yaw: float) -> str:
+    half = 0.5 * yaw
+    return f"{stamp:.9f} {x:.9g} {y:.9g} 0 0 0 {math.sin(half):.9g} {math.cos(half):.9g}\n"
+
+
+class TumWriter:
+    """Write planar poses to a TUM trajectory, one line per :meth:`write`.
+
+    Parameters
+    ----------
+    path : Path
+        The final file name (replaced if it exists, when :meth:`close` publishes it).
+    header : str, optional
+        A comment written first (each line prefixed by ``#``).
+
+    Raises
+    ------
+    OutputError
+        The folder is missing or cannot be written.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> with TumWriter(folder / "t.tum") as writer:
+    ...     writer.write(0.0, (1.0, 2.0, 0.5))
+    >>> stamps, poses = read_tum(folder / "t.tum")
+    >>> poses.round(6).tolist()
+    [[1.0, 2.0, 0.5]]
+    """
+
+    def __init__(self, path: str | Path, header: str | None = None) -> None:
+        self.path = Path(path)
+        self._partial = PartialOutput(self.path, overwrite=True)
+        try:
+            self._handle: TextIO | None = self._partial.temporary.open("w", encoding="utf-8")
+        except OSError as exc:
+            self._partial.discard()
+            raise OutputError(f"{self.path}: cannot write ({exc.strerror})") from None
+        self.n_poses = 0
+        if header:
+            self._handle.write("".join(f"# {line}\n" for line in header.splitlines()))
+
+    def write(self, stamp: float, pose: ArrayLike) -> None:
+        """Append the pose ``(x, y, yaw)`` at time ``stamp`` (seconds)."""
+        if self._handle is None:
+            raise OutputError(f"{self.path}: written after close()")
+        x, y, yaw = (float(v) for v in np.asarray(pose, dtype=np.float64).reshape(3))
+        self._handle.write(_line(float(stamp), x, y, yaw))
+        self.n_poses += 1
+
+    def write_many(self, stamps: ArrayLike, poses: ArrayLike) -> None:
+        """Append many poses at once: ``stamps`` (N,), ``poses`` (N, 3)."""
+        if self._handle is None:
+            raise OutputError(f"{self.path}: written after close()")
+        t = np.asarray(stamps, dtype=np.float64).reshape(-1)
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        if len(t) != len(p):
+            raise ValueError(f"{len(t)} stamps but {len(p)} poses")
+        q = yaw_quaternion(p[:, 2])
+        table = np.column_stack([t, p[:, 0], p[:, 1], np.zeros(len(t)), q])
+        np.savetxt(self._handle, table, fmt=["%.9f"] + ["%.9g"] * 7)
+        self.n_poses += len(t)
+
+    def close(self) -> None:
+        """Flush the file and give it its final name (idempotent)."""
+        if self._handle is None:
+            return
+        handle, self._handle = self._handle, None
+        try:
+            handle.close()
+        except OSError as exc:
+            self._partial.discard()
+            raise OutputError(f"{self.path}: cannot write ({exc.strerror})") from None
+        self._partial.publish()
+
+    def __enter__(self) -> TumWriter:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+def write_tum(
+    path: str | Path, stamps: ArrayLike, poses: ArrayLike, header: str | None = None
+) -> None:
+    """Write a whole trajectory: ``stamps`` (N,) seconds, ``poses`` (N, 3) ``x, y, yaw``."""
+    with TumWriter(path, header) as writer:
+        writer.write_many(stamps, poses)
+
+
+def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Read a TUM trajectory as planar poses, in file order.
+
+    Returns
+    -------
+    stamps : ndarray, shape (N,)
+        Seconds.
+    poses : ndarray, shape (N, 3)
+        ``x, y, yaw`` (yaw of the quaternion, radians).
+
+    Raises
+    ------
+    InputError
+        Missing file, or ``FILE:LINE`` for a line without 8 finite numbers; a file without
+        poses.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    rows: list[list[float]] = []
+    try:
+        with path.open(encoding="utf-8", errors="replace") as handle:
+            for line_no, line in enumerate(handle, start=1):
+                text = line.split("#", 1)[0].strip()
+                if not text:
+                    continue
+                tokens = text.split()
+                if len(tokens) != 8:
+                    raise InputError(
+                        f"{path}:{line_no}: a TUM line needs 8 numbers "
+                        f"(stamp x y z qx qy qz qw), got {len(tokens)}"
+                    )
+                try:
+                    values = [float(t) for t in tokens]
+                except ValueError:
+                    raise InputError(f"{path}:{line_no}: not a number in {text[:60]!r}") from None
+                if not all(map(math.isfinite, values)):
+                    raise InputError(f"{path}:{line_no}: non-finite value")
+                rows.append(values)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if not rows:
+        raise InputError(f"{path}: no poses (TUM lines: stamp x y z qx qy qz qw)")
+    table = np.asarray(rows, dtype=np.float64)
+    qx, qy, qz, qw = table[:, 4], table[:, 5], table[:, 6], table[:, 7]
+    yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return table[:, 0].copy(), np.column_stack([table[:, 1], table[:, 2], yaw])

@@ -1,0 +1,254 @@
+"""``laser-corners slam`` and ``evaluate slam`` on small simulated recordings with odometry."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+import laser_corners.slam
+from conftest import real_file
+from fake_slam import fake_result
+from laser_corners.cli import app
+from laser_corners.io.trajectory import read_tum, write_tum
+from laser_corners.scan import relative_pose
+from laser_corners.sim import UST_10LX, rectangular_room, trajectory
+from laser_corners.sim.export import simulate_sequence, write_bag
+
+runner = CliRunner()
+CLI = [str(Path(sys.executable).with_name("laser-corners"))]
+FILES = [
+    "graph.g2o",
+    "landmarks.csv",
+    "map.pgm",
+    "map.png",
+    "map.yaml",
+    "odometry.tum",
+    "options.yaml",
+    "report.md",
+    "summary.json",
+    "trajectory.tum",
+]
+
+
+def _invoke(*args: str | Path):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def _one_line_error(result, *needles: str) -> None:
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    errors = [line for line in lines if line.startswith("laser-corners: error: ")]
+    assert len(errors) == 1 and errors[0] == lines[-1], result.stderr
+    for needle in needles:
+        assert needle in errors[0], errors[0]
+
+
+def _sim_bag(folder: Path, n_scans: int = 240) -> tuple[Path, Path, np.ndarray]:
+    """A ROS 1 bag of a drive through a room, /odom drifting from the truth (yaw 0.05 deg and
+    5 mm per scan), and the relations of the true poses one second apart."""
+    rng = np.random.default_rng(11)
+    world = rectangular_room()
+    truth = trajectory(world, n_scans, rng, rate_hz=UST_10LX.rate_hz, speed=0.5)
+    sequence = simulate_sequence(world, UST_10LX, truth, 0.005, rng, start_time=100.0)
+    odometry = truth.copy()
+    odometry[:, 2] += np.cumsum(np.full(n_scans, math.radians(0.05)))
+    odometry[:, 0] += 0.005 * np.arange(n_scans)
+    bag = folder / "sim.bag"
+    write_bag(replace(sequence, poses=odometry), bag)
+    stamps = sequence.stamps
+    step = int(UST_10LX.rate_hz)
+    lines = []
+    for i in range(0, n_scans - step, step // 4):
+        r = relative_pose(tuple(truth[i]), tuple(truth[i + step]))
+        lines.append(
+            f"{stamps[i]:.6f} {stamps[i + step]:.6f} {r[0]:.6f} {r[1]:.6f} 0 0 0 {r[2]:.6f}\n"
+        )
+    relations = folder / "sim.relations"
+    relations.write_text("".join(lines))
+    return bag, relations, stamps
+
+
+def test_slam_writes_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
+    bag, relations, stamps = _sim_bag(tmp_path)
+    out = tmp_path / "out"
+    result = _invoke("slam", bag, "-o", out, "--relations", relations)
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.iterdir()) == FILES, _warnings(out)
+    got_stamps, _ = read_tum(out / "trajectory.tum")
+    np.testing.assert_allclose(got_stamps, stamps, atol=1e-6)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"]["scans"] == len(stamps) and summary["interrupted"] is False
+    n_relations = len(relations.read_text().splitlines())
+    ours, odometry = summary["relations"]["trajectory"], summary["relations"]["odometry"]
+    assert ours["n_total"] == n_relations and ours["n_covered"] >= n_relations - 1
+    assert ours["trans_mean"] <= odometry["trans_mean"]
+    with (out / "landmarks.csv").open() as handle:
+        assert next(csv.reader(handle))[:3] == ["x", "y", "cov_xx"]
+    assert "relation metric" in result.stdout and "trajectory" in result.stdout
+    # the options written beside the result repeat the run
+    again = _invoke(
+        "slam",
+        bag,
+        "-o",
+        tmp_path / "again",
+        "--config",
+        out / "options.yaml",
+        "--stop-scan",
+        "20",
+        "--resolution",
+        "0.1",
+    )
+    assert again.exit_code == 0, again.output
+    assert (tmp_path / "again" / "options.yaml").read_text() == (out / "options.yaml").read_text()
+    assert yaml.safe_load((tmp_path / "again" / "map.yaml").read_text())["resolution"] == 0.1
+    assert len(read_tum(tmp_path / "again" / "trajectory.tum")[0]) < len(stamps)
+
+
+def test_ctrl_c_writes_what_was_mapped_and_exits_130(tmp_path: Path, monkeypatch) -> None:
+    bag, _, _ = _sim_bag(tmp_path, n_scans=20)
+    partial = fake_result(n_scans=40, interrupted=True)
+
+    def interrupted_run(path, options=None, *, topic=None, progress=None, stop_scan=None):
+        for i in range(40):
+            progress(i, 100, float(partial.stamps[i]))
+        return partial  # what run_slam returns when Ctrl-C stops it
+
+    monkeypatch.setattr(laser_corners.slam, "run_slam", interrupted_run)
+    out = tmp_path / "out"
+    result = _invoke("slam", bag, "-o", out)
+    assert result.exit_code == 130, result.output
+    assert "interrupted after 40 scans" in result.stderr and str(out) in result.stderr
+    assert sorted(p.name for p in out.iterdir()) == FILES
+    assert len(read_tum(out / "trajectory.tum")[0]) == 40
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+
+
+@pytest.mark.real
+@pytest.mark.slow
+def test_sigint_during_a_real_run_keeps_the_map(tmp_path: Path) -> None:
+    # intel.bag holds 2691 s of data: 8 s after the output folder appears (it is created just
+    # before the run starts) the run is under way and far from its end
+    bag = real_file("intel.bag")
+    out = tmp_path / "intel"
+    process = subprocess.Popen(
+        [*CLI, "slam", str(bag), "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and process.poll() is None and not out.exists():
+        time.sleep(0.05)
+    time.sleep(8.0)
+    assert process.poll() is None, "the run ended before it could be interrupted"
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert "interrupted after" in stderr and "holds the map up to there" in stderr, stderr
+    assert sorted(p.name for p in out.iterdir()) == FILES, _warnings(out)
+    summary = json.loads((out / "summary.json").read_text())
+    n_scans = summary["counts"]["scans"]
+    assert summary["interrupted"] is True and 0 < n_scans
+    assert len(read_tum(out / "trajectory.tum")[0]) == n_scans
+
+
+def _warnings(folder: Path) -> list[str]:
+    """The warnings the run recorded (why a file is missing)."""
+    summary = folder / "summary.json"
+    return json.loads(summary.read_text())["warnings"] if summary.exists() else []
+
+
+def _line(folder: Path, speed: float) -> Path:
+    """A TUM trajectory driving along x at ``speed`` m/s for 10 s (101 poses)."""
+    t = np.linspace(0.0, 10.0, 101)
+    path = folder / f"v{speed}.tum"
+    write_tum(path, t, np.column_stack([speed * t, np.zeros_like(t), np.zeros_like(t)]))
+    return path
+
+
+def test_evaluate_slam_gives_the_known_error(tmp_path: Path) -> None:
+    relations = tmp_path / "line.relations"
+    # 0.6 m and 0.02 rad per second; one relation outside the trajectory's time span
+    rows = [f"{t:.1f} {t + 1:.1f} 0.6 0 0 0 0 0.02" for t in range(9)] + ["50 51 0.6 0 0 0 0 0"]
+    relations.write_text("\n".join(rows) + "\n")
+    result = _invoke(
+        "evaluate", "slam", _line(tmp_path, 0.5), relations, "--odometry", _line(tmp_path, 0.6)
+    )
+    assert result.exit_code == 0, result.output
+    rows = {line.split("│")[1].strip(): line for line in result.stdout.splitlines() if "│" in line}
+    assert "trajectory (v0.5.tum)" in result.stdout and "odometry (v0.6.tum)" in result.stdout
+    assert "9 / 10" in rows["covered / total"]
+    trajectory, odometry = rows["|t| (m)"].split("│")[2:4]
+    assert trajectory.strip() == "0.1000 ± 0.0000" and odometry.strip() == "0.0000 ± 0.0000"
+    assert rows["|θ| (deg)"].split("│")[2].strip() == f"{math.degrees(0.02):.3f} ± 0.000"
+
+
+def test_bad_relations_file_is_one_line_naming_file_and_line(tmp_path: Path) -> None:
+    relations = tmp_path / "bad.relations"
+    relations.write_text("0 1 0.6 0 0 0 0 0\n1 2 0.6 0 0 0 0 0\n1 2 x 0 0 0 0 0\n")
+    result = _invoke("evaluate", "slam", _line(tmp_path, 0.5), relations)
+    _one_line_error(result, f"{relations}:3")
+    out = tmp_path / "out"
+    result = _invoke("slam", _line(tmp_path, 0.5), "-o", out, "--relations", relations)
+    _one_line_error(result, f"{relations}:3")
+    assert not out.exists()  # checked before the run
+
+
+def test_bad_inputs_are_one_line(tmp_path: Path) -> None:
+    _one_line_error(_invoke("slam", tmp_path / "none.bag", "-o", tmp_path / "o"), "none.bag")
+    _one_line_error(
+        _invoke("evaluate", "slam", tmp_path / "none.tum", tmp_path / "none.tum"), "none.tum"
+    )
+    bag, _, _ = _sim_bag(tmp_path, n_scans=10)
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path / "o", "--resolution", "0"), "--resolution")
+    _one_line_error(
+        _invoke("slam", bag, "-o", tmp_path / "o", "--set", "no_such_option=1"), "no_such_option"
+    )
+    config = tmp_path / "bad.yaml"
+    config.write_text("no_such_field: 1\n")
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path / "o", "--config", config), "no_such_field")
+    config.write_text("a: [1\n")
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path / "o", "--config", config), "bad.yaml")
+
+
+def _carmen(path: Path, laser: bool, odometry: bool) -> Path:
+    ranges = " ".join(["2.0"] * 181)
+    lines = []
+    for i in range(30):
+        t = 10.0 + 0.1 * i
+        if odometry:
+            lines.append(f"ODOM {0.01 * i} 0 0 0 0 0 {t:.3f} host {t:.3f}")
+        if laser:
+            lines.append(
+                f"RAWLASER1 0 -1.5708 3.1416 0.01745 80 0.01 0 181 {ranges} 0 "
+                f"{t + 0.05:.3f} host {t + 0.05:.3f}"
+            )
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_recordings_without_odometry_or_scans_are_one_line(tmp_path: Path) -> None:
+    no_odometry = _carmen(tmp_path / "no_odom.clf", laser=True, odometry=False)
+    _one_line_error(_invoke("slam", no_odometry, "-o", tmp_path / "a"), "no_odom.clf")
+    no_scans = _carmen(tmp_path / "no_scans.clf", laser=False, odometry=True)
+    _one_line_error(_invoke("slam", no_scans, "-o", tmp_path / "b"), "no_scans.clf")
+
+
+def test_help_lists_both_commands() -> None:
+    assert "slam" in _invoke("--help").stdout
+    result = _invoke("evaluate", "--help")
+    assert result.exit_code == 0 and "slam" in result.stdout
+    assert "--relations" in _invoke("slam", "--help").stdout
