@@ -9,9 +9,10 @@ Layers, lowest first (a module may import its own layer and the layers below):
 1. ``io``
 2. ``pipeline``
 3. ``sim``, ``matching``
-4. ``eval``
-5. ``viz``
-6. ``ros``, ``batch``, ``cli``, ``demo``
+4. ``slam``
+5. ``eval``
+6. ``viz``
+7. ``ros``, ``batch``, ``cli``, ``demo``
 """
 
 from __future__ import annotations
@@ -29,12 +30,13 @@ ROOM_LAYERS = {
     "pipeline": 2,
     "sim": 3,
     "matching": 3,
-    "eval": 4,
-    "viz": 5,
-    "ros": 6,
-    "batch": 6,
-    "cli": 6,
-    "demo": 6,
+    "slam": 4,
+    "eval": 5,
+    "viz": 6,
+    "ros": 7,
+    "batch": 7,
+    "cli": 7,
+    "demo": 7,
 }
 MAX_MODULE_LINES = 400
 MAX_FUNCTION_LINES = 120

@@ -1,0 +1,259 @@
+"""The incremental SLAM: :class:`Slam` (``add(scan, odometry, stamp) -> pose, covariance``).
+
+Per scan: the odometry delta predicts the pose, point-to-line ICP against the local map (the
+points of the recent keyframes at their current estimates) corrects it, weighted against the
+prediction by the odometry noise. A scan becomes a keyframe after ``keyframe_distance`` /
+``keyframe_angle`` of motion: it joins the gtsam graph with a relative-pose factor to the
+previous keyframe, loop closures are searched for it, iSAM2 updates, and the local map is
+rebuilt from the new estimates. Other scans keep their pose relative to the last keyframe,
+so their final pose follows the keyframe's final estimate.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from laser_corners.scan import LaserScan
+from laser_corners.slam.align import PointMap, icp
+from laser_corners.slam.backend import Backend
+from laser_corners.slam.geometry import between, compose, compose_many
+from laser_corners.slam.keyframes import KeyframeStore
+from laser_corners.slam.loops import MAX_WINDOW_XY, MAX_WINDOW_YAW, candidates, verify
+from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.points import scan_points
+from laser_corners.slam.result import LoopClosure, SlamResult
+
+__all__ = ["Slam"]
+
+COUNT_KEYS = (
+    "scans",
+    "keyframes",
+    "skipped_no_odometry",
+    "time_jumps",
+    "alignment_failures",
+    "closures_proposed",
+    "closures_accepted",
+    "closures_rejected",
+    "landmarks",
+)
+
+
+class Slam:
+    """Incremental 2D SLAM over laser scans and odometry.
+
+    Parameters
+    ----------
+    options : SlamOptions, optional
+        Defaults: ``SlamOptions()``.
+    mount : tuple of float
+        Base -> laser transform ``(x, y, yaw)`` (``options.mount`` overrides it).
+    """
+
+    def __init__(
+        self, options: SlamOptions | None = None, mount: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        self.options = options or SlamOptions()
+        chosen = self.options.mount if self.options.mount is not None else mount
+        self.mount = np.asarray(chosen, dtype=np.float64).reshape(3)
+        self.backend = Backend()
+        self.kf = KeyframeStore()
+        self.closures: list[LoopClosure] = []
+        self.counts = dict.fromkeys(COUNT_KEYS, 0)
+        self._stamps: list[float] = []
+        self._odom: list[NDArray] = []
+        self._ref: list[int] = []
+        self._rel: list[NDArray] = []
+        self._ms: list[float] = []
+        self.pose: NDArray[np.float64] | None = None
+        self._anchor = np.zeros(3)  # the last keyframe's pose in the tracking frame
+        self._last_odom = np.zeros(3)
+        self._last_stamp = -np.inf
+        self._local: PointMap | None = None
+        self._cov = np.diag([1e-6, 1e-6, 1e-8])
+        self._since_closure = 0.0
+        self._closed_recently = False
+        self._aligned_since_kf = True
+        self._jump = False
+
+    # ------------------------------------------------------------------ per scan
+    def add(
+        self, scan: LaserScan, odometry_pose: ArrayLike, stamp: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Add one scan with the base's odometry pose at its stamp.
+
+        Returns
+        -------
+        pose : ndarray, shape (3,)
+            The base pose in the map frame (current estimate).
+        covariance : ndarray, shape (3, 3)
+            Its covariance (x, y, yaw in the map frame), from the last keyframe's marginal.
+        """
+        start = time.perf_counter()
+        opt = self.options
+        odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
+        pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
+        if self.pose is None:
+            self.pose = odo.copy()
+            self._make_keyframe(scan, pts, odo, stamp, first=True)
+        else:
+            jump = not (0.0 <= stamp - self._last_stamp <= opt.time_jump)
+            if jump:
+                self.counts["time_jumps"] += 1
+                self._jump = True
+            delta = np.zeros(3) if jump else between(self._last_odom, odo)
+            pred = compose(self.pose, delta)
+            self.pose = self._track(pts.xy, pred, delta, jump)
+            moved = between(self._anchor, self.pose)
+            if (
+                self._jump
+                or np.hypot(moved[0], moved[1]) >= opt.keyframe_distance
+                or abs(moved[2]) >= opt.keyframe_angle
+                or stamp - self.kf.stamps[-1] >= opt.keyframe_max_interval
+            ):
+                self._make_keyframe(scan, pts, odo, stamp)
+        self._last_odom, self._last_stamp = odo, stamp
+        self._stamps.append(float(stamp))
+        self._odom.append(odo)
+        self._ref.append(len(self.kf) - 1)
+        self._rel.append(between(self._anchor, self.pose))
+        self._ms.append((time.perf_counter() - start) * 1e3)
+        self.counts["scans"] += 1
+        return self.pose.copy(), self._cov.copy()
+
+    def _track(self, xy: NDArray, pred: NDArray, delta: NDArray, jump: bool) -> NDArray:
+        """The pose of a scan: ICP against the local map from the prediction, or the prediction."""
+        opt = self.options
+        if not opt.scan_alignment or self._local is None:
+            return pred
+        dist = float(np.hypot(delta[0], delta[1]))
+        if jump:
+            sig = np.array([1.0, 1.0, 0.5])
+        else:
+            sxy = opt.odometry_sigma_xy * (dist + 0.1)
+            syaw = opt.odometry_sigma_yaw * (abs(float(delta[2])) + dist + 0.1)
+            sig = np.array([sxy, sxy, syaw])
+        aligned = icp(
+            xy,
+            self._local,
+            pred,
+            np.diag(1.0 / sig**2),
+            max_distance=opt.icp_max_distance,
+            inlier_distance=opt.loop_inlier_distance,
+            iterations=opt.icp_iterations,
+        )
+        if aligned.overlap < opt.min_overlap:
+            self.counts["alignment_failures"] += 1
+            self._aligned_since_kf = False
+            return pred
+        return aligned.pose
+
+    # ------------------------------------------------------------------ keyframes
+    def _make_keyframe(
+        self, scan: LaserScan, pts, odo: NDArray, stamp: float, first: bool = False
+    ) -> None:
+        opt = self.options
+        assert self.pose is not None
+        k = self.backend.add_keyframe(self.pose, prior=self._jump and not first)
+        if not first:
+            rel = between(self._anchor, self.pose)
+            dist = float(np.hypot(rel[0], rel[1]))
+            if self._aligned_since_kf and not self._jump:
+                sig = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
+            elif self._jump:
+                sig = (10.0, 10.0, 3.0)
+            else:
+                sxy = opt.odometry_sigma_xy * (dist + 0.1)
+                sig = (sxy, sxy, opt.odometry_sigma_yaw * (abs(float(rel[2])) + dist + 0.1))
+            self.backend.add_between(k - 1, k, rel, sig)
+            self._since_closure += dist
+        self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
+        closed = self._close_loops(k) if opt.loop_closure and not first else False
+        estimate = self.backend.update(extra_iterations=1 if closed else 0)
+        self.kf.estimate = estimate
+        self.pose = estimate[k].copy()
+        self._anchor = self.pose.copy()
+        self._aligned_since_kf = True
+        self._jump = False
+        self._local = self.kf.local_map(opt.local_map_keyframes)
+        self.counts["keyframes"] = len(self.kf)
+
+    def _close_loops(self, k: int) -> bool:
+        opt = self.options
+        if k % opt.loop_every != 0:
+            return False
+        estimate = np.vstack([self.kf.estimate, self.pose[None, :]])
+        sigma = self.backend.marginal_xy_sigma(k - 1) if k > 0 else 0.0
+        window = (
+            min(opt.loop_search_xy + 3.0 * sigma, MAX_WINDOW_XY),
+            min(opt.loop_search_yaw + opt.loop_drift * self._since_closure, MAX_WINDOW_YAW),
+        )
+        closed = False
+        for j in candidates(k, estimate, self.kf.travelled_array(), window[0], opt):
+            self.counts["closures_proposed"] += 1
+            closure = verify(k, j, self.kf.points, estimate, self.kf.travelled_array(), window, opt)
+            self.closures.append(closure)
+            if closure.accepted:
+                self.counts["closures_accepted"] += 1
+                self.backend.add_between(
+                    j,
+                    k,
+                    np.array(closure.relative),
+                    (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw),
+                    robust=True,
+                )
+                closed = True
+            else:
+                self.counts["closures_rejected"] += 1
+        self._closed_recently = closed
+        if closed:
+            self._since_closure = 0.0
+        return closed
+
+    def _prune(self, closure: LoopClosure) -> None:
+        """Mark an accepted closure as dropped by the final optimisation."""
+        closure.accepted = False
+        closure.reason = "dropped: contradicted by the optimised graph"
+        self.counts["closures_accepted"] -= 1
+        self.counts["closures_rejected"] += 1
+        self.counts["closures_pruned"] = self.counts.get("closures_pruned", 0) + 1
+
+    # ------------------------------------------------------------------ result
+    def result(self, interrupted: bool = False) -> SlamResult:
+        """The current result; with ``final_optimisation``, a batch optimisation runs first."""
+        graph, values = None, None
+        if len(self.kf):
+            if self.options.final_optimisation:
+                graph, values = self.backend.optimise()
+                accepted = [c for c in self.closures if c.accepted]
+                for i in self.backend.pruned:
+                    self._prune(accepted[i])
+            else:
+                graph, values = self.backend.graph, self.backend.values
+            self.kf.estimate = self.backend.estimate
+        n = len(self._stamps)
+        if n:
+            ref = np.asarray(self._ref)
+            poses = compose_many(self.kf.estimate[ref], np.asarray(self._rel))
+        else:
+            poses = np.zeros((0, 3))
+        self.counts["landmarks"] = 0
+        return SlamResult(
+            stamps=np.asarray(self._stamps, dtype=np.float64),
+            poses=poses,
+            odometry=np.asarray(self._odom, dtype=np.float64).reshape(-1, 3),
+            keyframes=np.asarray(self.kf.scan_index, dtype=np.int64),
+            keyframe_poses=np.asarray(self.kf.estimate, dtype=np.float64).reshape(-1, 3),
+            scans=list(self.kf.scans),
+            mount=self.mount.copy(),
+            landmarks=self.kf.landmarks(),
+            closures=list(self.closures),
+            ms_per_scan=np.asarray(self._ms, dtype=np.float64),
+            options=self.options,
+            counts=dict(self.counts),
+            interrupted=interrupted,
+            graph=graph,
+            values=values,
+        )
