@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["between", "between_many", "compose", "compose_many", "invert_many", "wrap"]
+__all__ = ["between", "between_many", "compose", "compose_many", "invert", "invert_many", "wrap"]
 
 
 def wrap(angle: ArrayLike) -> NDArray[np.float64]:
@@ -52,3 +52,9 @@ def between(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float6
     dx, dy = b[0] - a[0], b[1] - a[1]
     yaw = (b[2] - a[2] + math.pi) % (2 * math.pi) - math.pi
     return np.array([c * dx + s * dy, -s * dx + c * dy, yaw])
+
+
+def invert(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``a^-1`` of a single pose."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return np.array([-c * a[0] - s * a[1], s * a[0] - c * a[1], -a[2]])

@@ -16,15 +16,17 @@ from numpy.typing import NDArray
 
 from laser_corners.slam.align import PointMap, icp, match_share
 from laser_corners.slam.correlative import ScoreGrid, search
-from laser_corners.slam.geometry import between_many
+from laser_corners.slam.geometry import between, between_many, compose, invert
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import ScanPoints
 from laser_corners.slam.result import LoopClosure
 
-__all__ = ["candidates", "verify"]
+__all__ = ["ClosureGate", "candidates", "verify"]
 
 SEARCH_RESOLUTION = 0.15
 """Cell size (m) of the correlative search grid (refined by ICP afterwards)."""
+QUERY_CELL = 0.1
+"""Cell (m) of the voxel thinning of a multi-keyframe loop query."""
 MAX_WINDOW_XY = 3.0
 """Largest half-width (m) of the search window, whatever the uncertainty says."""
 MAX_WINDOW_YAW = 0.6
@@ -84,6 +86,23 @@ def _submap(
     return np.concatenate(all_xy), np.concatenate(line_xy), np.concatenate(normals)
 
 
+def _query(
+    k: int, points: list[ScanPoints], estimate: NDArray[np.float64], n: int
+) -> NDArray[np.float64]:
+    """Points of keyframe ``k`` and its ``n - 1`` predecessors in ``k``'s frame, thinned."""
+    parts = []
+    for i in range(max(0, k - n + 1), k + 1):
+        pose = between(estimate[k], estimate[i])
+        c, s = np.cos(pose[2]), np.sin(pose[2])
+        parts.append(points[i].xy @ np.array([[c, s], [-s, c]]) + pose[:2])
+    xy = np.concatenate(parts)
+    if len(parts) == 1:
+        return xy
+    cells = np.floor(xy / QUERY_CELL).astype(np.int64)
+    _, keep = np.unique(cells[:, 0] * 1_000_003 + cells[:, 1], return_index=True)
+    return xy[np.sort(keep)]
+
+
 def verify(
     k: int,
     j: int,
@@ -95,7 +114,7 @@ def verify(
 ) -> LoopClosure:
     """Try to close keyframe ``k`` against the older keyframe ``j``."""
     guess = between_many(estimate[j], estimate[k])
-    query = points[k].xy
+    query = _query(k, points, estimate, options.loop_query_keyframes)
     all_xy, line_xy, normals = _submap(j, k, points, estimate, travelled, options)
     if query.shape[0] < 20 or line_xy.shape[0] < 20:
         return LoopClosure(k, j, tuple(guess), False, "too few points")
@@ -131,3 +150,50 @@ def verify(
     if moved > 3.0 * SEARCH_RESOLUTION:
         return LoopClosure(k, j, relative, False, f"ICP left the search peak by {moved:.2f} m")
     return LoopClosure(k, j, relative, True, f"ok (overlap {overlap:.2f}, score {score:.2f})")
+
+
+class ClosureGate:
+    """Accepts verified closures only when they agree with the map or with each other.
+
+    A verified closure implies a correction of the current estimate (where it puts the query
+    keyframe relative to where the graph has it). A small correction (within ``agree_xy`` /
+    ``agree_yaw``) agrees with the map and is accepted at once; a larger one waits until
+    another verified closure from a later keyframe within ``horizon`` keyframes implies the
+    same correction, and then both are accepted. A single wrong match (a symmetric room, a
+    door) therefore cannot move the map; a pending closure that is never confirmed is
+    rejected.
+    """
+
+    def __init__(self, agree_xy: float, agree_yaw: float, horizon: int) -> None:
+        self.agree_xy = agree_xy
+        self.agree_yaw = agree_yaw
+        self.horizon = horizon
+        self.pending: list[tuple[LoopClosure, NDArray[np.float64]]] = []
+
+    def _agree(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
+        d = between(a, b)
+        return bool(np.hypot(d[0], d[1]) <= self.agree_xy and abs(d[2]) <= self.agree_yaw)
+
+    def offer(self, closure: LoopClosure, estimate: NDArray[np.float64]) -> list[LoopClosure]:
+        """Offer a verified closure; returns the closures to add to the graph now, and drops
+        (marks rejected) pending ones older than the horizon."""
+        k, j = closure.query, closure.match
+        implied = compose(estimate[j], np.asarray(closure.relative))
+        correction = between(estimate[k], implied)  # in k's frame
+        # a correction expressed as a map-frame transform, comparable across keyframes
+        shift = compose(compose(estimate[k], correction), invert(estimate[k]))
+        expired = [p for p in self.pending if k - p[0].query > self.horizon]
+        for p, _ in expired:
+            p.accepted = False
+            p.reason = "unconfirmed: no later closure agreed"
+        self.pending = [p for p in self.pending if k - p[0].query <= self.horizon]
+        if self._agree(np.zeros(3), correction):
+            return [closure]
+        agreeing = [p for p, s in self.pending if p.query != k and self._agree(s, shift)]
+        if agreeing:
+            self.pending = [(p, s) for p, s in self.pending if p not in agreeing]
+            return [*agreeing, closure]
+        closure.accepted = False
+        closure.reason = "pending confirmation"
+        self.pending.append((closure, shift))
+        return []

@@ -80,10 +80,17 @@ class SlamOptions(BaseModel):
     """Distance (m) within which a point counts as explained by the submap."""
     loop_submap_keyframes: int = Field(10, ge=1, le=200)
     """Keyframes on each side of a candidate that form its submap."""
+    loop_query_keyframes: int = Field(1, ge=1, le=100)
+    """Keyframes (the current one and its predecessors) whose points form a loop query."""
     loop_every: int = Field(5, ge=1, le=1000)
     """Loop search on every n-th keyframe."""
     loop_candidates: int = Field(1, ge=1, le=20)
     """Candidates verified per loop search (nearest first, from different submaps)."""
+    loop_agree_xy: float = Field(0.15, ge=0.0, le=10.0)
+    """A verified closure moving the map by less than this (m) is accepted at once; a larger
+    correction needs a second closure implying the same correction within this distance."""
+    loop_agree_yaw: float = Field(0.035, ge=0.0, le=3.2)
+    """As ``loop_agree_xy``, for the rotation (rad, 2 degrees)."""
     loop_sigma_xy: float = Field(0.05, ge=1e-4, le=10.0)
     """Noise (m) of a loop closure factor (under a Cauchy kernel)."""
     loop_sigma_yaw: float = Field(0.01, ge=1e-5, le=1.0)

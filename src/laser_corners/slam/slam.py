@@ -21,7 +21,13 @@ from laser_corners.slam.align import PointMap, icp
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.geometry import between, compose, compose_many
 from laser_corners.slam.keyframes import KeyframeStore
-from laser_corners.slam.loops import MAX_WINDOW_XY, MAX_WINDOW_YAW, candidates, verify
+from laser_corners.slam.loops import (
+    MAX_WINDOW_XY,
+    MAX_WINDOW_YAW,
+    ClosureGate,
+    candidates,
+    verify,
+)
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import scan_points
 from laser_corners.slam.result import LoopClosure, SlamResult
@@ -37,6 +43,7 @@ COUNT_KEYS = (
     "closures_proposed",
     "closures_accepted",
     "closures_rejected",
+    "closures_pruned",
     "landmarks",
 )
 
@@ -75,6 +82,9 @@ class Slam:
         self._cov = np.diag([1e-6, 1e-6, 1e-8])
         self._since_closure = 0.0
         self._closed_recently = False
+        self.gate = ClosureGate(
+            self.options.loop_agree_xy, self.options.loop_agree_yaw, 4 * self.options.loop_every
+        )
         self._aligned_since_kf = True
         self._jump = False
 
@@ -109,6 +119,7 @@ class Slam:
             moved = between(self._anchor, self.pose)
             if (
                 self._jump
+                or not self._aligned_since_kf  # new ground: into the map at once
                 or np.hypot(moved[0], moved[1]) >= opt.keyframe_distance
                 or abs(moved[2]) >= opt.keyframe_angle
                 or stamp - self.kf.stamps[-1] >= opt.keyframe_max_interval
@@ -195,18 +206,15 @@ class Slam:
             self.counts["closures_proposed"] += 1
             closure = verify(k, j, self.kf.points, estimate, self.kf.travelled_array(), window, opt)
             self.closures.append(closure)
-            if closure.accepted:
-                self.counts["closures_accepted"] += 1
+            if not closure.accepted:
+                continue
+            for good in self.gate.offer(closure, estimate):
+                good.accepted = True
+                sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
                 self.backend.add_between(
-                    j,
-                    k,
-                    np.array(closure.relative),
-                    (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw),
-                    robust=True,
+                    good.match, good.query, np.array(good.relative), sig, robust=True
                 )
                 closed = True
-            else:
-                self.counts["closures_rejected"] += 1
         self._closed_recently = closed
         if closed:
             self._since_closure = 0.0
@@ -216,9 +224,7 @@ class Slam:
         """Mark an accepted closure as dropped by the final optimisation."""
         closure.accepted = False
         closure.reason = "dropped: contradicted by the optimised graph"
-        self.counts["closures_accepted"] -= 1
-        self.counts["closures_rejected"] += 1
-        self.counts["closures_pruned"] = self.counts.get("closures_pruned", 0) + 1
+        self.counts["closures_pruned"] += 1
 
     # ------------------------------------------------------------------ result
     def result(self, interrupted: bool = False) -> SlamResult:
@@ -240,6 +246,9 @@ class Slam:
         else:
             poses = np.zeros((0, 3))
         self.counts["landmarks"] = 0
+        accepted = sum(c.accepted for c in self.closures)
+        self.counts["closures_accepted"] = accepted
+        self.counts["closures_rejected"] = len(self.closures) - accepted
         return SlamResult(
             stamps=np.asarray(self._stamps, dtype=np.float64),
             poses=poses,
