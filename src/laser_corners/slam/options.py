@@ -159,6 +159,12 @@ class SlamOptions(BaseModel):
         merged.update(updates)
         return cls(**merged)
 
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise InvalidParamsError(
+            f"SlamOptions is frozen: cannot set {name!r}; make a changed copy with "
+            f"SlamOptions.with_overrides({{{name!r}: ...}}, base=options)"
+        )
+
     def to_yaml(self) -> str:
         """The options as a YAML document (``slam:`` table)."""
         data = self.model_dump()
