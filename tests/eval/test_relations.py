@@ -92,9 +92,12 @@ def test_read_relations(tmp_path) -> None:
 
 @pytest.mark.parametrize(
     ("text", "where"),
-    [("1 2 3 4 0 0 0 5\n1 2 x 4 0 0 0 5\n", ":2:"), ("1 2 3 4 0 0 0\n", ":1:"),
-     ("1 2 3 4 0 0 0 nan\n", ":1:")],
-)  # fmt: skip
+    [
+        ("1 2 3 4 0 0 0 5\n1 2 x 4 0 0 0 5\n", ":2:"),
+        ("1 2 3 4 0 0 0\n", ":1:"),
+        ("1 2 3 4 0 0 0 nan\n", ":1:"),
+    ],
+)
 def test_bad_relations_line_names_file_and_line(tmp_path, text: str, where: str) -> None:
     path = tmp_path / "bad.relations"
     path.write_text(text)

@@ -12,7 +12,7 @@ pytest.importorskip("gtsam")
 from laser_corners.errors import InvalidParamsError
 from laser_corners.eval.relations import closure_consistency, relation_metrics
 from laser_corners.scan import LaserScan
-from laser_corners.sim import SICK_LMS_1DEG, World, trajectory
+from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.geometry import between_many, compose, compose_many
 
@@ -73,10 +73,12 @@ def _relations(truth: np.ndarray, step: int = 15) -> np.ndarray:
     rel = between_many(truth[idx], truth[idx + step])
     far = np.arange(0, len(truth) // 2, 40)  # loop-spanning pairs: a lap apart
     rel_far = between_many(truth[far], truth[far + len(truth) // 2])
-    return np.vstack([
-        np.column_stack([t[idx], t[idx + step], rel]),
-        np.column_stack([t[far], t[far + len(truth) // 2], rel_far]),
-    ])  # fmt: skip
+    return np.vstack(
+        [
+            np.column_stack([t[idx], t[idx + step], rel]),
+            np.column_stack([t[far], t[far + len(truth) // 2], rel_far]),
+        ]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -122,8 +124,14 @@ def test_beam_count_change_and_time_jump_do_not_crash() -> None:
     for i, pose in enumerate(poses):
         scan = world.scan(pose, SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=i / RATE)
         if i % 2:  # every other scan: half the beams
-            scan = LaserScan(scan.ranges[::2], scan.angle_min, 2 * scan.angle_increment,
-                             scan.range_min, scan.range_max, scan.stamp)  # fmt: skip
+            scan = LaserScan(
+                scan.ranges[::2],
+                scan.angle_min,
+                2 * scan.angle_increment,
+                scan.range_min,
+                scan.range_max,
+                scan.stamp,
+            )
         stamp = i / RATE + (100.0 if i >= 20 else 0.0)  # a 100 s gap
         pose_out, cov = slam.add(scan, pose, stamp)
         assert np.all(np.isfinite(pose_out)) and cov.shape == (3, 3)
