@@ -232,11 +232,13 @@ def icp(
     inlier_distance: float,
     iterations: int,
     sigma: float = 0.03,
+    overlap_map: PointMap | None = None,
 ) -> Alignment:
     """Align ``points`` (base frame) to ``pointmap`` starting from ``guess`` (map frame).
 
     ``prior_info`` (3x3) weighs the pull towards ``guess`` against the point residuals of
-    standard deviation ``sigma`` (m).
+    standard deviation ``sigma`` (m). The overlap is measured against ``overlap_map`` (all
+    points, also those without a normal) when given, else against ``pointmap``.
     """
     guess = np.asarray(guess, dtype=np.float64)
     src = np.ascontiguousarray(points, dtype=np.float64)
@@ -262,5 +264,5 @@ def icp(
     except np.linalg.LinAlgError:  # pragma: no cover - singular system
         return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))
     pose[2] = wrap(pose[2])
-    overlap = match_share(src, pointmap, pose, inlier_distance)
+    overlap = match_share(src, overlap_map or pointmap, pose, inlier_distance)
     return Alignment(pose, overlap, src.shape[0], info)

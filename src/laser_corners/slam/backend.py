@@ -66,6 +66,7 @@ class Backend:
         self.loops: list[tuple[int, int, object, object, int]] = []
         self.pruned: list[int] = []  # indices into ``loops`` dropped by :meth:`optimise`
         self._estimate = np.zeros((0, 3))
+        self._stale = False
 
     def _add(self, factor: object) -> None:
         self.graph.add(factor)
@@ -126,23 +127,40 @@ class Backend:
             gtsam.BearingRangeFactor2D(X(keyframe), L(landmark), gtsam.Rot2(bearing), rng, noise)
         )
 
-    def update(self, extra_iterations: int = 0) -> NDArray[np.float64]:
-        """Run iSAM2 on what was added; the keyframe estimates, shape (K, 3)."""
+    def update(
+        self, extra_iterations: int = 0, full: bool = True, recent: int = 0
+    ) -> NDArray[np.float64]:
+        """Run iSAM2 on what was added; the keyframe estimates, shape (K, 3).
+
+        With ``full`` False only the last ``recent`` keyframes are read back from iSAM2 (the
+        others keep their last estimate: without a loop closure they barely move), so the
+        cost per keyframe does not grow with the map.
+        """
         self.isam.update(self._new, self._new_values)
         for _ in range(extra_iterations):
             self.isam.update()
         self._new = gtsam.NonlinearFactorGraph()
         self._new_values = gtsam.Values()
-        values = self.isam.calculateEstimate()
-        self._estimate = gtsam.utilities.extractPose2(values)
-        self._values = values
-        return self._estimate
+        old = self._estimate.shape[0]
+        if full or old == 0:
+            self._values = self.isam.calculateEstimate()
+            self._estimate = gtsam.utilities.extractPose2(self._values)
+            self._stale = False
+            return self._estimate
+        estimate = np.empty((self.n, 3))
+        estimate[:old] = self._estimate
+        for k in range(max(0, self.n - max(recent, 1) - (self.n - old)), self.n):
+            pose = self.isam.calculateEstimatePose2(X(k))
+            estimate[k] = (pose.x(), pose.y(), pose.theta())
+        self._estimate = estimate
+        self._stale = True
+        return estimate
 
     def landmark_estimates(self) -> NDArray[np.float64]:
         """Current landmark positions, shape (L, 2)."""
         if self.n_landmarks == 0:
             return np.zeros((0, 2))
-        return gtsam.utilities.extractPoint2(self._values)
+        return gtsam.utilities.extractPoint2(self.values)
 
     def marginal_xy_sigma(self, keyframe: int) -> float:
         """Largest standard deviation (m) of keyframe ``keyframe``'s position (iSAM2 marginal)."""
@@ -182,6 +200,9 @@ class Backend:
     @property
     def values(self) -> object:
         """The latest estimate as gtsam ``Values``."""
+        if self._stale:
+            self._values = self.isam.calculateEstimate()
+            self._stale = False
         return self._values
 
     @property

@@ -53,17 +53,25 @@ class KeyframeStore:
         """Travelled distance (m) at each keyframe."""
         return np.asarray(self.travelled, dtype=np.float64)
 
-    def local_map(self, n: int) -> PointMap:
-        """The line points (with normals) of the last ``n`` keyframes at their estimates."""
-        xy, normals = [], []
-        for i in range(max(0, len(self.points) - n), len(self.points)):
-            p = self.points[i]
-            pose = self.estimate[i]
-            c, s = np.cos(pose[2]), np.sin(pose[2])
-            rot = np.array([[c, s], [-s, c]])
-            xy.append(p.xy[p.has_normal] @ rot + pose[:2])
-            normals.append(p.normals[p.has_normal] @ rot)
-        return PointMap.build(np.concatenate(xy), np.concatenate(normals))
+    def local_map(self, n: int) -> tuple[PointMap, PointMap]:
+        """The last ``n`` keyframes at their estimates: line points with normals (for ICP)
+        and every point (for the overlap)."""
+        first = max(0, len(self.points) - n)
+        chosen = self.points[first:]
+        xy = np.concatenate([p.xy for p in chosen])
+        normals = np.concatenate([p.normals for p in chosen])
+        line = np.concatenate([p.has_normal for p in chosen])
+        owner = np.repeat(np.arange(first, len(self.points)), [len(p.xy) for p in chosen])
+        pose = self.estimate[owner]
+        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+        moved = np.column_stack(
+            [c * xy[:, 0] - s * xy[:, 1] + pose[:, 0], s * xy[:, 0] + c * xy[:, 1] + pose[:, 1]]
+        )
+        turned = np.column_stack(
+            [c * normals[:, 0] - s * normals[:, 1], s * normals[:, 0] + c * normals[:, 1]]
+        )
+        every = PointMap.build(moved, np.zeros_like(moved))
+        return PointMap.build(moved[line], turned[line]), every
 
     def landmarks(self) -> Landmarks:
         """The corner landmarks (none yet in this store)."""

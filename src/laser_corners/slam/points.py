@@ -92,6 +92,25 @@ def _normals(
     return normals, ok
 
 
+@numba.njit(cache=True)
+def _beams(
+    ranges: NDArray[np.float64], angle_min: float, increment: float, lo: float, hi: float
+) -> NDArray[np.float64]:
+    """Sensor-frame points of the beams with ``lo < range < hi``, counter-clockwise order."""
+    n = ranges.size
+    out = np.empty((n, 2))
+    m = 0
+    for k in range(n):
+        i = k if increment > 0 else n - 1 - k
+        r = ranges[i]
+        if np.isfinite(r) and lo < r < hi:
+            a = angle_min + increment * i
+            out[m, 0] = r * np.cos(a)
+            out[m, 1] = r * np.sin(a)
+            m += 1
+    return out[:m]
+
+
 class ScanPoints:
     """The thinned points of one scan in the base frame, with line normals.
 
@@ -121,16 +140,11 @@ def scan_points(
 ) -> ScanPoints:
     """Valid beams of ``scan`` (within ``(min_range, max_range)`` and the scan's own limits)
     as points in the base frame, thinned to ``spacing``, with normals."""
-    ranges = np.asarray(scan.ranges, dtype=np.float64)
-    angles = scan.angle_min + scan.angle_increment * np.arange(ranges.size)
     hi = min(max_range, scan.range_max)
-    with np.errstate(invalid="ignore"):
-        valid = np.isfinite(ranges) & (ranges > max(min_range, scan.range_min)) & (ranges < hi)
-    r = ranges[valid]
-    a = angles[valid]
-    if scan.angle_increment < 0:
-        r, a = r[::-1], a[::-1]
-    sensor = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
+    lo = max(min_range, scan.range_min)
+    sensor = _beams(
+        np.asarray(scan.ranges, dtype=np.float64), scan.angle_min, scan.angle_increment, lo, hi
+    )
     if sensor.shape[0] == 0:
         empty = np.zeros((0, 2))
         return ScanPoints(empty, empty, np.zeros(0, dtype=bool))

@@ -34,6 +34,10 @@ from laser_corners.slam.result import LoopClosure, SlamResult
 
 __all__ = ["Slam"]
 
+FULL_ESTIMATE_EVERY = 50
+"""Every this many keyframes (and after every loop closure) all keyframe estimates are read
+back from iSAM2; in between only the recent ones."""
+
 COUNT_KEYS = (
     "scans",
     "keyframes",
@@ -78,7 +82,8 @@ class Slam:
         self._anchor = np.zeros(3)  # the last keyframe's pose in the tracking frame
         self._last_odom = np.zeros(3)
         self._last_stamp = -np.inf
-        self._local: PointMap | None = None
+        self._local: PointMap | None = None  # line points with normals, for ICP
+        self._local_all: PointMap | None = None  # every point, for the overlap
         self._cov = np.diag([1e-6, 1e-6, 1e-8])
         self._since_closure = 0.0
         self._closed_recently = False
@@ -154,6 +159,7 @@ class Slam:
             max_distance=opt.icp_max_distance,
             inlier_distance=opt.loop_inlier_distance,
             iterations=opt.icp_iterations,
+            overlap_map=self._local_all,
         )
         if aligned.overlap < opt.min_overlap:
             self.counts["alignment_failures"] += 1
@@ -182,13 +188,16 @@ class Slam:
             self._since_closure += dist
         self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
         closed = self._close_loops(k) if opt.loop_closure and not first else False
-        estimate = self.backend.update(extra_iterations=1 if closed else 0)
+        full = closed or k % FULL_ESTIMATE_EVERY == 0
+        estimate = self.backend.update(
+            extra_iterations=1 if closed else 0, full=full, recent=opt.local_map_keyframes + 5
+        )
         self.kf.estimate = estimate
         self.pose = estimate[k].copy()
         self._anchor = self.pose.copy()
         self._aligned_since_kf = True
         self._jump = False
-        self._local = self.kf.local_map(opt.local_map_keyframes)
+        self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
         self.counts["keyframes"] = len(self.kf)
 
     def _close_loops(self, k: int) -> bool:
@@ -237,6 +246,7 @@ class Slam:
                 for i in self.backend.pruned:
                     self._prune(accepted[i])
             else:
+                self.backend.update(full=True)
                 graph, values = self.backend.graph, self.backend.values
             self.kf.estimate = self.backend.estimate
         n = len(self._stamps)
