@@ -17,9 +17,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import PointMap, icp
+from laser_corners.slam.align import Alignment, PointMap, icp
 from laser_corners.slam.backend import Backend
-from laser_corners.slam.geometry import between, compose, compose_many
+from laser_corners.slam.geometry import between, between_many, compose, compose_many, wrap
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.loops import (
     MAX_WINDOW_XY,
@@ -82,6 +82,7 @@ class Slam:
         self._anchor = np.zeros(3)  # the last keyframe's pose in the tracking frame
         self._last_odom = np.zeros(3)
         self._last_stamp = -np.inf
+        self._links: list[NDArray | None] = [None]  # tracked pose of keyframe k in k - 1's
         self._local: PointMap | None = None  # line points with normals, for ICP
         self._local_all: PointMap | None = None  # every point, for the overlap
         self._cov = np.diag([1e-6, 1e-6, 1e-8])
@@ -140,7 +141,10 @@ class Slam:
         return self.pose.copy(), self._cov.copy()
 
     def _track(self, xy: NDArray, pred: NDArray, delta: NDArray, jump: bool) -> NDArray:
-        """The pose of a scan: ICP against the local map from the prediction, or the prediction."""
+        """The pose of a scan: ICP against the local map from the odometry prediction; when
+        it fails (too little overlap), the prediction (counted). (A recovery by a correlative
+        search around the last pose was tried: on intel.bag's out-of-order scans it locked
+        onto wrong rotations and broke the map, so it is not used.)"""
         opt = self.options
         if not opt.scan_alignment or self._local is None:
             return pred
@@ -151,21 +155,31 @@ class Slam:
             sxy = opt.odometry_sigma_xy * (dist + 0.1)
             syaw = opt.odometry_sigma_yaw * (abs(float(delta[2])) + dist + 0.1)
             sig = np.array([sxy, sxy, syaw])
-        aligned = icp(
+        aligned = self._icp(xy, pred, np.diag(1.0 / sig**2))
+        if aligned.overlap >= opt.min_overlap:
+            return aligned.pose
+        return self._failed(pred)
+
+    def _failed(self, pred: NDArray) -> NDArray:
+        """Count a failed alignment and keep the prediction (the keyframe link gets the
+        odometry's noise)."""
+        self.counts["alignment_failures"] += 1
+        self._aligned_since_kf = False
+        return pred
+
+    def _icp(self, xy: NDArray, guess: NDArray, prior: NDArray) -> Alignment:
+        opt = self.options
+        assert self._local is not None
+        return icp(
             xy,
             self._local,
-            pred,
-            np.diag(1.0 / sig**2),
+            guess,
+            prior,
             max_distance=opt.icp_max_distance,
             inlier_distance=opt.loop_inlier_distance,
             iterations=opt.icp_iterations,
             overlap_map=self._local_all,
         )
-        if aligned.overlap < opt.min_overlap:
-            self.counts["alignment_failures"] += 1
-            self._aligned_since_kf = False
-            return pred
-        return aligned.pose
 
     # ------------------------------------------------------------------ keyframes
     def _make_keyframe(
@@ -176,6 +190,7 @@ class Slam:
         k = self.backend.add_keyframe(self.pose, prior=self._jump and not first)
         if not first:
             rel = between(self._anchor, self.pose)
+            self._links.append(None if self._jump else rel)
             dist = float(np.hypot(rel[0], rel[1]))
             if self._aligned_since_kf and not self._jump:
                 sig = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
@@ -229,6 +244,28 @@ class Slam:
             self._since_closure = 0.0
         return closed
 
+    def _scan_poses(self) -> NDArray[np.float64]:
+        """Final pose of every scan: its pose relative to the keyframe before it, moved with
+        that keyframe's and the next keyframe's final estimates, blended by time, so the
+        correction a keyframe link absorbed is spread over the scans along it (no jumps)."""
+        ref = np.asarray(self._ref)
+        rel = np.asarray(self._rel)
+        estimate = self.kf.estimate
+        from_a = compose_many(estimate[ref], rel)
+        nxt = np.minimum(ref + 1, len(self.kf) - 1)
+        has_next = (ref + 1 < len(self.kf)) & np.array(
+            [self._links[j] is not None for j in nxt], dtype=bool
+        )
+        links = np.array([link if link is not None else np.zeros(3) for link in self._links])
+        from_b = compose_many(estimate[nxt], between_many(links[nxt], rel))
+        kst = np.asarray(self.kf.stamps)
+        span = np.maximum(kst[nxt] - kst[ref], 1e-9)
+        w = np.where(has_next, np.clip((np.asarray(self._stamps) - kst[ref]) / span, 0, 1), 0.0)
+        out = from_a.copy()
+        out[:, :2] += w[:, None] * (from_b[:, :2] - from_a[:, :2])
+        out[:, 2] = wrap(from_a[:, 2] + w * wrap(from_b[:, 2] - from_a[:, 2]))
+        return out
+
     def _prune(self, closure: LoopClosure) -> None:
         """Mark an accepted closure as dropped by the final optimisation."""
         closure.accepted = False
@@ -251,8 +288,7 @@ class Slam:
             self.kf.estimate = self.backend.estimate
         n = len(self._stamps)
         if n:
-            ref = np.asarray(self._ref)
-            poses = compose_many(self.kf.estimate[ref], np.asarray(self._rel))
+            poses = self._scan_poses()
         else:
             poses = np.zeros((0, 3))
         self.counts["landmarks"] = 0
