@@ -9,11 +9,11 @@ import pytest
 
 pytest.importorskip("gtsam")
 
-from laser_corners.errors import InvalidParamsError
+from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.eval.relations import closure_consistency, relation_metrics
 from laser_corners.scan import LaserScan
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam import Slam, SlamOptions
+from laser_corners.slam import Slam, SlamOptions, run_slam
 from laser_corners.slam.geometry import between_many, compose, compose_many
 
 RATE = 10.0
@@ -160,3 +160,17 @@ def test_write_g2o(drive, tmp_path) -> None:
     text = path.read_text()
     assert text.count("VERTEX_SE2") == result.counts["keyframes"]
     assert "EDGE_SE2" in text
+
+
+def test_landmarks_are_refused_until_implemented() -> None:
+    with pytest.raises(InvalidParamsError, match="not implemented"):
+        Slam(SlamOptions(landmarks=True))
+
+
+def test_recording_without_odometry_is_one_line(tmp_path) -> None:
+    path = tmp_path / "scans.clf"
+    line = "RAWLASER1 0 -1.5708 3.1416 0.7854 50 0.01 0 5 1 1 1 1 1 0 {t} host {t}\n"
+    path.write_text("".join(line.format(t=float(i)) for i in range(3)))
+    with pytest.raises(InputError, match="odometry") as info:
+        run_slam(path)
+    assert "\n" not in str(info.value) and str(path) in str(info.value)

@@ -33,9 +33,11 @@ class SlamOptions(BaseModel):
     local_map_keyframes: int = Field(20, ge=1, le=500)
     """Recent keyframes whose points form the local map each scan is aligned to."""
     scan_alignment: bool = True
-    """Align every scan to the local map (point-to-line ICP); off: corners only."""
+    """Align every scan to the local map (point-to-line ICP); off: odometry prediction only
+    (the corners-only front end, corner registration, is not implemented yet)."""
     landmarks: bool = False
-    """Corner keypoints of keyframes as landmarks in the graph (bearing-range factors)."""
+    """Corner keypoints of keyframes as landmarks in the graph. Not implemented yet: True is
+    refused with an :class:`~laser_corners.errors.InvalidParamsError`."""
     loop_closure: bool = True
     """Search and verify loop closures against older keyframes."""
     final_optimisation: bool = True

@@ -16,6 +16,7 @@ import time
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from laser_corners.errors import InvalidParamsError
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, PointMap, icp
 from laser_corners.slam.backend import Backend
@@ -67,6 +68,10 @@ class Slam:
         self, options: SlamOptions | None = None, mount: ArrayLike = (0.0, 0.0, 0.0)
     ) -> None:
         self.options = options or SlamOptions()
+        if self.options.landmarks:
+            raise InvalidParamsError(
+                "landmarks=true: corner landmarks are not implemented yet in laser_corners.slam"
+            )
         chosen = self.options.mount if self.options.mount is not None else mount
         self.mount = np.asarray(chosen, dtype=np.float64).reshape(3)
         self.backend = Backend()
