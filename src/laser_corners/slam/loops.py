@@ -27,7 +27,7 @@ SEARCH_RESOLUTION = 0.15
 """Cell size (m) of the correlative search grid (refined by ICP afterwards)."""
 QUERY_CELL = 0.1
 """Cell (m) of the voxel thinning of a multi-keyframe loop query."""
-MAX_WINDOW_XY = 3.0
+MAX_WINDOW_XY = 5.0
 """Largest half-width (m) of the search window, whatever the uncertainty says."""
 MAX_WINDOW_YAW = 0.6
 """Largest half-width (rad) of the yaw search window."""

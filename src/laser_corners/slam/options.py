@@ -86,7 +86,7 @@ class SlamOptions(BaseModel):
     """Keyframes (the current one and its predecessors) whose points form a loop query."""
     loop_every: int = Field(5, ge=1, le=1000)
     """Loop search on every n-th keyframe."""
-    loop_candidates: int = Field(1, ge=1, le=20)
+    loop_candidates: int = Field(2, ge=1, le=20)
     """Candidates verified per loop search (nearest first, from different submaps)."""
     loop_agree_xy: float = Field(0.15, ge=0.0, le=10.0)
     """A verified closure moving the map by less than this (m) is accepted at once; a larger
