@@ -11,6 +11,8 @@ when enough of its points lie on the submap and the alignment is not degenerate 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -21,7 +23,7 @@ from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import ScanPoints
 from laser_corners.slam.result import LoopClosure
 
-__all__ = ["ClosureGate", "candidates", "verify"]
+__all__ = ["ClosureGate", "SubmapCache", "candidates", "verify"]
 
 SEARCH_RESOLUTION = 0.15
 """Cell size (m) of the correlative search grid (refined by ICP afterwards)."""
@@ -96,11 +98,42 @@ def _query(
         c, s = np.cos(pose[2]), np.sin(pose[2])
         parts.append(points[i].xy @ np.array([[c, s], [-s, c]]) + pose[:2])
     xy = np.concatenate(parts)
-    if len(parts) == 1:
-        return xy
-    cells = np.floor(xy / QUERY_CELL).astype(np.int64)
+    return xy if len(parts) == 1 else _thin(xy, QUERY_CELL)
+
+
+def _thin(xy: NDArray[np.float64], cell: float) -> NDArray[np.float64]:
+    """One point per ``cell``-sized square (the first one), in the input order."""
+    cells = np.floor(xy / cell).astype(np.int64)
     _, keep = np.unique(cells[:, 0] * 1_000_003 + cells[:, 1], return_index=True)
     return xy[np.sort(keep)]
+
+
+class SubmapCache:
+    """Submaps (search grid, line map, point map) of recent candidates, by keyframe; cleared
+    whenever the estimates change much (a loop closure, a full read of the estimates)."""
+
+    def __init__(self, size: int = 16) -> None:
+        self.size = size
+        self.version = 0
+        self._items: dict[int, tuple[ScoreGrid, PointMap, PointMap]] = {}
+
+    def invalidate(self) -> None:
+        """Forget every submap (the estimates moved)."""
+        self._items.clear()
+        self.version += 1
+
+    def get(
+        self, j: int, build: Callable[[], tuple[ScoreGrid, PointMap, PointMap] | None]
+    ) -> tuple[ScoreGrid, PointMap, PointMap] | None:
+        """The submap of ``j``, built with ``build`` when not cached (None: too few points)."""
+        if j not in self._items:
+            built = build()
+            if built is None:
+                return None
+            if len(self._items) >= self.size:
+                self._items.pop(next(iter(self._items)))
+            self._items[j] = built
+        return self._items[j]
 
 
 def verify(
@@ -111,16 +144,24 @@ def verify(
     travelled: NDArray[np.float64],
     window: tuple[float, float],
     options: SlamOptions,
+    cache: SubmapCache | None = None,
 ) -> LoopClosure:
     """Try to close keyframe ``k`` against the older keyframe ``j``."""
     guess = between_many(estimate[j], estimate[k])
     query = _query(k, points, estimate, options.loop_query_keyframes)
-    all_xy, line_xy, normals = _submap(j, k, points, estimate, travelled, options)
-    if query.shape[0] < 20 or line_xy.shape[0] < 20:
+
+    def build() -> tuple[ScoreGrid, PointMap, PointMap] | None:
+        all_xy, line_xy, normals = _submap(j, k, points, estimate, travelled, options)
+        if line_xy.shape[0] < 20:
+            return None
+        grid = ScoreGrid.build(all_xy, SEARCH_RESOLUTION, SEARCH_RESOLUTION, MAX_WINDOW_XY + 0.5)
+        return grid, PointMap.build(line_xy, normals), PointMap.build(all_xy, np.zeros_like(all_xy))
+
+    submap = (cache or SubmapCache()).get(j, build)
+    if query.shape[0] < 20 or submap is None:
         return LoopClosure(k, j, tuple(guess), False, "too few points")
-    grid = ScoreGrid.build(all_xy, SEARCH_RESOLUTION, SEARCH_RESOLUTION, window[0] + 0.5)
-    score, found = search(grid, query, guess, window[0], window[1])
-    pointmap = PointMap.build(line_xy, normals)
+    grid, pointmap, full = submap
+    score, found = search(grid, _thin(query, SEARCH_RESOLUTION), guess, window[0], window[1])
     aligned = icp(
         query,
         pointmap,
@@ -140,7 +181,6 @@ def verify(
         iterations=options.icp_iterations,
     )
     relative = tuple(float(v) for v in aligned.pose)
-    full = PointMap.build(all_xy, np.zeros_like(all_xy))
     overlap = match_share(query, full, aligned.pose, options.loop_inlier_distance)
     if overlap < options.loop_min_score:
         return LoopClosure(k, j, relative, False, f"low overlap {overlap:.2f}")

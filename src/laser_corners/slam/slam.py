@@ -26,6 +26,7 @@ from laser_corners.slam.loops import (
     MAX_WINDOW_XY,
     MAX_WINDOW_YAW,
     ClosureGate,
+    SubmapCache,
     candidates,
     verify,
 )
@@ -93,6 +94,7 @@ class Slam:
         self._cov = np.diag([1e-6, 1e-6, 1e-8])
         self._since_closure = 0.0
         self._closed_recently = False
+        self.submaps = SubmapCache()
         self.gate = ClosureGate(
             self.options.loop_agree_xy, self.options.loop_agree_yaw, 4 * self.options.loop_every
         )
@@ -209,6 +211,8 @@ class Slam:
         self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
         closed = self._close_loops(k) if opt.loop_closure and not first else False
         full = closed or k % FULL_ESTIMATE_EVERY == 0
+        if full:
+            self.submaps.invalidate()
         estimate = self.backend.update(
             extra_iterations=1 if closed else 0, full=full, recent=opt.local_map_keyframes + 5
         )
@@ -233,7 +237,16 @@ class Slam:
         closed = False
         for j in candidates(k, estimate, self.kf.travelled_array(), window[0], opt):
             self.counts["closures_proposed"] += 1
-            closure = verify(k, j, self.kf.points, estimate, self.kf.travelled_array(), window, opt)
+            closure = verify(
+                k,
+                j,
+                self.kf.points,
+                estimate,
+                self.kf.travelled_array(),
+                window,
+                opt,
+                self.submaps,
+            )
             self.closures.append(closure)
             if not closure.accepted:
                 continue
