@@ -145,7 +145,7 @@ class Slam:
         self._rel.append(between(self._anchor, self.pose))
         self._ms.append((time.perf_counter() - start) * 1e3)
         self.counts["scans"] += 1
-        return self.pose.copy(), self._cov.copy()
+        return self.pose.copy(), self._covariance()
 
     def _track(self, xy: NDArray, pred: NDArray, delta: NDArray, jump: bool) -> NDArray:
         """The pose of a scan: ICP against the local map from the odometry prediction; when
@@ -166,6 +166,18 @@ class Slam:
         if aligned.overlap >= opt.min_overlap:
             return aligned.pose
         return self._failed(pred)
+
+    def _covariance(self) -> NDArray[np.float64]:
+        """The last keyframe's iSAM2 marginal (body frame) plus the scan-alignment noise since
+        it, rotated into the map frame."""
+        opt = self.options
+        cov = (
+            self._cov + np.diag([opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw]) ** 2
+        )
+        assert self.pose is not None
+        c, s = np.cos(self.pose[2]), np.sin(self.pose[2])
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return rot @ cov @ rot.T
 
     def _failed(self, pred: NDArray) -> NDArray:
         """Count a failed alignment and keep the prediction (the keyframe link gets the
@@ -223,6 +235,7 @@ class Slam:
         self._jump = False
         self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
         self.counts["keyframes"] = len(self.kf)
+        self._cov = self.backend.covariance(k)
 
     def _close_loops(self, k: int) -> bool:
         opt = self.options
