@@ -133,11 +133,12 @@ def test_beam_count_change_and_time_jump_do_not_crash() -> None:
                 scan.stamp,
             )
         stamp = i / RATE + (100.0 if i >= 20 else 0.0)  # a 100 s gap
+        stamp -= 0.15 if i == 10 else 0.0  # a stamp 0.05 s behind the previous: jitter
         pose_out, cov = slam.add(scan, pose, stamp)
         assert np.all(np.isfinite(pose_out)) and cov.shape == (3, 3)
         assert np.all(np.linalg.eigvalsh(cov) > 0)
-        if i == 25:  # after the jump the new segment hangs on a weak prior: uncertain
-            assert cov[0, 0] > 1.0
+        if i == 25:  # the scans after the gap aligned to the map: the graph is not cut
+            assert cov[0, 0] < 0.01
     result = slam.result()
     assert result.counts["time_jumps"] == 1
     assert result.poses.shape == (40, 3)

@@ -98,7 +98,9 @@ class SlamOptions(BaseModel):
     loop_sigma_yaw: float = Field(0.01, ge=1e-5, le=1.0)
     """Noise (rad) of a loop closure factor (under a Cauchy kernel)."""
     time_jump: float = Field(5.0, ge=0.1, le=1e6)
-    """A gap (s) between scans longer than this starts a new odometry segment."""
+    """A gap (s) between scan stamps (either way) longer than this is a time jump: the scan
+    becomes a keyframe, its alignment gets a weak odometry prior, and when it does not align
+    the graph is cut there (a new segment under a weak prior)."""
 
     def __init__(self, **data: Any) -> None:
         try:

@@ -122,11 +122,11 @@ class Slam:
             self.pose = odo.copy()
             self._make_keyframe(scan, pts, odo, stamp, first=True)
         else:
-            jump = not (0.0 <= stamp - self._last_stamp <= opt.time_jump)
+            jump = abs(stamp - self._last_stamp) > opt.time_jump
             if jump:
                 self.counts["time_jumps"] += 1
                 self._jump = True
-            delta = np.zeros(3) if jump else between(self._last_odom, odo)
+            delta = between(self._last_odom, odo)
             pred = compose(self.pose, delta)
             self.pose = self._track(pts.xy, pred, delta, jump)
             moved = between(self._anchor, self.pose)
@@ -206,14 +206,15 @@ class Slam:
     ) -> None:
         opt = self.options
         assert self.pose is not None
-        k = self.backend.add_keyframe(self.pose, prior=self._jump and not first)
+        cut = self._jump and not self._aligned_since_kf  # a gap the alignment did not bridge
+        k = self.backend.add_keyframe(self.pose, prior=cut and not first)
         if not first:
             rel = between(self._anchor, self.pose)
-            self._links.append(None if self._jump else rel)
+            self._links.append(None if cut else rel)
             dist = float(np.hypot(rel[0], rel[1]))
-            if self._aligned_since_kf and not self._jump:
+            if self._aligned_since_kf:
                 sig = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
-            elif self._jump:
+            elif cut:
                 sig = (10.0, 10.0, 3.0)
             else:
                 sxy = opt.odometry_sigma_xy * (dist + 0.1)
