@@ -231,6 +231,10 @@ class StreamingTrack:
                 self.odom_frame, self.base_frame, empty, empty, empty, empty, parents, self._mount
             )
 
+    def mount_of(self, frame: str) -> Pose2D | None:
+        """Transform from the base frame to ``frame`` from what has been read, or None."""
+        return self._mount_of(frame)
+
     def _mount_of(self, frame: str) -> Pose2D | None:
         found = self._mount.get(frame_name(frame), self)  # self: not computed yet
         if found is not self:

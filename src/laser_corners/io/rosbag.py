@@ -96,6 +96,8 @@ class BagSource(ScanSource):
         The ``sensor_msgs/msg/LaserScan`` topics.
     odom_topic : str or None
         The odometry topic used for poses.
+    mounts : dict of str to Pose2D or None
+        Base -> laser transform of each scan frame read so far (what scan poses composed).
     stamps_ns : list of int
         Header stamps (ns) of the scans yielded so far, by scan index (exact, for writers).
     log_times_ns : list of int
@@ -117,6 +119,7 @@ class BagSource(ScanSource):
         self.kind = kind
         self.stamps_ns: list[int] = []
         self.log_times_ns: list[int] = []
+        self.mounts: dict[str, Pose2D | None] = {}
         self._lean_index = 0
         with self.reader() as reader:
             self.topics: dict[str, tuple[str, int]] = {}
@@ -350,6 +353,8 @@ class BagSource(ScanSource):
         self.position = item.where
         stamp = item.stamp_ns * 1e-9
         pose = track.pose(stamp, item.frame_id) if track is not None else None
+        if track is not None and item.frame_id not in self.mounts:
+            self.mounts[item.frame_id] = track.mount_of(item.frame_id)
         if item.checked and finite_pose(pose):  # the lean path checked the geometry
             self.stamps_ns.append(item.stamp_ns)
             self.log_times_ns.append(item.log_time_ns)

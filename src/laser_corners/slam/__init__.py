@@ -1,0 +1,15 @@
+"""2D SLAM with the library's scans, matching and gtsam (the ``slam`` extra).
+
+:class:`Slam` is the incremental API (``add(scan, odometry, stamp) -> pose, covariance``),
+:func:`run_slam` runs it over a recording, :class:`SlamResult` is what both give.
+Modules: :mod:`~.options`, :mod:`~.points` and :mod:`~.align` (scan points, ICP),
+:mod:`~.keyframes` (local map), :mod:`~.correlative` and :mod:`~.loops` (loop closure),
+:mod:`~.backend` (gtsam), :mod:`~.slam`, :mod:`~.run`, :mod:`~.result`.
+"""
+
+from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.result import Landmarks, LoopClosure, SlamResult
+from laser_corners.slam.run import run_slam
+from laser_corners.slam.slam import Slam
+
+__all__ = ["Landmarks", "LoopClosure", "Slam", "SlamOptions", "SlamResult", "run_slam"]

@@ -1,0 +1,268 @@
+"""Point-to-line ICP of scan points against a point map with normals (numba, no Python loop
+per iteration).
+
+The map's points are bucketed in a grid of cells (:class:`PointMap`); the nearest map point
+of a scan point is searched in the cells around it. Each iteration pairs every scan point
+with its nearest map point within ``max_distance`` and minimises the Huber-weighted sum of
+squared point-to-line distances ``n_q · (R p + t - q)`` plus a prior pulling the pose towards
+the prediction with information ``prior_info``, so a corridor (lines in one direction only)
+keeps the predicted position along itself.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.slam.geometry import wrap
+
+__all__ = ["Alignment", "PointMap", "icp", "match_share"]
+
+CELL = 0.3
+"""Grid cell (m) of a :class:`PointMap`; a search within CELL looks at the 3 x 3 cells around."""
+
+
+@numba.njit(cache=True)
+def _bucket(
+    xy: NDArray[np.float64], origin: NDArray[np.float64], cell: float, nx: int, ny: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """CSR layout of points by cell: ``order[start[c]:start[c + 1]]`` are the points of cell c."""
+    n = xy.shape[0]
+    ids = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        cx = int((xy[i, 0] - origin[0]) / cell)
+        cy = int((xy[i, 1] - origin[1]) / cell)
+        ids[i] = cy * nx + cx
+    order = np.argsort(ids, kind="mergesort")
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    for i in range(n):
+        start[ids[i] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    return start, order
+
+
+@dataclass
+class PointMap:
+    """Map points with unit normals (map frame), bucketed in a grid."""
+
+    xy: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    origin: NDArray[np.float64]
+    shape: tuple[int, int]
+    start: NDArray[np.int64]
+    order: NDArray[np.int64]
+
+    @classmethod
+    def build(cls, xy: NDArray[np.float64], normals: NDArray[np.float64]) -> PointMap:
+        """A map from points and normals (zero normals: points for overlap only)."""
+        xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
+        normals = np.ascontiguousarray(normals, dtype=np.float64).reshape(-1, 2)
+        if xy.shape[0] == 0:
+            origin, nx, ny = np.zeros(2), 1, 1
+        else:
+            origin = xy.min(axis=0) - CELL
+            nx, ny = (np.floor((xy.max(axis=0) - origin) / CELL).astype(int) + 2).tolist()
+        start, order = _bucket(xy, origin, CELL, nx, ny)
+        return cls(xy, normals, origin, (nx, ny), start, order)
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+
+@numba.njit(cache=True)
+def _nearest(
+    px: float,
+    py: float,
+    xy: NDArray,
+    origin: NDArray,
+    nx: int,
+    ny: int,
+    start: NDArray,
+    order: NDArray,
+    max_d: float,
+) -> int:
+    """Index of the nearest map point within ``max_d`` of (px, py), or -1."""
+    reach = min(math.ceil(max_d / CELL), 3)
+    cx = math.floor((px - origin[0]) / CELL)
+    cy = math.floor((py - origin[1]) / CELL)
+    best = max_d * max_d
+    found = -1
+    for iy in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
+        for ix in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
+            c = iy * nx + ix
+            for k in range(start[c], start[c + 1]):
+                j = order[k]
+                dx = xy[j, 0] - px
+                dy = xy[j, 1] - py
+                d = dx * dx + dy * dy
+                if d < best:
+                    best = d
+                    found = j
+    return found
+
+
+@numba.njit(cache=True)
+def _icp(
+    src: NDArray,
+    xy: NDArray,
+    nrm: NDArray,
+    origin: NDArray,
+    nx: int,
+    ny: int,
+    start: NDArray,
+    order: NDArray,
+    guess: NDArray,
+    prior: NDArray,
+    max_d: float,
+    sigma: float,
+    iterations: int,
+) -> tuple[NDArray, NDArray]:
+    pose = guess.copy()
+    info = np.zeros((3, 3))
+    scale = 1.0 / (sigma * sigma)
+    huber = 2.0 * sigma
+    for _ in range(iterations):
+        h = np.zeros((3, 3))
+        g = np.zeros(3)
+        c = math.cos(pose[2])
+        s = math.sin(pose[2])
+        used = 0
+        for i in range(src.shape[0]):
+            rx = c * src[i, 0] - s * src[i, 1]
+            ry = s * src[i, 0] + c * src[i, 1]
+            px = rx + pose[0]
+            py = ry + pose[1]
+            j = _nearest(px, py, xy, origin, nx, ny, start, order, max_d)
+            if j < 0:
+                continue
+            r = nrm[j, 0] * (px - xy[j, 0]) + nrm[j, 1] * (py - xy[j, 1])
+            jac = np.array([nrm[j, 0], nrm[j, 1], -nrm[j, 0] * ry + nrm[j, 1] * rx])
+            w = 1.0 if abs(r) <= huber else huber / abs(r)
+            for a in range(3):
+                g[a] += w * jac[a] * r
+                for b in range(3):
+                    h[a, b] += w * jac[a] * jac[b]
+            used += 1
+        if used < 3:
+            break
+        diff = pose - guess
+        diff[2] = (diff[2] + math.pi) % (2 * math.pi) - math.pi
+        info = h * scale
+        step = np.linalg.solve(info + prior, -(g * scale + prior @ diff))
+        pose += step
+        if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
+            break
+    return pose, info
+
+
+@numba.njit(cache=True)
+def _share(
+    src: NDArray,
+    xy: NDArray,
+    origin: NDArray,
+    nx: int,
+    ny: int,
+    start: NDArray,
+    order: NDArray,
+    pose: NDArray,
+    max_d: float,
+) -> float:
+    c = math.cos(pose[2])
+    s = math.sin(pose[2])
+    hit = 0
+    for i in range(src.shape[0]):
+        px = c * src[i, 0] - s * src[i, 1] + pose[0]
+        py = s * src[i, 0] + c * src[i, 1] + pose[1]
+        if _nearest(px, py, xy, origin, nx, ny, start, order, max_d) >= 0:
+            hit += 1
+    return hit / max(src.shape[0], 1)
+
+
+@dataclass
+class Alignment:
+    """Result of :func:`icp`: the pose, the share of points matched and the information."""
+
+    pose: NDArray[np.float64]
+    overlap: float
+    n_points: int
+    information: NDArray[np.float64]
+    """Gauss-Newton information of the point residuals (3x3)."""
+
+    def degenerate(self, ratio: float = 0.02) -> bool:
+        """Whether the translation is poorly constrained (a corridor): the smaller eigenvalue
+        of the translational information is below ``ratio`` times the larger."""
+        ev = np.linalg.eigvalsh(self.information[:2, :2])
+        return bool(ev[-1] <= 0 or ev[0] < ratio * ev[-1])
+
+
+def match_share(
+    points: NDArray[np.float64], pointmap: PointMap, pose: NDArray[np.float64], distance: float
+) -> float:
+    """Share of ``points`` (moved by ``pose``) within ``distance`` of a map point."""
+    if len(pointmap) == 0 or points.shape[0] == 0:
+        return 0.0
+    nx, ny = pointmap.shape
+    return float(
+        _share(
+            np.ascontiguousarray(points),
+            pointmap.xy,
+            pointmap.origin,
+            nx,
+            ny,
+            pointmap.start,
+            pointmap.order,
+            np.asarray(pose, dtype=np.float64),
+            distance,
+        )
+    )
+
+
+def icp(
+    points: NDArray[np.float64],
+    pointmap: PointMap,
+    guess: NDArray[np.float64],
+    prior_info: NDArray[np.float64],
+    *,
+    max_distance: float,
+    inlier_distance: float,
+    iterations: int,
+    sigma: float = 0.03,
+    overlap_map: PointMap | None = None,
+) -> Alignment:
+    """Align ``points`` (base frame) to ``pointmap`` starting from ``guess`` (map frame).
+
+    ``prior_info`` (3x3) weighs the pull towards ``guess`` against the point residuals of
+    standard deviation ``sigma`` (m). The overlap is measured against ``overlap_map`` (all
+    points, also those without a normal) when given, else against ``pointmap``.
+    """
+    guess = np.asarray(guess, dtype=np.float64)
+    src = np.ascontiguousarray(points, dtype=np.float64)
+    if src.shape[0] == 0 or len(pointmap) == 0:
+        return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))
+    nx, ny = pointmap.shape
+    try:
+        pose, info = _icp(
+            src,
+            pointmap.xy,
+            pointmap.normals,
+            pointmap.origin,
+            nx,
+            ny,
+            pointmap.start,
+            pointmap.order,
+            guess,
+            np.asarray(prior_info, dtype=np.float64),
+            max_distance,
+            sigma,
+            iterations,
+        )
+    except np.linalg.LinAlgError:  # pragma: no cover - singular system
+        return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))
+    pose[2] = wrap(pose[2])
+    overlap = match_share(src, overlap_map or pointmap, pose, inlier_distance)
+    return Alignment(pose, overlap, src.shape[0], info)

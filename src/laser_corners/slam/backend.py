@@ -1,0 +1,211 @@
+"""The pose graph in gtsam: iSAM2 while running, an optional batch Levenberg-Marquardt at the end.
+
+Keyframe ``k`` is the variable ``X(k)`` (``gtsam.Pose2``, the base pose in the map frame),
+landmark ``l`` is ``L(l)`` (``gtsam.Point2``). Loop closures go in under a Cauchy kernel so a
+wrong one that passed verification pulls with a bounded force instead of bending the map.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.errors import MissingDependencyError
+
+try:
+    import gtsam
+except ImportError:  # pragma: no cover - the "slam" extra is missing
+    gtsam = None
+
+__all__ = ["Backend", "require_gtsam"]
+
+HUBER_K = 1.345
+"""Huber threshold (in standard deviations) of loop-closure factors."""
+PRUNE_CHI = 3.0
+"""A loop closure whose whitened residual after the batch optimisation exceeds this many
+standard deviations contradicts the rest of the graph: it is dropped and the graph re-solved."""
+
+
+def require_gtsam() -> None:
+    """Raise :class:`MissingDependencyError` when gtsam is not installed."""
+    if gtsam is None:
+        raise MissingDependencyError(
+            "laser_corners.slam needs gtsam: pip install 'laser-corners[slam]'"
+        )
+
+
+def X(k: int) -> int:
+    """Key of keyframe ``k``."""
+    return gtsam.symbol("x", k)
+
+
+def L(k: int) -> int:
+    """Key of landmark ``k``."""
+    return gtsam.symbol("l", k)
+
+
+def _diag(sx: float, sy: float, syaw: float) -> object:
+    return gtsam.noiseModel.Diagonal.Sigmas(np.array([sx, sy, syaw]))
+
+
+class Backend:
+    """Incremental pose graph over keyframes (and landmarks)."""
+
+    def __init__(self) -> None:
+        require_gtsam()
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(0.01)
+        params.relinearizeSkip = 1
+        self.isam = gtsam.ISAM2(params)
+        self.graph = gtsam.NonlinearFactorGraph()  # every factor, for the batch and g2o
+        self.initial = gtsam.Values()
+        self._new = gtsam.NonlinearFactorGraph()
+        self._new_values = gtsam.Values()
+        self.n = 0
+        self.n_landmarks = 0
+        self.loops: list[tuple[int, int, object, object, int]] = []
+        self.pruned: list[int] = []  # indices into ``loops`` dropped by :meth:`optimise`
+        self._estimate = np.zeros((0, 3))
+        self._stale = False
+
+    def _add(self, factor: object) -> None:
+        self.graph.add(factor)
+        self._new.add(factor)
+
+    def add_keyframe(self, guess: NDArray[np.float64], prior: bool = False) -> int:
+        """Add the next keyframe variable at ``guess``; the first one (or ``prior``) gets a
+        prior (strong for the first, weak for a new odometry segment)."""
+        k = self.n
+        pose = gtsam.Pose2(*map(float, guess))
+        self._new_values.insert(X(k), pose)
+        self.initial.insert(X(k), pose)
+        if k == 0 or prior:
+            sig = (1e-3, 1e-3, 1e-4) if k == 0 else (100.0, 100.0, 3.0)
+            self._add(gtsam.PriorFactorPose2(X(k), pose, _diag(*sig)))
+        self.n += 1
+        return k
+
+    def add_between(
+        self,
+        a: int,
+        b: int,
+        relative: NDArray[np.float64],
+        sigmas: tuple[float, float, float],
+        robust: bool = False,
+    ) -> None:
+        """A relative-pose factor ``X(a)^-1 X(b) = relative``; ``robust``: a loop closure,
+        under a Huber kernel (bounded pull), kept apart so :meth:`optimise` can prune it."""
+        noise = _diag(*sigmas)
+        if robust:
+            noise = gtsam.noiseModel.Robust.Create(
+                gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise
+            )
+        rel = gtsam.Pose2(*map(float, relative))
+        factor = gtsam.BetweenFactorPose2(X(a), X(b), rel, noise)
+        if robust:
+            self.loops.append((a, b, rel, _diag(*sigmas), self.graph.size()))
+        self._add(factor)
+
+    def add_landmark(self, guess: NDArray[np.float64]) -> int:
+        """Add a landmark variable at ``guess`` (map frame)."""
+        k = self.n_landmarks
+        point = np.asarray(guess, dtype=np.float64)
+        self._new_values.insert(L(k), point)
+        self.initial.insert(L(k), point)
+        self.n_landmarks += 1
+        return k
+
+    def add_observation(
+        self, keyframe: int, landmark: int, bearing: float, rng: float, sigmas: tuple[float, float]
+    ) -> None:
+        """A bearing-range factor from keyframe ``keyframe`` (base frame) to ``landmark``."""
+        noise = gtsam.noiseModel.Robust.Create(
+            gtsam.noiseModel.mEstimator.Huber.Create(1.345),
+            gtsam.noiseModel.Diagonal.Sigmas(np.array(sigmas)),
+        )
+        self._add(
+            gtsam.BearingRangeFactor2D(X(keyframe), L(landmark), gtsam.Rot2(bearing), rng, noise)
+        )
+
+    def update(
+        self, extra_iterations: int = 0, full: bool = True, recent: int = 0
+    ) -> NDArray[np.float64]:
+        """Run iSAM2 on what was added; the keyframe estimates, shape (K, 3).
+
+        With ``full`` False only the last ``recent`` keyframes are read back from iSAM2 (the
+        others keep their last estimate: without a loop closure they barely move), so the
+        cost per keyframe does not grow with the map.
+        """
+        self.isam.update(self._new, self._new_values)
+        for _ in range(extra_iterations):
+            self.isam.update()
+        self._new = gtsam.NonlinearFactorGraph()
+        self._new_values = gtsam.Values()
+        old = self._estimate.shape[0]
+        if full or old == 0:
+            self._values = self.isam.calculateEstimate()
+            self._estimate = gtsam.utilities.extractPose2(self._values)
+            self._stale = False
+            return self._estimate
+        estimate = np.empty((self.n, 3))
+        estimate[:old] = self._estimate
+        for k in range(max(0, self.n - max(recent, 1) - (self.n - old)), self.n):
+            pose = self.isam.calculateEstimatePose2(X(k))
+            estimate[k] = (pose.x(), pose.y(), pose.theta())
+        self._estimate = estimate
+        self._stale = True
+        return estimate
+
+    def landmark_estimates(self) -> NDArray[np.float64]:
+        """Current landmark positions, shape (L, 2)."""
+        if self.n_landmarks == 0:
+            return np.zeros((0, 2))
+        return gtsam.utilities.extractPoint2(self.values)
+
+    def marginal_xy_sigma(self, keyframe: int) -> float:
+        """Largest standard deviation (m) of keyframe ``keyframe``'s position (iSAM2 marginal)."""
+        cov = self.isam.marginalCovariance(X(keyframe))
+        return float(np.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
+
+    def covariance(self, keyframe: int) -> NDArray[np.float64]:
+        """Marginal covariance (3x3, base frame x, y, yaw) of keyframe ``keyframe``."""
+        return np.asarray(self.isam.marginalCovariance(X(keyframe)))
+
+    def optimise(self) -> tuple[object, object]:
+        """Batch Levenberg-Marquardt from the iSAM2 estimate, then the loop closures that the
+        result contradicts (residual > :data:`PRUNE_CHI` sigmas) dropped and the graph solved
+        again: (graph, values)."""
+        params = gtsam.LevenbergMarquardtParams()
+        params.setMaxIterations(50)
+        start = self.isam.calculateEstimate()
+        values = gtsam.LevenbergMarquardtOptimizer(self.graph, start, params).optimize()
+        bad = []
+        for i, (a, b, rel, noise, _) in enumerate(self.loops):
+            plain = gtsam.BetweenFactorPose2(X(a), X(b), rel, noise)
+            if np.sqrt(2.0 * plain.error(values)) > PRUNE_CHI:
+                bad.append(i)
+        if bad:
+            drop = {self.loops[i][4] for i in bad}
+            kept = gtsam.NonlinearFactorGraph()
+            for f in range(self.graph.size()):
+                if f not in drop:
+                    kept.add(self.graph.at(f))
+            self.graph = kept
+            self.pruned = bad
+            values = gtsam.LevenbergMarquardtOptimizer(kept, values, params).optimize()
+        self._values = values
+        self._estimate = gtsam.utilities.extractPose2(values)
+        return self.graph, values
+
+    @property
+    def values(self) -> object:
+        """The latest estimate as gtsam ``Values``."""
+        if self._stale:
+            self._values = self.isam.calculateEstimate()
+            self._stale = False
+        return self._values
+
+    @property
+    def estimate(self) -> NDArray[np.float64]:
+        """The latest keyframe estimates, shape (K, 3)."""
+        return self._estimate

@@ -1,0 +1,122 @@
+"""Correlative scan matching (Olson 2009) over a window: the loop-closure search that survives
+the drift of long loops.
+
+The submap's points are rasterised into a grid whose cells score ``exp(-d² / 2σ²)`` by the
+distance ``d`` to the nearest point; every pose of a (x, y, yaw) lattice inside the window is
+scored by the mean cell score under the query's points, exhaustively (numba), and the best
+one is returned. The yaw step is chosen so the farthest point moves by about one cell.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import distance_transform_edt
+
+__all__ = ["ScoreGrid", "search"]
+
+
+@dataclass
+class ScoreGrid:
+    """A likelihood grid: ``score[iy, ix]`` for the cell whose corner is ``origin + res * i``."""
+
+    score: NDArray[np.float32]
+    origin: NDArray[np.float64]
+    resolution: float
+
+    @classmethod
+    def build(
+        cls, xy: NDArray[np.float64], resolution: float, sigma: float, margin: float
+    ) -> ScoreGrid:
+        """The grid of points ``xy`` (map frame) padded by ``margin`` (m)."""
+        lo = xy.min(axis=0) - margin
+        hi = xy.max(axis=0) + margin
+        shape = (np.ceil((hi - lo) / resolution).astype(int) + 1)[::-1]
+        occupied = np.ones(shape, dtype=bool)
+        cells = np.floor((xy - lo) / resolution).astype(int)
+        occupied[cells[:, 1], cells[:, 0]] = False
+        dist = distance_transform_edt(occupied) * resolution
+        score = np.exp(-0.5 * (dist / sigma) ** 2).astype(np.float32)
+        return cls(score, lo, resolution)
+
+
+@numba.njit(cache=True)
+def _best(
+    score: NDArray[np.float32],
+    origin: NDArray[np.float64],
+    res: float,
+    pts: NDArray[np.float64],
+    center: NDArray[np.float64],
+    n_xy: int,
+    yaws: NDArray[np.float64],
+) -> tuple[float, float, float, float]:
+    """Best (score, x, y, yaw) of the lattice ``center + (i, j) * res``, ``|i|, |j| <= n_xy``."""
+    ny, nx = score.shape
+    best = -1.0
+    bx = center[0]
+    by = center[1]
+    byaw = center[2]
+    n = pts.shape[0]
+    cx = np.empty(n, dtype=np.int64)
+    cy = np.empty(n, dtype=np.int64)
+    side = 2 * n_xy + 1
+    acc = np.zeros((side, side))
+    for yaw in yaws:
+        c = math.cos(yaw)
+        s = math.sin(yaw)
+        for k in range(n):
+            x = c * pts[k, 0] - s * pts[k, 1] + center[0] - origin[0]
+            y = s * pts[k, 0] + c * pts[k, 1] + center[1] - origin[1]
+            cx[k] = math.floor(x / res + 0.5)
+            cy[k] = math.floor(y / res + 0.5)
+        acc[:, :] = 0.0
+        for k in range(n):
+            for a in range(side):
+                iy = cy[k] + a - n_xy
+                if iy < 0 or iy >= ny:
+                    continue
+                row = score[iy]
+                for b in range(side):
+                    ix = cx[k] + b - n_xy
+                    if 0 <= ix < nx:
+                        acc[a, b] += row[ix]
+        for a in range(side):
+            for b in range(side):
+                if acc[a, b] > best:
+                    best = acc[a, b]
+                    bx = center[0] + (b - n_xy) * res
+                    by = center[1] + (a - n_xy) * res
+                    byaw = yaw
+    return best / max(n, 1), bx, by, byaw
+
+
+def search(
+    grid: ScoreGrid,
+    points: NDArray[np.float64],
+    center: NDArray[np.float64],
+    window_xy: float,
+    window_yaw: float,
+) -> tuple[float, NDArray[np.float64]]:
+    """Best pose of ``points`` (base frame) in the window around ``center`` and its mean score."""
+    res = grid.resolution
+    if points.shape[0] == 0:
+        return 0.0, np.asarray(center, dtype=np.float64)
+    reach = float(np.max(np.hypot(points[:, 0], points[:, 1])))
+    step = min(max(math.acos(max(1.0 - res * res / (2.0 * reach * reach), -1.0)), 0.008), 0.05)
+    n_yaw = math.ceil(window_yaw / step)
+    yaws = center[2] + step * np.arange(-n_yaw, n_yaw + 1)
+    n_xy = math.ceil(window_xy / res)
+    value, x, y, yaw = _best(
+        grid.score,
+        grid.origin,
+        res,
+        np.ascontiguousarray(points),
+        np.asarray(center, dtype=np.float64),
+        n_xy,
+        yaws,
+    )
+    return float(value), np.array([x, y, yaw])

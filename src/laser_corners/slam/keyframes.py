@@ -1,0 +1,78 @@
+"""Keyframe storage: scans, points, stamps, travelled distance, estimates and the local map."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.scan import LaserScan
+from laser_corners.slam.align import PointMap
+from laser_corners.slam.points import ScanPoints
+from laser_corners.slam.result import Landmarks
+
+__all__ = ["KeyframeStore"]
+
+
+class KeyframeStore:
+    """The keyframes of a run, in order."""
+
+    def __init__(self) -> None:
+        self.scans: list[LaserScan] = []
+        self.points: list[ScanPoints] = []
+        self.scan_index: list[int] = []
+        self.stamps: list[float] = []
+        self.odometry: list[NDArray] = []
+        self.travelled: list[float] = []
+        self.estimate = np.zeros((0, 3))
+
+    def __len__(self) -> int:
+        return len(self.scans)
+
+    def add(
+        self,
+        scan: LaserScan,
+        points: ScanPoints,
+        index: int,
+        stamp: float,
+        odometry: NDArray,
+        pose: NDArray,
+    ) -> None:
+        """Append a keyframe (``pose``: its current estimate)."""
+        step = 0.0
+        if self.scans:
+            last = self.estimate[-1] if len(self.estimate) == len(self.scans) else pose
+            step = float(np.hypot(*(pose[:2] - last[:2])))
+        self.travelled.append((self.travelled[-1] if self.travelled else 0.0) + step)
+        self.scans.append(scan)
+        self.points.append(points)
+        self.scan_index.append(index)
+        self.stamps.append(float(stamp))
+        self.odometry.append(np.asarray(odometry, dtype=np.float64))
+
+    def travelled_array(self) -> NDArray[np.float64]:
+        """Travelled distance (m) at each keyframe."""
+        return np.asarray(self.travelled, dtype=np.float64)
+
+    def local_map(self, n: int) -> tuple[PointMap, PointMap]:
+        """The last ``n`` keyframes at their estimates: line points with normals (for ICP)
+        and every point (for the overlap)."""
+        first = max(0, len(self.points) - n)
+        chosen = self.points[first:]
+        xy = np.concatenate([p.xy for p in chosen])
+        normals = np.concatenate([p.normals for p in chosen])
+        line = np.concatenate([p.has_normal for p in chosen])
+        owner = np.repeat(np.arange(first, len(self.points)), [len(p.xy) for p in chosen])
+        pose = self.estimate[owner]
+        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+        moved = np.column_stack(
+            [c * xy[:, 0] - s * xy[:, 1] + pose[:, 0], s * xy[:, 0] + c * xy[:, 1] + pose[:, 1]]
+        )
+        turned = np.column_stack(
+            [c * normals[:, 0] - s * normals[:, 1], s * normals[:, 0] + c * normals[:, 1]]
+        )
+        every = PointMap.build(moved, np.zeros_like(moved))
+        return PointMap.build(moved[line], turned[line]), every
+
+    def landmarks(self) -> Landmarks:
+        """The corner landmarks (none yet in this store)."""
+        return Landmarks()

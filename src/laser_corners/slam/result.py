@@ -1,0 +1,125 @@
+"""What a SLAM run gives: :class:`SlamResult` (trajectory, keyframes, landmarks, closures)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.errors import OutputError
+from laser_corners.scan import LaserScan
+from laser_corners.slam.geometry import compose_many
+from laser_corners.slam.options import SlamOptions
+
+__all__ = ["Landmarks", "LoopClosure", "SlamResult"]
+
+
+@dataclass
+class LoopClosure:
+    """One loop-closure attempt between two keyframes.
+
+    Attributes
+    ----------
+    query, match : int
+        Keyframe indices (the new one and the older one).
+    relative : tuple of float
+        Measured pose of ``query`` in the frame of ``match`` (x, y, yaw), base frame.
+    accepted : bool
+        Whether it went into the graph.
+    reason : str
+        Why it was accepted or rejected (``"ok"``, ``"low score 0.41"``...).
+    """
+
+    query: int
+    match: int
+    relative: tuple[float, float, float]
+    accepted: bool
+    reason: str
+
+
+@dataclass
+class Landmarks:
+    """Corner landmarks in the map frame (empty when landmarks are off)."""
+
+    xy: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    cov: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    n_obs: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    first_stamp: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    last_stamp: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+
+@dataclass
+class SlamResult:
+    """The result of a SLAM run over N scans with K keyframes.
+
+    Attributes
+    ----------
+    stamps : ndarray, shape (N,)
+        Scan stamps (s), one per scan fed (skipped scans are not in it).
+    poses : ndarray, shape (N, 3)
+        Base (odometry child frame) pose in the map frame, final estimate.
+    odometry : ndarray, shape (N, 3)
+        Raw odometry base pose.
+    keyframes : ndarray of int, shape (K,)
+        Scan indices (into ``stamps``) of the keyframes.
+    keyframe_poses : ndarray, shape (K, 3)
+        Final keyframe base poses in the map frame.
+    scans : list of LaserScan
+        Keyframe scans (sensor frame).
+    mount : ndarray, shape (3,)
+        Base -> laser transform used.
+    landmarks : Landmarks
+    closures : list of LoopClosure
+        Every verified loop-closure attempt (accepted or rejected).
+    ms_per_scan : ndarray, shape (N,)
+        Processing time of each scan (ms).
+    options : SlamOptions
+    counts : dict of str to int
+        ``scans, keyframes, skipped_no_odometry, time_jumps, closures_proposed,
+        closures_accepted, closures_rejected, alignment_failures, landmarks``.
+    interrupted : bool
+        The run was stopped (Ctrl-C) before the end of the recording.
+    graph : object
+        The final gtsam ``NonlinearFactorGraph`` (for :meth:`write_g2o`).
+    values : object
+        The final gtsam ``Values``.
+    """
+
+    stamps: NDArray[np.float64]
+    poses: NDArray[np.float64]
+    odometry: NDArray[np.float64]
+    keyframes: NDArray[np.int64]
+    keyframe_poses: NDArray[np.float64]
+    scans: list[LaserScan]
+    mount: NDArray[np.float64]
+    landmarks: Landmarks
+    closures: list[LoopClosure]
+    ms_per_scan: NDArray[np.float64]
+    options: SlamOptions
+    counts: dict[str, int]
+    interrupted: bool = False
+    graph: object = None
+    values: object = None
+
+    @property
+    def laser_poses(self) -> NDArray[np.float64]:
+        """Laser (sensor) poses in the map frame, shape (N, 3)."""
+        return compose_many(self.poses, self.mount)
+
+    def write_g2o(self, path: str | Path) -> None:
+        """Write the final pose graph (``VERTEX_SE2``/``EDGE_SE2``; landmarks as ``VERTEX_XY``)."""
+        import gtsam
+
+        path = Path(path)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            graph = self.graph if self.graph is not None else gtsam.NonlinearFactorGraph()
+            values = self.values if self.values is not None else gtsam.Values()
+            gtsam.writeG2o(graph, values, str(path))
+        except (OSError, RuntimeError) as exc:
+            raise OutputError(f"{path}: cannot write the graph ({exc})") from None

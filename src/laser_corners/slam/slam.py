@@ -1,0 +1,346 @@
+"""The incremental SLAM: :class:`Slam` (``add(scan, odometry, stamp) -> pose, covariance``).
+
+Per scan: the odometry delta predicts the pose, point-to-line ICP against the local map (the
+points of the recent keyframes at their current estimates) corrects it, weighted against the
+prediction by the odometry noise. A scan becomes a keyframe after ``keyframe_distance`` /
+``keyframe_angle`` of motion: it joins the gtsam graph with a relative-pose factor to the
+previous keyframe, loop closures are searched for it, iSAM2 updates, and the local map is
+rebuilt from the new estimates. Other scans keep their pose relative to the last keyframe,
+so their final pose follows the keyframe's final estimate.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from laser_corners.errors import InvalidParamsError
+from laser_corners.scan import LaserScan
+from laser_corners.slam.align import Alignment, PointMap, icp
+from laser_corners.slam.backend import Backend
+from laser_corners.slam.geometry import between, between_many, compose, compose_many, wrap
+from laser_corners.slam.keyframes import KeyframeStore
+from laser_corners.slam.loops import (
+    MAX_WINDOW_XY,
+    MAX_WINDOW_YAW,
+    ClosureGate,
+    SubmapCache,
+    candidates,
+    verify,
+)
+from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.points import scan_points
+from laser_corners.slam.result import LoopClosure, SlamResult
+
+__all__ = ["Slam"]
+
+FULL_ESTIMATE_EVERY = 50
+"""Every this many keyframes (and after every loop closure) all keyframe estimates are read
+back from iSAM2; in between only the recent ones."""
+
+COUNT_KEYS = (
+    "scans",
+    "keyframes",
+    "skipped_no_odometry",
+    "time_jumps",
+    "alignment_failures",
+    "closures_proposed",
+    "closures_accepted",
+    "closures_rejected",
+    "closures_pruned",
+    "landmarks",
+)
+
+
+class Slam:
+    """Incremental 2D SLAM over laser scans and odometry.
+
+    Parameters
+    ----------
+    options : SlamOptions, optional
+        Defaults: ``SlamOptions()``.
+    mount : tuple of float
+        Base -> laser transform ``(x, y, yaw)`` (``options.mount`` overrides it).
+    """
+
+    def __init__(
+        self, options: SlamOptions | None = None, mount: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
+        self.options = options or SlamOptions()
+        if self.options.landmarks:
+            raise InvalidParamsError(
+                "landmarks=true: corner landmarks are not implemented yet in laser_corners.slam"
+            )
+        chosen = self.options.mount if self.options.mount is not None else mount
+        self.mount = np.asarray(chosen, dtype=np.float64).reshape(3)
+        self.backend = Backend()
+        self.kf = KeyframeStore()
+        self.closures: list[LoopClosure] = []
+        self.counts = dict.fromkeys(COUNT_KEYS, 0)
+        self._stamps: list[float] = []
+        self._odom: list[NDArray] = []
+        self._ref: list[int] = []
+        self._rel: list[NDArray] = []
+        self._ms: list[float] = []
+        self.pose: NDArray[np.float64] | None = None
+        self._anchor = np.zeros(3)  # the last keyframe's pose in the tracking frame
+        self._last_odom = np.zeros(3)
+        self._last_stamp = -np.inf
+        self._links: list[NDArray | None] = [None]  # tracked pose of keyframe k in k - 1's
+        self._local: PointMap | None = None  # line points with normals, for ICP
+        self._local_all: PointMap | None = None  # every point, for the overlap
+        self._cov = np.diag([1e-6, 1e-6, 1e-8])
+        self._since_closure = 0.0
+        self._closed_recently = False
+        self.submaps = SubmapCache()
+        self.gate = ClosureGate(
+            self.options.loop_agree_xy, self.options.loop_agree_yaw, 4 * self.options.loop_every
+        )
+        self._aligned_since_kf = True
+        self._jump = False
+
+    # ------------------------------------------------------------------ per scan
+    def add(
+        self, scan: LaserScan, odometry_pose: ArrayLike, stamp: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Add one scan with the base's odometry pose at its stamp.
+
+        Returns
+        -------
+        pose : ndarray, shape (3,)
+            The base pose in the map frame (current estimate).
+        covariance : ndarray, shape (3, 3)
+            Its covariance (x, y, yaw in the map frame), from the last keyframe's marginal.
+        """
+        start = time.perf_counter()
+        opt = self.options
+        odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
+        pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
+        if self.pose is None:
+            self.pose = odo.copy()
+            self._make_keyframe(scan, pts, odo, stamp, first=True)
+        else:
+            jump = abs(stamp - self._last_stamp) > opt.time_jump
+            if jump:
+                self.counts["time_jumps"] += 1
+                self._jump = True
+            delta = between(self._last_odom, odo)
+            pred = compose(self.pose, delta)
+            self.pose = self._track(pts.xy, pred, delta, jump)
+            moved = between(self._anchor, self.pose)
+            if (
+                self._jump
+                or not self._aligned_since_kf  # new ground: into the map at once
+                or np.hypot(moved[0], moved[1]) >= opt.keyframe_distance
+                or abs(moved[2]) >= opt.keyframe_angle
+                or stamp - self.kf.stamps[-1] >= opt.keyframe_max_interval
+            ):
+                self._make_keyframe(scan, pts, odo, stamp)
+        self._last_odom, self._last_stamp = odo, stamp
+        self._stamps.append(float(stamp))
+        self._odom.append(odo)
+        self._ref.append(len(self.kf) - 1)
+        self._rel.append(between(self._anchor, self.pose))
+        self._ms.append((time.perf_counter() - start) * 1e3)
+        self.counts["scans"] += 1
+        return self.pose.copy(), self._covariance()
+
+    def _track(self, xy: NDArray, pred: NDArray, delta: NDArray, jump: bool) -> NDArray:
+        """The pose of a scan: ICP against the local map from the odometry prediction; when
+        it fails (too little overlap), the prediction (counted). (A recovery by a correlative
+        search around the last pose was tried: on intel.bag's out-of-order scans it locked
+        onto wrong rotations and broke the map, so it is not used.)"""
+        opt = self.options
+        if not opt.scan_alignment or self._local is None:
+            return pred
+        dist = float(np.hypot(delta[0], delta[1]))
+        if jump:
+            sig = np.array([1.0, 1.0, 0.5])
+        else:
+            sxy = opt.odometry_sigma_xy * (dist + 0.1)
+            syaw = opt.odometry_sigma_yaw * (abs(float(delta[2])) + dist + 0.1)
+            sig = np.array([sxy, sxy, syaw])
+        aligned = self._icp(xy, pred, np.diag(1.0 / sig**2))
+        if aligned.overlap >= opt.min_overlap:
+            return aligned.pose
+        return self._failed(pred)
+
+    def _covariance(self) -> NDArray[np.float64]:
+        """The last keyframe's iSAM2 marginal (body frame) plus the scan-alignment noise since
+        it, rotated into the map frame."""
+        opt = self.options
+        cov = (
+            self._cov + np.diag([opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw]) ** 2
+        )
+        assert self.pose is not None
+        c, s = np.cos(self.pose[2]), np.sin(self.pose[2])
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return rot @ cov @ rot.T
+
+    def _failed(self, pred: NDArray) -> NDArray:
+        """Count a failed alignment and keep the prediction (the keyframe link gets the
+        odometry's noise)."""
+        self.counts["alignment_failures"] += 1
+        self._aligned_since_kf = False
+        return pred
+
+    def _icp(self, xy: NDArray, guess: NDArray, prior: NDArray) -> Alignment:
+        opt = self.options
+        assert self._local is not None
+        return icp(
+            xy,
+            self._local,
+            guess,
+            prior,
+            max_distance=opt.icp_max_distance,
+            inlier_distance=opt.loop_inlier_distance,
+            iterations=opt.icp_iterations,
+            overlap_map=self._local_all,
+        )
+
+    # ------------------------------------------------------------------ keyframes
+    def _make_keyframe(
+        self, scan: LaserScan, pts, odo: NDArray, stamp: float, first: bool = False
+    ) -> None:
+        opt = self.options
+        assert self.pose is not None
+        cut = self._jump and not self._aligned_since_kf  # a gap the alignment did not bridge
+        k = self.backend.add_keyframe(self.pose, prior=cut and not first)
+        if not first:
+            rel = between(self._anchor, self.pose)
+            self._links.append(None if cut else rel)
+            dist = float(np.hypot(rel[0], rel[1]))
+            if self._aligned_since_kf:
+                sig = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
+            elif cut:
+                sig = (10.0, 10.0, 3.0)
+            else:
+                sxy = opt.odometry_sigma_xy * (dist + 0.1)
+                sig = (sxy, sxy, opt.odometry_sigma_yaw * (abs(float(rel[2])) + dist + 0.1))
+            self.backend.add_between(k - 1, k, rel, sig)
+            self._since_closure += dist
+        self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
+        closed = self._close_loops(k) if opt.loop_closure and not first else False
+        full = closed or k % FULL_ESTIMATE_EVERY == 0
+        if full:
+            self.submaps.invalidate()
+        estimate = self.backend.update(
+            extra_iterations=1 if closed else 0, full=full, recent=opt.local_map_keyframes + 5
+        )
+        self.kf.estimate = estimate
+        self.pose = estimate[k].copy()
+        self._anchor = self.pose.copy()
+        self._aligned_since_kf = True
+        self._jump = False
+        self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
+        self.counts["keyframes"] = len(self.kf)
+        self._cov = self.backend.covariance(k)
+
+    def _close_loops(self, k: int) -> bool:
+        opt = self.options
+        if k % opt.loop_every != 0:
+            return False
+        estimate = np.vstack([self.kf.estimate, self.pose[None, :]])
+        sigma = self.backend.marginal_xy_sigma(k - 1) if k > 0 else 0.0
+        window = (
+            min(opt.loop_search_xy + 3.0 * sigma, MAX_WINDOW_XY),
+            min(opt.loop_search_yaw + opt.loop_drift * self._since_closure, MAX_WINDOW_YAW),
+        )
+        closed = False
+        for j in candidates(k, estimate, self.kf.travelled_array(), window[0], opt):
+            self.counts["closures_proposed"] += 1
+            closure = verify(
+                k,
+                j,
+                self.kf.points,
+                estimate,
+                self.kf.travelled_array(),
+                window,
+                opt,
+                self.submaps,
+            )
+            self.closures.append(closure)
+            if not closure.accepted:
+                continue
+            for good in self.gate.offer(closure, estimate):
+                good.accepted = True
+                sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
+                self.backend.add_between(
+                    good.match, good.query, np.array(good.relative), sig, robust=True
+                )
+                closed = True
+        self._closed_recently = closed
+        if closed:
+            self._since_closure = 0.0
+        return closed
+
+    def _scan_poses(self) -> NDArray[np.float64]:
+        """Final pose of every scan: its pose relative to the keyframe before it, moved with
+        that keyframe's and the next keyframe's final estimates, blended by time, so the
+        correction a keyframe link absorbed is spread over the scans along it (no jumps)."""
+        ref = np.asarray(self._ref)
+        rel = np.asarray(self._rel)
+        estimate = self.kf.estimate
+        from_a = compose_many(estimate[ref], rel)
+        nxt = np.minimum(ref + 1, len(self.kf) - 1)
+        has_next = (ref + 1 < len(self.kf)) & np.array(
+            [self._links[j] is not None for j in nxt], dtype=bool
+        )
+        links = np.array([link if link is not None else np.zeros(3) for link in self._links])
+        from_b = compose_many(estimate[nxt], between_many(links[nxt], rel))
+        kst = np.asarray(self.kf.stamps)
+        span = np.maximum(kst[nxt] - kst[ref], 1e-9)
+        w = np.where(has_next, np.clip((np.asarray(self._stamps) - kst[ref]) / span, 0, 1), 0.0)
+        out = from_a.copy()
+        out[:, :2] += w[:, None] * (from_b[:, :2] - from_a[:, :2])
+        out[:, 2] = wrap(from_a[:, 2] + w * wrap(from_b[:, 2] - from_a[:, 2]))
+        return out
+
+    def _prune(self, closure: LoopClosure) -> None:
+        """Mark an accepted closure as dropped by the final optimisation."""
+        closure.accepted = False
+        closure.reason = "dropped: contradicted by the optimised graph"
+        self.counts["closures_pruned"] += 1
+
+    # ------------------------------------------------------------------ result
+    def result(self, interrupted: bool = False) -> SlamResult:
+        """The current result; with ``final_optimisation``, a batch optimisation runs first."""
+        graph, values = None, None
+        if len(self.kf):
+            if self.options.final_optimisation:
+                graph, values = self.backend.optimise()
+                accepted = [c for c in self.closures if c.accepted]
+                for i in self.backend.pruned:
+                    self._prune(accepted[i])
+            else:
+                self.backend.update(full=True)
+                graph, values = self.backend.graph, self.backend.values
+            self.kf.estimate = self.backend.estimate
+        n = len(self._stamps)
+        if n:
+            poses = self._scan_poses()
+        else:
+            poses = np.zeros((0, 3))
+        self.counts["landmarks"] = 0
+        accepted = sum(c.accepted for c in self.closures)
+        self.counts["closures_accepted"] = accepted
+        self.counts["closures_rejected"] = len(self.closures) - accepted
+        return SlamResult(
+            stamps=np.asarray(self._stamps, dtype=np.float64),
+            poses=poses,
+            odometry=np.asarray(self._odom, dtype=np.float64).reshape(-1, 3),
+            keyframes=np.asarray(self.kf.scan_index, dtype=np.int64),
+            keyframe_poses=np.asarray(self.kf.estimate, dtype=np.float64).reshape(-1, 3),
+            scans=list(self.kf.scans),
+            mount=self.mount.copy(),
+            landmarks=self.kf.landmarks(),
+            closures=list(self.closures),
+            ms_per_scan=np.asarray(self._ms, dtype=np.float64),
+            options=self.options,
+            counts=dict(self.counts),
+            interrupted=interrupted,
+            graph=graph,
+            values=values,
+        )
