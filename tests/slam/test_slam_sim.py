@@ -166,6 +166,28 @@ def test_write_g2o(drive, tmp_path) -> None:
     assert "EDGE_SE2" in text
 
 
+def test_write_g2o_with_robust_loop_closures(drive, tmp_path) -> None:
+    # gtsam's writeG2o refuses robust noise models; loop closures are Huber factors
+    import dataclasses
+
+    import gtsam
+
+    truth, odo = drive
+    result = _run(truth[:200], odo[:200], SlamOptions())
+    graph = gtsam.NonlinearFactorGraph(result.graph)
+    huber = gtsam.noiseModel.mEstimator.Huber.Create(1.345)
+    base = gtsam.noiseModel.Diagonal.Sigmas(np.array([0.05, 0.05, 0.02]))
+    robust = gtsam.noiseModel.Robust.Create(huber, base)
+    keys = sorted(result.values.keys())
+    graph.add(gtsam.BetweenFactorPose2(keys[-1], keys[0], gtsam.Pose2(0.1, 0.0, 0.0), robust))
+    path = tmp_path / "graph.g2o"
+    dataclasses.replace(result, graph=graph).write_g2o(path)
+    edges = [line.split() for line in path.read_text().splitlines() if line.startswith("EDGE_SE2")]
+    ends = [gtsam.Symbol(keys[-1]).index(), gtsam.Symbol(keys[0]).index()]
+    assert [int(edges[-1][1]), int(edges[-1][2])] == ends
+    assert float(edges[-1][6]) == pytest.approx(1 / 0.05**2)  # information of the Gaussian base
+
+
 def test_landmarks_are_refused_until_implemented() -> None:
     with pytest.raises(InvalidParamsError, match="not implemented"):
         Slam(SlamOptions(landmarks=True))

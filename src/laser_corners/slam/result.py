@@ -120,6 +120,26 @@ class SlamResult:
             path.parent.mkdir(parents=True, exist_ok=True)
             graph = self.graph if self.graph is not None else gtsam.NonlinearFactorGraph()
             values = self.values if self.values is not None else gtsam.Values()
-            gtsam.writeG2o(graph, values, str(path))
+            gtsam.writeG2o(_gaussian_graph(graph), values, str(path))
         except (OSError, RuntimeError) as exc:
             raise OutputError(f"{path}: cannot write the graph ({exc})") from None
+
+
+def _gaussian_graph(graph: object) -> object:
+    """``graph`` with each robust (Huber) noise model replaced by its Gaussian base: g2o
+    stores an information matrix per edge, and gtsam's ``writeG2o`` refuses robust models."""
+    import gtsam
+
+    out = gtsam.NonlinearFactorGraph()
+    for i in range(graph.size()):
+        factor = graph.at(i)
+        if factor is None:
+            continue
+        model = factor.noiseModel() if hasattr(factor, "noiseModel") else None
+        if isinstance(factor, gtsam.BetweenFactorPose2) and isinstance(
+            model, gtsam.noiseModel.Robust
+        ):
+            keys = factor.keys()
+            factor = gtsam.BetweenFactorPose2(keys[0], keys[1], factor.measured(), model.noise())
+        out.add(factor)
+    return out
