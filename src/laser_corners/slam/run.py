@@ -11,7 +11,10 @@ Scans without a pose are counted (``skipped_no_odometry``) and skipped.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -72,21 +75,53 @@ def run_slam(
         skipped = 0
         interrupted = False
         try:
-            for i, scan in enumerate(rec.scans()):
-                if stop_scan is not None and i >= stop_scan:
-                    break
-                if scan.pose is None or scan.stamp is None:
-                    skipped += 1
-                    continue
-                if scan.frame_id not in undo:
-                    undo[scan.frame_id] = invert_many(mounts.get(scan.frame_id) or (0.0, 0.0, 0.0))
-                base = compose_many(np.asarray(scan.pose), undo[scan.frame_id])
-                slam.add(scan, base, float(scan.stamp))
-                if progress is not None:
-                    progress(i + 1, total, float(scan.stamp))
-        except KeyboardInterrupt:
+            with _stop_requests() as stop:
+                for i, scan in enumerate(rec.scans()):
+                    if stop.is_set():
+                        interrupted = True
+                        break
+                    if stop_scan is not None and i >= stop_scan:
+                        break
+                    if scan.pose is None or scan.stamp is None:
+                        skipped += 1
+                        continue
+                    if scan.frame_id not in undo:
+                        recorded_mount = mounts.get(scan.frame_id) or (0.0, 0.0, 0.0)
+                        undo[scan.frame_id] = invert_many(recorded_mount)
+                    base = compose_many(np.asarray(scan.pose), undo[scan.frame_id])
+                    slam.add(scan, base, float(scan.stamp))
+                    if progress is not None:
+                        progress(i + 1, total, float(scan.stamp))
+        except KeyboardInterrupt:  # a second Ctrl-C, or one before the first scan
             interrupted = True
     slam.counts["skipped_no_odometry"] = skipped
     if slam.counts["scans"] == 0 and not interrupted:
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     return slam.result(interrupted=interrupted)
+
+
+@contextmanager
+def _stop_requests() -> Iterator[threading.Event]:
+    """Ctrl-C as a request to stop between two scans.
+
+    A ``KeyboardInterrupt`` raised inside numba or gtsam can surface as a ``SystemError``
+    ("returned a result with an exception set"), so while the run is in the main thread with
+    Python's own SIGINT handler, SIGINT only sets the event, and the loop stops before its next
+    scan. The handler is put back at once, so a second Ctrl-C interrupts as usual.
+    """
+    stop = threading.Event()
+    in_main = threading.current_thread() is threading.main_thread()
+    if not in_main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield stop
+        return
+    previous = signal.getsignal(signal.SIGINT)
+
+    def request_stop(signum: int, frame: object) -> None:
+        stop.set()
+        signal.signal(signal.SIGINT, previous)
+
+    signal.signal(signal.SIGINT, request_stop)
+    try:
+        yield stop
+    finally:
+        signal.signal(signal.SIGINT, previous)
