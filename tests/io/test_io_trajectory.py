@@ -65,7 +65,7 @@ def test_incremental_writer_publishes_only_when_closed(tmp_path: Path) -> None:
         ("0 0 0 0 0 0 0 1\n1 2 3\n", ":2: a TUM line needs 8 numbers"),
         ("# c\n0 0 0 0 0 0 0 1\n0 x 0 0 0 0 0 1\n", ":3: not a number"),
         ("0 0 0 0 0 0 0 nan\n", ":1: non-finite"),
-        ("# only a comment\n", "no poses"),
+        ("# only a comment\n", "no TUM lines"),
     ],
 )
 def test_bad_lines_name_file_and_line(tmp_path: Path, text: str, needle: str) -> None:

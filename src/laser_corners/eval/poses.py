@@ -9,7 +9,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -17,7 +16,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from laser_corners.errors import InputError
+from laser_corners.io.trajectory import read_numeric_table
+from laser_corners.io.trajectory import read_tum as read_planar_tum
 from laser_corners.pose import wrap_angle
 from laser_corners.scan import LaserScan, Pose2D
 
@@ -29,39 +29,6 @@ __all__ = [
     "read_tum",
     "with_poses",
 ]
-
-
-def _yaw(qx: NDArray[np.float64], qy: NDArray[np.float64], qz: NDArray[np.float64],
-         qw: NDArray[np.float64]) -> NDArray[np.float64]:  # fmt: skip
-    return np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-
-
-def _numeric_table(path: Path, n_columns: int, what: str) -> NDArray[np.float64]:
-    """Rows of ``n_columns`` numbers; blank lines and ``#`` comments skipped."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    rows: list[list[float]] = []
-    with path.open(encoding="utf-8", errors="replace") as handle:
-        for line_no, line in enumerate(handle, start=1):
-            text = line.split("#", 1)[0].strip()
-            if not text:
-                continue
-            tokens = text.replace(",", " ").split()
-            if len(tokens) != n_columns:
-                raise InputError(
-                    f"{path}:{line_no}: a {what} line needs {n_columns} numbers, got {len(tokens)}"
-                )
-            try:
-                values = [float(t) for t in tokens]
-            except ValueError:
-                raise InputError(f"{path}:{line_no}: not a number in {text[:60]!r}") from None
-            if not all(math.isfinite(v) for v in values):
-                raise InputError(f"{path}:{line_no}: non-finite value")
-            rows.append(values)
-    if not rows:
-        raise InputError(f"{path}: no {what} lines")
-    return np.asarray(rows, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -91,13 +58,11 @@ def read_tum(path: str | Path) -> Trajectory:
     InputError
         Missing file, a line without 8 numbers, or no poses.
     """
-    table = _numeric_table(Path(path), 8, "TUM trajectory")
-    order = np.argsort(table[:, 0], kind="stable")
-    table = table[order]
-    keep = np.r_[True, np.diff(table[:, 0]) > 0]  # drop repeated stamps
-    table = table[keep]
-    yaw = _yaw(table[:, 4], table[:, 5], table[:, 6], table[:, 7])
-    return Trajectory(table[:, 0].copy(), np.stack([table[:, 1], table[:, 2], yaw], axis=1))
+    stamps, poses = read_planar_tum(path)
+    order = np.argsort(stamps, kind="stable")
+    stamps, poses = stamps[order], poses[order]
+    keep = np.r_[True, np.diff(stamps) > 0]  # drop repeated stamps
+    return Trajectory(stamps[keep], poses[keep])
 
 
 def interpolate_poses(
@@ -179,7 +144,7 @@ def read_relations(path: str | Path) -> list[Relation]:
     InputError
         Missing file, a line without 8 numbers, or no relations.
     """
-    table = _numeric_table(Path(path), 8, "relations")
+    table = read_numeric_table(path, "t1 t2 x y z roll pitch yaw", "relations")
     return [
         Relation(float(r[0]), float(r[1]), (float(r[2]), float(r[3]), float(r[7]))) for r in table
     ]

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from laser_corners.errors import InputError
+from laser_corners.io.trajectory import read_numeric_table
 from laser_corners.slam.geometry import between_many, compose_many, invert_many, wrap
 from laser_corners.slam.result import SlamResult
 
@@ -29,34 +29,11 @@ def read_relations(path: str | Path) -> NDArray[np.float64]:
     Raises
     ------
     InputError
-        The file cannot be read ("FILE: cannot read ..."), or a line is not 8 numbers
-        ("FILE:LINE: ...").
+        Missing file, or ``FILE:LINE`` for a line that is not 8 finite numbers
+        (``t1 t2 x y z roll pitch yaw``); a file without relations.
     """
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the relations ({exc.strerror})") from None
-    rows = []
-    for number, line in enumerate(text.splitlines(), start=1):
-        words = line.split()
-        if not words or words[0].startswith("#"):
-            continue
-        if len(words) != 8:
-            raise InputError(
-                f"{path}:{number}: expected 8 numbers 't1 t2 x y z roll pitch yaw', "
-                f"got {len(words)} fields"
-            )
-        try:
-            values = [float(w) for w in words]
-        except ValueError:
-            raise InputError(f"{path}:{number}: not a number in {line.strip()!r}") from None
-        if not all(np.isfinite(values)):
-            raise InputError(f"{path}:{number}: non-finite value in {line.strip()!r}")
-        rows.append((values[0], values[1], values[2], values[3], values[7]))
-    if not rows:
-        raise InputError(f"{path}: no relations in the file")
-    return np.array(rows, dtype=np.float64)
+    table = read_numeric_table(path, "t1 t2 x y z roll pitch yaw", "relations")
+    return table[:, [0, 1, 2, 3, 7]].copy()
 
 
 @dataclass

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.errors import InputError, OutputError
 from laser_corners.io.base import PartialOutput
 
-__all__ = ["TumWriter", "read_tum", "write_tum", "yaw_quaternion"]
+__all__ = ["TumWriter", "read_numeric_table", "read_tum", "write_tum", "yaw_quaternion"]
 
 
 def yaw_quaternion(yaw: ArrayLike) -> NDArray[np.float64]:
@@ -129,6 +129,57 @@ def write_tum(
         writer.write_many(stamps, poses)
 
 
+def read_numeric_table(path: str | Path, fields: str, what: str) -> NDArray[np.float64]:
+    """Rows of whitespace- (or comma-) separated numbers, one per line: TUM trajectories,
+    Freiburg ``.relations``; blank lines and ``#`` comments skipped.
+
+    Parameters
+    ----------
+    path : str or Path
+        The text file.
+    fields : str
+        The names of the columns, space-separated (``"t1 t2 x y z roll pitch yaw"``): their
+        number is the number of columns, and messages name them.
+    what : str
+        What a line is, for messages (``"TUM"``, ``"relations"``).
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file; ``FILE:LINE`` for a line without that many finite
+        numbers; a file without lines.
+    """
+    path = Path(path)
+    n_columns = len(fields.split())
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    rows: list[list[float]] = []
+    try:
+        with path.open(encoding="utf-8", errors="replace") as handle:
+            for line_no, line in enumerate(handle, start=1):
+                text = line.split("#", 1)[0].strip()
+                if not text:
+                    continue
+                tokens = text.replace(",", " ").split()
+                if len(tokens) != n_columns:
+                    raise InputError(
+                        f"{path}:{line_no}: a {what} line needs {n_columns} numbers "
+                        f"({fields}), got {len(tokens)}"
+                    )
+                try:
+                    values = [float(t) for t in tokens]
+                except ValueError:
+                    raise InputError(f"{path}:{line_no}: not a number in {text[:60]!r}") from None
+                if not all(map(math.isfinite, values)):
+                    raise InputError(f"{path}:{line_no}: non-finite value")
+                rows.append(values)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if not rows:
+        raise InputError(f"{path}: no {what} lines ({fields})")
+    return np.asarray(rows, dtype=np.float64)
+
+
 def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Read a TUM trajectory as planar poses, in file order.
 
@@ -145,34 +196,7 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
         Missing file, or ``FILE:LINE`` for a line without 8 finite numbers; a file without
         poses.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    rows: list[list[float]] = []
-    try:
-        with path.open(encoding="utf-8", errors="replace") as handle:
-            for line_no, line in enumerate(handle, start=1):
-                text = line.split("#", 1)[0].strip()
-                if not text:
-                    continue
-                tokens = text.split()
-                if len(tokens) != 8:
-                    raise InputError(
-                        f"{path}:{line_no}: a TUM line needs 8 numbers "
-                        f"(stamp x y z qx qy qz qw), got {len(tokens)}"
-                    )
-                try:
-                    values = [float(t) for t in tokens]
-                except ValueError:
-                    raise InputError(f"{path}:{line_no}: not a number in {text[:60]!r}") from None
-                if not all(map(math.isfinite, values)):
-                    raise InputError(f"{path}:{line_no}: non-finite value")
-                rows.append(values)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
-    if not rows:
-        raise InputError(f"{path}: no poses (TUM lines: stamp x y z qx qy qz qw)")
-    table = np.asarray(rows, dtype=np.float64)
+    table = read_numeric_table(path, "stamp x y z qx qy qz qw", "TUM")
     qx, qy, qz, qw = table[:, 4], table[:, 5], table[:, 6], table[:, 7]
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
     return table[:, 0].copy(), np.column_stack([table[:, 1], table[:, 2], yaw])
