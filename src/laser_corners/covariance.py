@@ -145,7 +145,6 @@ def _refined_covariance(
     return False
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
 def keypoint_covariances(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -182,9 +181,34 @@ def keypoint_covariances(
         Apex-sampling scale, isotropic floor (metres) and run-of-scales inflation, see
         :data:`APEX_FACTOR`, :data:`COV_FLOOR`, :data:`SCALE_RUN_FACTOR`.
     """
-    cfg = unpack(config)
-    scales = cfg.scales
-    max_gap = cfg.max_gap_beams
+    cfg = unpack.py_func(config)  # read in Python: unpacked inside numba it cost 10x more
+    return _covariances(
+        x, y, xy, beam_index, scale_index, n_scales, cfg.scales, angle_increment,
+        apex_factor, floor, run_factor, cfg.refine_radius, cfg.refine_exclude, cfg.min_points,
+        cfg.max_fit_rmse, cfg.max_gap_beams,
+    )  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _covariances(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    xy: NDArray[np.float64],
+    beam_index: NDArray[np.int64],
+    scale_index: NDArray[np.int64],
+    n_scales: NDArray[np.int64],
+    scales: NDArray[np.float64],
+    angle_increment: float,
+    apex_factor: float,
+    floor: float,
+    run_factor: float,
+    refine_radius: float,
+    refine_exclude: float,
+    min_points: int,
+    max_rmse: float,
+    max_gap: int,
+) -> NDArray[np.float64]:
+    """:func:`keypoint_covariances` on the unpacked parameters."""
     m = xy.shape[0]
     cov = np.zeros((m, 2, 2))
     acc = np.zeros(3)
@@ -198,11 +222,11 @@ def keypoint_covariances(
         acc[:] = 0.0
         used = 0
         scale_factor = 1.0
-        if cfg.refine_radius > 0.0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
+        if refine_radius > 0.0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
             used = int(
                 _refined_covariance(
-                    x, y, cx, cy, j, cfg.refine_radius, cfg.refine_exclude, cfg.min_points,
-                    cfg.max_fit_rmse, sigma2, max_gap, acc,
+                    x, y, cx, cy, j, refine_radius, refine_exclude, min_points, max_rmse,
+                    sigma2, max_gap, acc,
                 )
             )  # fmt: skip
         if used == 0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
