@@ -28,6 +28,7 @@ from typing import Any
 from laser_corners.detector import CornerDetector
 from laser_corners.io import KeypointWriter
 from laser_corners.keypoints import Keypoints
+from laser_corners.pipeline.interrupt import stop_requests
 from laser_corners.pipeline.prefetch import Chunk, chunked, prefetched
 from laser_corners.pipeline.recording import Recording
 from laser_corners.scan import LaserScan
@@ -229,7 +230,8 @@ def detect_recording(
         # several numba threads: whole chunks (a parallel launch per block costs); one thread
         # and a reader thread: blocks; one thread alone: scan by scan
         block = max(1, chunk_scans) if n_threads > 1 else (BLOCK_SCANS if prefetch else 0)
-        _run(stream, detector, writer, summary, report, every, block, start)
+        with stop_requests() as stop:
+            _run(stream, detector, writer, summary, report, every, block, start, stop)
     except KeyboardInterrupt:
         summary.interrupted = True
         # Ctrl-C inside a chunk's writing: the writer knows how many of its scans it took
@@ -265,9 +267,12 @@ def _run(
     every: int,
     block: int,
     start: float,
+    stop: threading.Event,
 ) -> None:
     reported = 0
     while True:
+        if stop.is_set():  # Ctrl-C (pipeline.interrupt): stop before the next chunk
+            raise KeyboardInterrupt
         t0 = time.perf_counter()
         chunk = next(stream, None)
         t1 = time.perf_counter()

@@ -11,15 +11,13 @@ Scans without a pose are counted (``skipped_no_odometry``) and skipped.
 
 from __future__ import annotations
 
-import signal
-import threading
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from laser_corners.errors import InputError
+from laser_corners.pipeline.interrupt import stop_requests
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.slam.geometry import compose_many, invert_many
 from laser_corners.slam.options import SlamOptions
@@ -75,7 +73,7 @@ def run_slam(
         skipped = 0
         interrupted = False
         try:
-            with _stop_requests() as stop:
+            with stop_requests() as stop:
                 for i, scan in enumerate(rec.scans()):
                     if stop.is_set():
                         interrupted = True
@@ -98,30 +96,3 @@ def run_slam(
     if slam.counts["scans"] == 0 and not interrupted:
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     return slam.result(interrupted=interrupted)
-
-
-@contextmanager
-def _stop_requests() -> Iterator[threading.Event]:
-    """Ctrl-C as a request to stop between two scans.
-
-    A ``KeyboardInterrupt`` raised inside numba or gtsam can surface as a ``SystemError``
-    ("returned a result with an exception set"), so while the run is in the main thread with
-    Python's own SIGINT handler, SIGINT only sets the event, and the loop stops before its next
-    scan. The handler is put back at once, so a second Ctrl-C interrupts as usual.
-    """
-    stop = threading.Event()
-    in_main = threading.current_thread() is threading.main_thread()
-    if not in_main or signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        yield stop
-        return
-    previous = signal.getsignal(signal.SIGINT)
-
-    def request_stop(signum: int, frame: object) -> None:
-        stop.set()
-        signal.signal(signal.SIGINT, previous)
-
-    signal.signal(signal.SIGINT, request_stop)
-    try:
-        yield stop
-    finally:
-        signal.signal(signal.SIGINT, previous)
