@@ -13,7 +13,6 @@ import inspect
 import math
 import os
 from collections.abc import Callable
-from contextlib import nullcontext
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -32,7 +31,6 @@ __all__ = [
     "TopicOption",
     "check_number",
     "image_file",
-    "known_errors",
     "new_folder",
     "params_choice",
     "with_params_choice",
@@ -64,11 +62,6 @@ ParamsOption = Annotated[
 SetOption = Annotated[
     list[str] | None, typer.Option("--set", help="Override a parameter: key=value (repeatable).")
 ]
-
-
-def known_errors() -> nullcontext[None]:
-    """Deprecated: a no-op; :class:`~laser_corners.cli.app.ErrorLineGroup` handles errors."""
-    return nullcontext()
 
 
 def params_choice(
