@@ -72,6 +72,12 @@ def random_keypoints(n: int, seed: int = 0) -> Keypoints:
     )
 
 
+def default_sigint() -> None:
+    """A ``preexec_fn`` giving the child SIGINT's default action: a child of a background parent
+    (``cmd &``) inherits SIGINT ignored, and a test that sends Ctrl-C must reach it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def die_with_parent() -> Callable[[], None]:
     """A ``preexec_fn`` that makes a child started by this thread get SIGTERM when it dies.
 

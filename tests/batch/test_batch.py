@@ -18,7 +18,7 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
-from conftest import real_file
+from conftest import default_sigint, real_file
 from laser_corners import CornerDetector
 from laser_corners.batch import (
     MANIFEST_NAME,
@@ -252,10 +252,6 @@ def test_unreachable_scheduler_is_a_known_error(tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------ a run killed for real
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background parent may have ignored it
-
-
 @pytest.mark.parametrize(
     ("stop", "workers", "exit_code"),
     [(signal.SIGKILL, "1", -signal.SIGKILL), (signal.SIGINT, "2", 130)],
@@ -272,7 +268,7 @@ def test_stopped_run_resumes_without_redoing_or_trusting_partials(
                str(log), "-o", str(outdir), "-w", workers]  # fmt: skip
     process = subprocess.Popen(
         command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-        preexec_fn=_default_sigint,
+        preexec_fn=default_sigint,
     )  # fmt: skip
     manifest = outdir / MANIFEST_NAME
     deadline = time.monotonic() + 120

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import default_sigint
 from laser_corners.batch import MANIFEST_NAME, Manifest, run_batch
 from laser_corners.cli import app
 
@@ -56,10 +57,6 @@ def _alive(pid: int) -> bool:
     except OSError:
         return False
     return stat[stat.rindex(")") + 2] != "Z"
-
-
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background parent may have ignored it
 
 
 # ------------------------------------------------------------------ (3) not recordings
@@ -127,7 +124,7 @@ def test_ctrl_c_keeps_every_finished_output_in_the_manifest(tmp_path: Path) -> N
     command = [*CLI, "batch", *map(str, logs), "-o", str(outdir), "-w", "2"]
     process = subprocess.Popen(
         command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
-        preexec_fn=_default_sigint,
+        preexec_fn=default_sigint,
     )  # fmt: skip
     manifest = outdir / MANIFEST_NAME
     try:

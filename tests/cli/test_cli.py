@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
-from conftest import real_file
+from conftest import default_sigint, real_file
 from laser_corners import CornerDetector, DetectorParams, InvalidParamsError, Keypoints
 from laser_corners.cli import app
 from laser_corners.io import open_scans
@@ -185,10 +185,6 @@ def test_malformed_log_lines_are_reported_in_the_summary(tmp_path: Path) -> None
     assert "first at line 6" in result.stdout
 
 
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background parent (`cmd &`) ignores it
-
-
 
 def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
     # a plain-text CARMEN log of twenty copies of intel-corrected (53,440 scans): several
@@ -202,7 +198,7 @@ def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
     process = subprocess.Popen(
         [*CLI, "detect", str(log), "-o", str(out), "--preset", "auto"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        preexec_fn=_default_sigint,
+        preexec_fn=default_sigint,
     )  # fmt: skip
     # interrupt once rows have reached the file under its temporary name (the name until it
     # is complete): however loaded the machine or cold the kernel cache, the interrupt then

@@ -18,7 +18,7 @@ import yaml
 from typer.testing import CliRunner
 
 import laser_corners.slam
-from conftest import real_file
+from conftest import default_sigint, real_file
 from fake_slam import fake_result
 from laser_corners.cli import app
 from laser_corners.io.trajectory import read_tum, write_tum
@@ -136,10 +136,6 @@ def test_ctrl_c_writes_what_was_mapped_and_exits_130(tmp_path: Path, monkeypatch
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
 
 
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a background parent (`cmd &`) ignores it
-
-
 @pytest.mark.real
 @pytest.mark.slow
 def test_sigint_during_a_real_run_keeps_the_map(tmp_path: Path) -> None:
@@ -152,7 +148,7 @@ def test_sigint_during_a_real_run_keeps_the_map(tmp_path: Path) -> None:
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_default_sigint,
+        preexec_fn=default_sigint,
     )
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and process.poll() is None and not out.exists():
