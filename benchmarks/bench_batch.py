@@ -70,9 +70,13 @@ def run(
     for _ in range(repeats):
         with tempfile.TemporaryDirectory(prefix="bench-batch-") as outdir:
             report = run_batch(
-                inputs, outdir, workers=workers, threads=threads, scheduler=scheduler,
+                inputs,
+                outdir,
+                workers=workers,
+                threads=threads,
+                scheduler=scheduler,
                 prefetch=prefetch,
-            )  # fmt: skip
+            )
         failed = report.failed
         if failed:
             raise SystemExit(f"jobs failed: {[(r.input, r.error) for r in failed]}")
@@ -128,10 +132,13 @@ def compare_prefetch(repeats: int) -> None:
     for lean, (n, wall, cpu) in reads.items():
         label = "lean (new)" if lean else "per message (old)"
         print(f"| {label} | {n} | {wall:.3f} | {n / wall:,.0f} | {1e6 * cpu / n:.1f} |")
-    print("\n## fr079.bag end to end (read + detect + write Parquet), one worker, one numba "
-          "thread\n")  # fmt: skip
-    print("| reading path | reader thread | scans | wall [s] | scans/s | main thread CPU "
-          "us/scan | reader thread CPU us/scan | bound scans/s |")  # fmt: skip
+    print(
+        "\n## fr079.bag end to end (read + detect + write Parquet), one worker, one numba thread\n"
+    )
+    print(
+        "| reading path | reader thread | scans | wall [s] | scans/s | main thread CPU "
+        "us/scan | reader thread CPU us/scan | bound scans/s |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     for (lean, prefetch), s in best.items():
         n = s.n_scans
@@ -140,8 +147,10 @@ def compare_prefetch(repeats: int) -> None:
         bound = n / max(s.cpu_seconds, s.reader_cpu_seconds)
         path = "lean (new)" if lean else "per message (old)"
         thread = "on" if prefetch else "off"
-        print(f"| {path} | {thread} | {n} | {s.seconds:.3f} | {s.scans_per_second:,.0f} | "
-              f"{main_us:.1f} | {reader_us:.1f} | {bound:,.0f} |")  # fmt: skip
+        print(
+            f"| {path} | {thread} | {n} | {s.seconds:.3f} | {s.scans_per_second:,.0f} | "
+            f"{main_us:.1f} | {reader_us:.1f} | {bound:,.0f} |"
+        )
     old, new = best[(False, True)], best[(True, True)]
     print(
         f"\nlean / per-message path, reader thread on (wall, same run): "
@@ -182,8 +191,10 @@ def main() -> None:
     print(f"# batch throughput over {REAL.resolve()}\n")
     machine = platform.processor() or platform.machine()
     load = os.getloadavg()[0]
-    print(f"{machine}, {os.cpu_count()} cores, Python {platform.python_version()}; "
-          f"load average before: {load:.2f}\n")  # fmt: skip
+    print(
+        f"{machine}, {os.cpu_count()} cores, Python {platform.python_version()}; "
+        f"load average before: {load:.2f}\n"
+    )
     with tempfile.TemporaryDirectory() as warm:  # numba cache load / compile, not timed
         run_job(BatchJob(str(REAL / "fr079-corrected.clf.gz"), None, "w.parquet"), warm)
 
@@ -204,14 +215,18 @@ def main() -> None:
     for label, workers, threads, scheduler, prefetch in configs:
         report = run(inputs, workers, threads, scheduler, args.repeats, prefetch)
         reports.append((label, report))
-        print(f"| {label} | {len(report.results)} | {report.n_scans} | {report.seconds:.2f} | "
-              f"{report.scans_per_second:,.0f} | "
-              f"{report.scans_per_second / report.workers:,.0f} |")  # fmt: skip
+        print(
+            f"| {label} | {len(report.results)} | {report.n_scans} | {report.seconds:.2f} | "
+            f"{report.scans_per_second:,.0f} | "
+            f"{report.scans_per_second / report.workers:,.0f} |"
+        )
 
     print("\n## where the time goes (sum over jobs, seconds inside the workers)\n")
-    print("| configuration | recordings | scans | job s | read s | detect s | write s | "
-          "kernel load s | end-to-end scans/s | read scans/s | detect scans/s | "
-          "write scans/s |")  # fmt: skip
+    print(
+        "| configuration | recordings | scans | job s | read s | detect s | write s | "
+        "kernel load s | end-to-end scans/s | read scans/s | detect scans/s | "
+        "write scans/s |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, report in reports:
         groups = {
@@ -220,9 +235,11 @@ def main() -> None:
         }
         for group, results in groups.items():
             scans, total, read, detect, write, startup = split(results)
-            print(f"| {label} | {group} | {scans} | {total:.2f} | {read:.2f} | {detect:.2f} | "
-                  f"{write:.2f} | {startup:.2f} | {rate(scans, total)} | {rate(scans, read)} | "
-                  f"{rate(scans, detect)} | {rate(scans, write)} |")  # fmt: skip
+            print(
+                f"| {label} | {group} | {scans} | {total:.2f} | {read:.2f} | {detect:.2f} | "
+                f"{write:.2f} | {startup:.2f} | {rate(scans, total)} | {rate(scans, read)} | "
+                f"{rate(scans, detect)} | {rate(scans, write)} |"
+            )
 
     print("\n## per job (first configuration)\n")
     print("| job | scans | beams | s | read s | detect s | write s | scans/s |")
@@ -230,9 +247,11 @@ def main() -> None:
     for r in sorted(reports[0][1].results, key=lambda r: r.key):
         first = open_scans(r.input, r.topic).first_scan()
         beams = first.n_beams if first is not None else 0
-        print(f"| {Path(r.input).name}{' ' + r.topic if r.topic else ''} | {r.scans} | {beams} | "
-              f"{r.seconds:.2f} | {r.read_seconds:.2f} | {r.detect_seconds:.2f} | "
-              f"{r.write_seconds:.2f} | {r.scans_per_second:,.0f} |")  # fmt: skip
+        print(
+            f"| {Path(r.input).name}{' ' + r.topic if r.topic else ''} | {r.scans} | {beams} | "
+            f"{r.seconds:.2f} | {r.read_seconds:.2f} | {r.detect_seconds:.2f} | "
+            f"{r.write_seconds:.2f} | {r.scans_per_second:,.0f} |"
+        )
     print(f"\ntarget: >= {TARGET_PER_WORKER:,} scans/s per worker for 360-beam scans, end to end")
     print(f"load average after: {os.getloadavg()[0]:.2f}; started {time.strftime('%H:%M:%S')}")
 

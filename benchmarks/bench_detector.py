@@ -251,8 +251,11 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--sim-scans", type=int, default=400)
     parser.add_argument("--real-scans", type=int, default=1000)
-    parser.add_argument("--skip-old-scaling", action="store_true",
-                        help="do not time the frozen kernel on the dense scans (slow)")  # fmt: skip
+    parser.add_argument(
+        "--skip-old-scaling",
+        action="store_true",
+        help="do not time the frozen kernel on the dense scans (slow)",
+    )
     args = parser.parse_args()
 
     numba.set_num_threads(1)
@@ -270,9 +273,11 @@ def main() -> int:
     empty = mostly_empty(intel) if isinstance(intel, list) else "skipped: intel.bag not found"
     sets.append((EMPTY_LABEL, empty))
 
-    print(f"python {platform.python_version()}, numba {numba.__version__}, pinned to one core, "
-          f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
-          "per scan, median over scans\n")  # fmt: skip
+    print(
+        f"python {platform.python_version()}, numba {numba.__version__}, pinned to one core, "
+        f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
+        "per scan, median over scans\n"
+    )
     columns = ["data set", "beams", "scans", "kp/scan", "old ms", "new ms", "new/old", "same kp"]
     columns += ["+xy ms", "many/one", "FALKO ms", "new/FALKO", "adj new/FALKO", "cov us/scan"]
     columns += ["cov us/kp"]

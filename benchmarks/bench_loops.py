@@ -40,8 +40,9 @@ def _time(
     for lo in range(0, len(queries), QUERY_BLOCK):
         cands = [candidates(travel, int(q), 5.0) for q in queries[lo : lo + QUERY_BLOCK]]
         counts = [c.shape[0] for c in cands]
-        res = register_pairs(bank, np.repeat(queries[lo : lo + QUERY_BLOCK], counts),
-                             np.concatenate(cands), options)  # fmt: skip
+        res = register_pairs(
+            bank, np.repeat(queries[lo : lo + QUERY_BLOCK], counts), np.concatenate(cands), options
+        )
         status += np.bincount(res.status, minlength=5)
         pairs += sum(counts)
     return time.perf_counter() - wall, time.process_time() - cpu, pairs, status
@@ -73,8 +74,10 @@ def main() -> None:
             )
             wall, cpu, pairs, status = _time(bank, queries, travel, opt)
             share = " / ".join(f"{v / pairs:.3f}" for v in status)
-            print(f"{n_threads} | {check} | {1e3 * wall / pairs:.4f} | {1e3 * cpu / pairs:.4f} "
-                  f"| {share}")  # fmt: skip
+            print(
+                f"{n_threads} | {check} | {1e3 * wall / pairs:.4f} | {1e3 * cpu / pairs:.4f} "
+                f"| {share}"
+            )
     numba.set_num_threads(threads)
 
 

@@ -46,8 +46,10 @@ def main() -> None:
     det = CornerDetector(get_preset(args.preset, scans[0]))
     kps = det.detect_many(scans)
     n_kp = sum(len(k) for k in kps)
-    print(f"{args.path}: {len(scans)} scans, {n_kp} keypoints ({n_kp / len(scans):.1f}/scan), "
-          f"preset {args.preset}")  # fmt: skip
+    print(
+        f"{args.path}: {len(scans)} scans, {n_kp} keypoints ({n_kp / len(scans):.1f}/scan), "
+        f"preset {args.preset}"
+    )
 
     xy = [s.to_cartesian()[0] for s in scans]
     config = kernel_config(det.params)
@@ -55,9 +57,15 @@ def main() -> None:
     def covs() -> None:
         for s, k, pts in zip(scans, kps, xy, strict=True):
             keypoint_covariances(
-                np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1]), k.xy,
-                k.beam_index, k.scale_index, k.n_scales, s.angle_increment, config,
-            )  # fmt: skip
+                np.ascontiguousarray(pts[:, 0]),
+                np.ascontiguousarray(pts[:, 1]),
+                k.xy,
+                k.beam_index,
+                k.scale_index,
+                k.n_scales,
+                s.angle_increment,
+                config,
+            )
 
     covs()
     t = _best(covs)
@@ -84,9 +92,11 @@ def main() -> None:
                     n_acc += int(out.accepted.sum())
                 dt = time.perf_counter() - t0
                 pairs = len(queries) * len(bank)
-                print(f"register_many {kind}/{verification}, {threads} thread(s): "
-                      f"{1e6 * dt / pairs:.2f} us/pair ({pairs} pairs, "
-                      f"{n_acc / pairs:.3%} accepted)")  # fmt: skip
+                print(
+                    f"register_many {kind}/{verification}, {threads} thread(s): "
+                    f"{1e6 * dt / pairs:.2f} us/pair ({pairs} pairs, "
+                    f"{n_acc / pairs:.3%} accepted)"
+                )
             numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
 
 

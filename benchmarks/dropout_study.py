@@ -35,8 +35,7 @@ def drop(scan: LaserScan, mode: str, rng: np.random.Generator) -> LaserScan:
         ranges[rng.random(ranges.size) < 0.05] = np.nan
     elif mode == "1 in 20":
         ranges[int(rng.integers(20)) :: 20] = np.nan
-    return LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
-                     scan.range_max)  # fmt: skip
+    return LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max)
 
 
 def simulated(n: int, seed: int = 0) -> list[tuple[LaserScan, np.ndarray, np.ndarray]]:
@@ -83,8 +82,10 @@ def sim_table(n: int) -> None:
                     k = CornerDetector(params).detect(scan)
                     f, t, fa = score(k.xy, visible, corners)
                     found, total, false, kp = found + f, total + t, false + fa, kp + len(k)
-                print(f"| {mode} | {preset} | {gap} | {kp / n:.2f} | "
-                      f"{100 * found / max(total, 1):.1f} | {false / n:.2f} |")  # fmt: skip
+                print(
+                    f"| {mode} | {preset} | {gap} | {kp / n:.2f} | "
+                    f"{100 * found / max(total, 1):.1f} | {false / n:.2f} |"
+                )
 
 
 def real_table(limit: int) -> None:

@@ -576,19 +576,36 @@ def _detect_batch(
         _polar_to_xy(ranges[s], cos_a, sin_a, range_min, range_max, x, y)
         cand = np.empty((n, _NC))
         _candidates(
-            x, y, scales, min_points,
-            min_angle_deg, max_angle_deg, max_fit_rmse, max_point_distance,
-            max_centroid_distance, min_consecutive, min_extent, cand, no_table,
-        )  # fmt: skip
+            x,
+            y,
+            scales,
+            min_points,
+            min_angle_deg,
+            max_angle_deg,
+            max_fit_rmse,
+            max_point_distance,
+            max_centroid_distance,
+            min_consecutive,
+            min_extent,
+            cand,
+            no_table,
+        )
         if merge_radius > 0.0:
             counts[s] = _merge(cand, merge_radius, merged[s])
         else:
             counts[s] = _raw_rows(cand, merged[s])
         if refine_radius > 0.0:
             _refine(
-                x, y, merged[s], counts[s], refine_radius, refine_exclude, min_points,
-                max_fit_rmse, merge_radius if merge_radius > 0.0 else _REFINE_MAX_SHIFT,
-            )  # fmt: skip
+                x,
+                y,
+                merged[s],
+                counts[s],
+                refine_radius,
+                refine_exclude,
+                min_points,
+                max_fit_rmse,
+                merge_radius if merge_radius > 0.0 else _REFINE_MAX_SHIFT,
+            )
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -705,10 +722,20 @@ class CornerDetector:
         p = self.params
         cand = np.empty((x.shape[0], _NC))
         _candidates(
-            x, y, self._scales, p.min_points, p.min_angle_deg, p.max_angle_deg,
-            p.max_fit_rmse, p.max_point_distance, p.max_centroid_distance,
-            p.min_consecutive_scales, p.min_extent_ratio, cand, table,
-        )  # fmt: skip
+            x,
+            y,
+            self._scales,
+            p.min_points,
+            p.min_angle_deg,
+            p.max_angle_deg,
+            p.max_fit_rmse,
+            p.max_point_distance,
+            p.max_centroid_distance,
+            p.min_consecutive_scales,
+            p.min_extent_ratio,
+            cand,
+            table,
+        )
         return cand
 
     def _finish(
@@ -729,9 +756,16 @@ class CornerDetector:
             n_out = _raw_rows(cand, rows)
         if p.refine_radius > 0.0:
             _refine(
-                x, y, rows, n_out, p.refine_radius, p.refine_exclude, p.min_points,
-                p.max_fit_rmse, p.merge_radius if p.merge_radius > 0.0 else _REFINE_MAX_SHIFT,
-            )  # fmt: skip
+                x,
+                y,
+                rows,
+                n_out,
+                p.refine_radius,
+                p.refine_exclude,
+                p.min_points,
+                p.max_fit_rmse,
+                p.merge_radius if p.merge_radius > 0.0 else _REFINE_MAX_SHIFT,
+            )
         keypoints = _keypoints_from_rows(rows[:n_out], stamp, frame_id)
         if not with_raw:
             return keypoints
@@ -741,9 +775,7 @@ class CornerDetector:
 
     # ----------------------------------------------------------------- public API
     @overload
-    def detect(
-        self, scan: LaserScan, return_candidates: Literal[False] = ...
-    ) -> Keypoints: ...
+    def detect(self, scan: LaserScan, return_candidates: Literal[False] = ...) -> Keypoints: ...
 
     @overload
     def detect(
@@ -818,11 +850,21 @@ class CornerDetector:
         if not scans:
             return []
         first = scans[0]
-        geometry = (first.n_beams, first.angle_min, first.angle_increment,
-                    first.range_min, first.range_max)  # fmt: skip
+        geometry = (
+            first.n_beams,
+            first.angle_min,
+            first.angle_increment,
+            first.range_min,
+            first.range_max,
+        )
         for i, scan in enumerate(scans):
-            if (scan.n_beams, scan.angle_min, scan.angle_increment,
-                    scan.range_min, scan.range_max) != geometry:  # fmt: skip
+            if (
+                scan.n_beams,
+                scan.angle_min,
+                scan.angle_increment,
+                scan.range_min,
+                scan.range_max,
+            ) != geometry:
                 raise InvalidScanError(
                     f"detect_many: scan {i} has a different geometry from scan 0; "
                     "call detect() per scan instead"
@@ -833,12 +875,26 @@ class CornerDetector:
         merged = np.empty((len(scans), first.n_beams, _NM))
         counts = np.zeros(len(scans), dtype=np.int64)
         _detect_batch(
-            ranges, cos_a, sin_a, first.range_min, first.range_max, self._scales,
-            p.min_points, p.min_angle_deg, p.max_angle_deg, p.max_fit_rmse,
-            p.max_point_distance, p.max_centroid_distance, p.min_consecutive_scales,
-            p.merge_radius, p.min_extent_ratio, p.refine_radius, p.refine_exclude,
-            merged, counts,
-        )  # fmt: skip
+            ranges,
+            cos_a,
+            sin_a,
+            first.range_min,
+            first.range_max,
+            self._scales,
+            p.min_points,
+            p.min_angle_deg,
+            p.max_angle_deg,
+            p.max_fit_rmse,
+            p.max_point_distance,
+            p.max_centroid_distance,
+            p.min_consecutive_scales,
+            p.merge_radius,
+            p.min_extent_ratio,
+            p.refine_radius,
+            p.refine_exclude,
+            merged,
+            counts,
+        )
         return [
             _keypoints_from_rows(merged[s, : counts[s]], scan.stamp, scan.frame_id)
             for s, scan in enumerate(scans)

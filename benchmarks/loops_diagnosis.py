@@ -53,17 +53,26 @@ from laser_corners.matching.kernel_args import Bank, KernelOptions
 from laser_corners.matching.verify import verify_pose
 from laser_corners.scan import LaserScan, pose_error, relative_pose
 
-LOOSE = {"max_distance": 100.0, "k_nearest": 64, "max_opening_difference": 180.0,
-         "max_hypotheses": 300, "iterations": 3000}  # fmt: skip
+LOOSE = {
+    "max_distance": 100.0,
+    "k_nearest": 64,
+    "max_opening_difference": 180.0,
+    "max_hypotheses": 300,
+    "iterations": 3000,
+}
 """Matcher options of question 2: every keypoint pair is a candidate match, and up to 300
 pose hypotheses (3000 RANSAC draws) go to the scan check."""
 
 
 @nb.njit(cache=True, parallel=True)
 def _verifiable(
-    bank: Bank, poses: NDArray[np.float64], travel: NDArray[np.float64], window: float,
-    options: KernelOptions, out: NDArray[np.bool_],
-) -> None:  # fmt: skip
+    bank: Bank,
+    poses: NDArray[np.float64],
+    travel: NDArray[np.float64],
+    window: float,
+    options: KernelOptions,
+    out: NDArray[np.bool_],
+) -> None:
     """``out[q, c]``: candidate c passes the scan check at the true pose of c in q."""
     ranges, r_off, geom = bank.ranges, bank.range_offsets, bank.geometry
     pts, p_off = bank.points, bank.point_offsets
@@ -77,17 +86,28 @@ def _verifiable(
             if dx * dx + dy * dy > 400.0:  # 20 m: no overlap on these logs
                 continue
             agreement, _, _, _ = verify_pose(
-                ranges[r_off[q] : r_off[q + 1]], geom[q], pts[p_off[q] : p_off[q + 1]],
-                ranges[r_off[c] : r_off[c + 1]], geom[c], pts[p_off[c] : p_off[c + 1]],
-                cq * dx + sq * dy, -sq * dx + cq * dy, poses[c, 2] - poses[q, 2], options,
-            )  # fmt: skip
+                ranges[r_off[q] : r_off[q + 1]],
+                geom[q],
+                pts[p_off[q] : p_off[q + 1]],
+                ranges[r_off[c] : r_off[c + 1]],
+                geom[c],
+                pts[p_off[c] : p_off[c + 1]],
+                cq * dx + sq * dy,
+                -sq * dx + cq * dy,
+                poses[c, 2] - poses[q, 2],
+                options,
+            )
             out[q, c] = agreement >= 0.0
 
 
 def _correct_any(
-    bank: KeypointBank, scans: list[LaserScan], query: int, cands: NDArray[np.int64],
-    config: LoopsConfig, options: object,
-) -> bool:  # fmt: skip
+    bank: KeypointBank,
+    scans: list[LaserScan],
+    query: int,
+    cands: NDArray[np.int64],
+    config: LoopsConfig,
+    options: object,
+) -> bool:
     """Some accepted registration of ``query`` against ``cands`` is within the bounds."""
     if cands.size == 0:
         return False
@@ -116,31 +136,46 @@ def diagnose(scans: list[LaserScan], result: LoopsResult) -> None:
         verifiable = rev & ok_pairs.any(axis=1)
         found = m.correct & (m.best_inliers >= cfg.min_inliers)
         missed = np.flatnonzero(verifiable & ~found)
-        recovered = sum(_correct_any(bank, scans, int(q), np.flatnonzero(ok_pairs[q]), cfg, loose)
-                        for q in missed)  # fmt: skip
+        recovered = sum(
+            _correct_any(bank, scans, int(q), np.flatnonzero(ok_pairs[q]), cfg, loose)
+            for q in missed
+        )
         wrong = np.flatnonzero((m.best_inliers >= cfg.min_inliers) & ~m.correct)
         all_cands = [np.flatnonzero(np.abs(travel - travel[q]) >= cfg.window_travel) for q in wrong]
-        fixable = sum(_correct_any(bank, scans, int(q), c, cfg, cfg.match)
-                      for q, c in zip(wrong, all_cands, strict=True))  # fmt: skip
+        fixable = sum(
+            _correct_any(bank, scans, int(q), c, cfg, cfg.match)
+            for q, c in zip(wrong, all_cands, strict=True)
+        )
         n_rev, n_ver = max(int(rev.sum()), 1), max(int(verifiable.sum()), 1)
-        print(f"{name}: {m.keypoints_per_scan:.2f} keypoints/scan; queries with a revisit "
-              f"{int(rev.sum())}, verifiable {int(verifiable.sum())} "
-              f"({verifiable.sum() / n_rev:.1%})"
-              f"; recall {(found & rev).sum() / n_rev:.3f}, among the verifiable "
-              f"{(found & verifiable).sum() / n_ver:.3f}")  # fmt: skip
-        print(f"  verifiable but missed: {missed.size}; a correct pose with every keypoint "
-              f"pair as a match: {recovered} (the rest: no keypoint pair gives a pose the "
-              "scan check accepts)")  # fmt: skip
-        print(f"  wrong detections: {wrong.size}; with a correct accepted registration among "
-              f"the candidates: {fixable}")  # fmt: skip
+        print(
+            f"{name}: {m.keypoints_per_scan:.2f} keypoints/scan; queries with a revisit "
+            f"{int(rev.sum())}, verifiable {int(verifiable.sum())} "
+            f"({verifiable.sum() / n_rev:.1%})"
+            f"; recall {(found & rev).sum() / n_rev:.3f}, among the verifiable "
+            f"{(found & verifiable).sum() / n_ver:.3f}"
+        )
+        print(
+            f"  verifiable but missed: {missed.size}; a correct pose with every keypoint "
+            f"pair as a match: {recovered} (the rest: no keypoint pair gives a pose the "
+            "scan check accepts)"
+        )
+        print(
+            f"  wrong detections: {wrong.size}; with a correct accepted registration among "
+            f"the candidates: {fixable}"
+        )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("log", type=Path)
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS))
-    parser.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
-                        help="a MatchOptions field, e.g. max_distance=0.5")  # fmt: skip
+    parser.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a MatchOptions field, e.g. max_distance=0.5",
+    )
     parser.add_argument("--summary-only", action="store_true")
     args = parser.parse_args()
     scans, _ = load_scans(args.log, None, None)
@@ -151,8 +186,10 @@ def main() -> None:
     changes = args.option
     result = evaluate_loops(scans, config, args.log.name)
     for name, row in result.summary()["methods"].items():
-        print(f"{name}: precision {row['precision']:.3f} recall {row['recall']:.3f} at T = "
-              f"{row['min_inliers']} ({changes or 'the defaults'})")  # fmt: skip
+        print(
+            f"{name}: precision {row['precision']:.3f} recall {row['recall']:.3f} at T = "
+            f"{row['min_inliers']} ({changes or 'the defaults'})"
+        )
     if not args.summary_only:
         diagnose(scans, result)
 

@@ -28,8 +28,10 @@ def main() -> None:
     args = parser.parse_args()
     world = demo_world()
     detector = CornerDetector(DetectorParams())
-    print("| noise sigma m | corners | candidates/corner | keypoints/corner | "
-          "median err best-RMSE mm | median err mean mm | median err unmerged mm |")  # fmt: skip
+    print(
+        "| noise sigma m | corners | candidates/corner | keypoints/corner | "
+        "median err best-RMSE mm | median err mean mm | median err unmerged mm |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---:|")
     for sigma in (0.0, 0.005, 0.01, 0.02):
         rng = np.random.default_rng(1)
@@ -56,9 +58,11 @@ def main() -> None:
                 err_best.append(dk.min())
                 err_mean.append(np.hypot(*(cands.xy[near].mean(axis=0) - corner)))
                 err_all.extend(dc[near])
-        print(f"| {sigma} | {n_corners} | {n_cand / n_corners:.1f} | {n_kp / n_corners:.3f} | "
-              f"{np.median(err_best) * 1e3:.2f} | {np.median(err_mean) * 1e3:.2f} | "
-              f"{np.median(err_all) * 1e3:.2f} |")  # fmt: skip
+        print(
+            f"| {sigma} | {n_corners} | {n_cand / n_corners:.1f} | {n_kp / n_corners:.3f} | "
+            f"{np.median(err_best) * 1e3:.2f} | {np.median(err_mean) * 1e3:.2f} | "
+            f"{np.median(err_all) * 1e3:.2f} |"
+        )
 
 
 if __name__ == "__main__":

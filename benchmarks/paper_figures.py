@@ -70,11 +70,15 @@ def fig2(output: Path) -> None:
     detector = CornerDetector()
     table = detector.scale_table(scan)
     k = int(np.argmin(np.abs(table.scales - radius)))
-    for ax, (target, title) in zip(axes, (
-        ((2.0, 1.0), "concave room corner"),
-        ((0.9, -0.2), "convex pillar corner"),
-        ((2.0, 0.4), "straight wall"),
-    ), strict=True):  # fmt: skip
+    for ax, (target, title) in zip(
+        axes,
+        (
+            ((2.0, 1.0), "concave room corner"),
+            ((0.9, -0.2), "convex pillar corner"),
+            ((2.0, 0.4), "straight wall"),
+        ),
+        strict=True,
+    ):
         d = np.where(valid, np.hypot(xy[:, 0] - target[0], xy[:, 1] - target[1]), np.inf)
         j = int(np.argmin(d))
         info = plot_neighbourhoods(ax, scan, j, radius)

@@ -86,8 +86,11 @@ def main() -> None:
         for (label, pairs), (desc, ver) in product(subsets, configs):
             if not pairs:
                 continue
-            opts = MatchOptions(verification=ver, min_inliers=args.min_inliers,  # type: ignore[arg-type]
-                                verify_scan=args.verify_scan)  # fmt: skip
+            opts = MatchOptions(
+                verification=ver,
+                min_inliers=args.min_inliers,  # type: ignore[arg-type]
+                verify_scan=args.verify_scan,
+            )
             res = registration_errors(scans, pairs, det, desc, opts, odometry=kind == "rel")
             s = res.summary()
             lines.append(

@@ -199,6 +199,7 @@ def merge(cands: dict[int, dict], radius: float) -> list[dict]:
     out = []
     for c in clusters:
         rep = min(c, key=lambda j: (cands[j]["rmse"], -cands[j]["n_scales"], j))
-        out.append(dict(cands[rep], beam=rep, n_merged=len(c),
-                        rmse=max(cands[j]["rmse"] for j in c)))  # fmt: skip
+        out.append(
+            dict(cands[rep], beam=rep, n_merged=len(c), rmse=max(cands[j]["rmse"] for j in c))
+        )
     return out

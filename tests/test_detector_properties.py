@@ -75,8 +75,9 @@ def test_rotating_the_scan_rotates_the_keypoints(delta: float, distance, bearing
     7 cm apart) only large, corner-straddling neighbourhoods pass."""
     bearing = math.radians(bearing_deg)
     scan = corner_scan(corner=(distance * math.cos(bearing), distance * math.sin(bearing)))
-    rotated = LaserScan(scan.ranges, scan.angle_min + delta, scan.angle_increment,
-                        scan.range_min, scan.range_max)  # fmt: skip
+    rotated = LaserScan(
+        scan.ranges, scan.angle_min + delta, scan.angle_increment, scan.range_min, scan.range_max
+    )
     a = DETECTOR.detect(scan)
     b = DETECTOR.detect(rotated)
     c, s = math.cos(delta), math.sin(delta)
@@ -117,8 +118,13 @@ def test_reversing_beam_order_gives_the_same_keypoints(seed: int, noise: float) 
     pose = (rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-3, 3))
     scan = rectangular_room().scan(pose, UST_10LX, noise_sigma=noise, rng=rng)
     n = scan.n_beams
-    reversed_scan = LaserScan(scan.ranges[::-1], scan.angle_min + (n - 1) * scan.angle_increment,
-                              -scan.angle_increment, scan.range_min, scan.range_max)  # fmt: skip
+    reversed_scan = LaserScan(
+        scan.ranges[::-1],
+        scan.angle_min + (n - 1) * scan.angle_increment,
+        -scan.angle_increment,
+        scan.range_min,
+        scan.range_max,
+    )
     a = DETECTOR.detect(scan)
     b = DETECTOR.detect(reversed_scan)
     assert match(a, b) < 1e-9
@@ -142,8 +148,9 @@ def test_straight_wall_with_small_noise_gives_no_keypoint(distance, heading, noi
     rng = np.random.default_rng(seed)
     finite = np.isfinite(ranges)
     ranges[finite] += rng.normal(0, noise, int(finite.sum())) if noise > 0 else 0.0
-    scan = LaserScan(ranges, UST_10LX.angle_min, UST_10LX.angle_increment,
-                     UST_10LX.range_min, UST_10LX.range_max)  # fmt: skip
+    scan = LaserScan(
+        ranges, UST_10LX.angle_min, UST_10LX.angle_increment, UST_10LX.range_min, UST_10LX.range_max
+    )
     assert len(DETECTOR.detect(scan)) == 0
 
 
@@ -170,8 +177,16 @@ def test_any_ranges_never_raise(ranges: np.ndarray) -> None:
 def test_detect_many_equals_detect() -> None:
     rng = np.random.default_rng(5)
     world = rectangular_room()
-    scans = [world.scan((rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)), UST_10LX,
-                        noise_sigma=0.005, rng=rng, stamp=float(i)) for i in range(12)]  # fmt: skip
+    scans = [
+        world.scan(
+            (rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)),
+            UST_10LX,
+            noise_sigma=0.005,
+            rng=rng,
+            stamp=float(i),
+        )
+        for i in range(12)
+    ]
     batch = DETECTOR.detect_many(scans)
     assert len(batch) == len(scans)
     total = 0
@@ -213,8 +228,16 @@ def test_keypoints_records_and_transform() -> None:
     rec = keypoints.to_records()
     assert rec.x[0] == keypoints.xy[0, 0] and rec.n_merged[0] == keypoints.n_merged[0]
     rows = keypoints.to_dicts()
-    assert set(rows[0]) >= {"x", "y", "beam_index", "opening_angle_deg", "orientation",
-                            "n_scales", "rmse", "n_merged"}  # fmt: skip
+    assert set(rows[0]) >= {
+        "x",
+        "y",
+        "beam_index",
+        "opening_angle_deg",
+        "orientation",
+        "n_scales",
+        "rmse",
+        "n_merged",
+    }
     moved = keypoints.transformed((1.0, 2.0, math.pi / 2), frame_id="map")
     assert np.allclose(moved.xy[0], [1.0 - keypoints.xy[0, 1], 2.0 + keypoints.xy[0, 0]])
     assert moved.frame_id == "map"

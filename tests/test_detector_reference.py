@@ -62,8 +62,11 @@ def test_kernel_matches_reference_on_simulated_scans(seed: int) -> None:
     pose = (rng.uniform(-0.4, 0.4), rng.uniform(-0.4, 0.4), rng.uniform(-np.pi, np.pi))
     noise = [0.0, 0.002, 0.005, 0.01, 0.02, 0.03][seed]
     scan = world.scan(pose, sensor, noise_sigma=noise, rng=rng)
-    params = DetectorParams() if sensor is UST_10LX else DetectorParams(
-        scales=(0.1, 0.15, 0.2, 0.25, 0.3, 0.4), max_point_distance=0.08)  # fmt: skip
+    params = (
+        DetectorParams()
+        if sensor is UST_10LX
+        else DetectorParams(scales=(0.1, 0.15, 0.2, 0.25, 0.3, 0.4), max_point_distance=0.08)
+    )
     assert_same(scan, params)
 
 
@@ -74,8 +77,7 @@ def test_kernel_matches_reference_with_many_candidates() -> None:
     ranges[100:104] = np.nan
     ranges[500] = np.inf
     ranges[700] = 0.0
-    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
-                      scan.range_max)  # fmt: skip
+    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max)
     assert assert_same(gappy, DetectorParams()) >= 5
 
 
@@ -86,8 +88,13 @@ def test_kernel_matches_reference_on_random_ranges() -> None:
         ranges = 2.0 + np.cumsum(rng.normal(0, 0.01, 400))
         ranges[rng.random(400) < 0.02] = np.nan
         scan = LaserScan(ranges, -1.5, 0.0075, 0.05, 20.0)
-        params = DetectorParams(max_fit_rmse=0.05, min_angle_deg=20, max_angle_deg=160,
-                                max_point_distance=0.1, max_centroid_distance=0.05)  # fmt: skip
+        params = DetectorParams(
+            max_fit_rmse=0.05,
+            min_angle_deg=20,
+            max_angle_deg=160,
+            max_point_distance=0.1,
+            max_centroid_distance=0.05,
+        )
         assert_same(scan, params)
 
 
@@ -109,8 +116,7 @@ def test_kernel_matches_reference_when_bridging_dropouts(max_gap: int) -> None:
     ranges[rng.random(ranges.size) < 0.05] = np.nan
     ranges[300:303] = np.nan
     ranges[::20] = np.inf
-    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min,
-                      scan.range_max)  # fmt: skip
+    gappy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max)
     params = DetectorParams(max_gap_beams=max_gap)
     assert assert_same(gappy, params) >= 3
     assert assert_same(gappy, params.with_overrides({"min_extent_ratio": 0.6})) >= 1
@@ -126,8 +132,12 @@ def test_kernel_matches_reference_on_a_dense_scan() -> None:
     ranges += np.random.default_rng(5).normal(0.0, 0.0005, n)
     ranges[700:702] = np.nan
     scan = LaserScan(ranges, -np.radians(30.0), inc, 0.02, 10.0)
-    params = DetectorParams(scales=(0.05, 0.08, 0.11), min_consecutive_scales=2,
-                            max_point_distance=0.03, max_fit_rmse=0.01)  # fmt: skip
+    params = DetectorParams(
+        scales=(0.05, 0.08, 0.11),
+        min_consecutive_scales=2,
+        max_point_distance=0.03,
+        max_fit_rmse=0.01,
+    )
     from laser_corners.neighbourhood import points_within as _points_within
 
     x, y = CornerDetector()._scan_xy(scan)
@@ -139,8 +149,9 @@ def test_kernel_matches_reference_with_many_sentinel_scales() -> None:
     """More than three sentinel scales (here 12 scales, runs of 2): the walk stores its
     running maxima and the other sentinels are counted from them."""
     scan = rectangular_room().scan((-0.3, 0.2, 1.0), UST_10LX, 0.005, np.random.default_rng(7))
-    params = DetectorParams(scales=tuple(0.04 + 0.02 * k for k in range(12)),
-                            min_consecutive_scales=2)  # fmt: skip
+    params = DetectorParams(
+        scales=tuple(0.04 + 0.02 * k for k in range(12)), min_consecutive_scales=2
+    )
     assert assert_same(scan, params) >= 3
 
 
@@ -151,8 +162,9 @@ def test_kernel_matches_reference_for_sentinel_layouts(n_scales: int, m: int) ->
     """Sentinels K-m, K-2m, ...: layouts of scale count and run length (one, two, three or
     more sentinels; scales above the highest sentinel; as many scales as m)."""
     scan = rectangular_room().scan((0.4, -0.2, 0.3), UST_10LX, 0.01, np.random.default_rng(m))
-    params = DetectorParams(scales=tuple(0.05 + 0.025 * k for k in range(n_scales)),
-                            min_consecutive_scales=m)  # fmt: skip
+    params = DetectorParams(
+        scales=tuple(0.05 + 0.025 * k for k in range(n_scales)), min_consecutive_scales=m
+    )
     assert assert_same(scan, params) >= 1
 
 
@@ -175,8 +187,10 @@ def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
     cand[:, C_K0], cand[:, C_OPEN], cand[:, C_ORIENT] = 0, 90.0, 0.0
     rows = np.empty((n, NM))
     count = merge(cand, radius, rows)
-    cands = {j: {"xy": (xy[j, 0], xy[j, 1]), "rmse": cand[j, C_RMSE],
-                 "n_scales": int(cand[j, C_NSC])} for j in np.flatnonzero(has)}  # fmt: skip
+    cands = {
+        j: {"xy": (xy[j, 0], xy[j, 1]), "rmse": cand[j, C_RMSE], "n_scales": int(cand[j, C_NSC])}
+        for j in np.flatnonzero(has)
+    }
     expected = ref.merge(cands, radius)
     assert count == len(expected)
     for row, e in zip(rows[:count], expected, strict=True):
@@ -206,8 +220,9 @@ def test_kernel_matches_frozen_kernel_on_a_100k_beam_scan() -> None:
     frozen kernel's plain walk and all-pairs merge: same candidates and keypoints."""
     n = 100_000
     inc = 2 * np.pi / n
-    world = World().add_polygon([[-3.0, -2.5], [4.0, -2.5], [4.0, 1.0], [1.5, 1.0],
-                                 [1.5, 3.0], [-3.0, 3.0]])  # fmt: skip
+    world = World().add_polygon(
+        [[-3.0, -2.5], [4.0, -2.5], [4.0, 1.0], [1.5, 1.0], [1.5, 3.0], [-3.0, 3.0]]
+    )
     ranges = world.cast((0.4, -0.3, 0.25), -np.pi + inc * np.arange(n))
     ranges += np.random.default_rng(2).normal(0.0, 0.001, n)
     ranges[5000:5003] = np.nan

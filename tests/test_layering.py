@@ -38,7 +38,7 @@ ROOM_LAYERS = {
     "cli": 7,
     "demo": 7,
 }
-MAX_MODULE_LINES = 400
+MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 120
 
 

@@ -15,8 +15,9 @@ from laser_corners.presets import get_preset
 
 
 def make(**kw):
-    fields = dict(ranges=[1.0, 2.0, 3.0], angle_min=0.0, angle_increment=0.1,
-                  range_min=0.06, range_max=10.0)  # fmt: skip
+    fields = dict(
+        ranges=[1.0, 2.0, 3.0], angle_min=0.0, angle_increment=0.1, range_min=0.06, range_max=10.0
+    )
     fields.update(kw)
     return LaserScan(**fields)
 
@@ -61,8 +62,9 @@ def test_gaps_are_counted_never_errors() -> None:
 def test_cartesian_in_angular_order() -> None:
     scan = make(ranges=[1.0, 1.0, 1.0], angle_min=-0.5, angle_increment=0.5)
     xy, _ = scan.to_cartesian()
-    assert np.allclose(xy, [[math.cos(-0.5), math.sin(-0.5)], [1, 0], [math.cos(0.5),
-                                                                      math.sin(0.5)]])  # fmt: skip
+    assert np.allclose(
+        xy, [[math.cos(-0.5), math.sin(-0.5)], [1, 0], [math.cos(0.5), math.sin(0.5)]]
+    )
     assert not scan.ranges.flags.writeable
 
 

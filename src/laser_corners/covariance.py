@@ -183,10 +183,23 @@ def keypoint_covariances(
     """
     cfg = unpack.py_func(config)  # read in Python: unpacked inside numba it cost 10x more
     return _covariances(
-        x, y, xy, beam_index, scale_index, n_scales, cfg.scales, angle_increment,
-        apex_factor, floor, run_factor, cfg.refine_radius, cfg.refine_exclude, cfg.min_points,
-        cfg.max_fit_rmse, cfg.max_gap_beams,
-    )  # fmt: skip
+        x,
+        y,
+        xy,
+        beam_index,
+        scale_index,
+        n_scales,
+        cfg.scales,
+        angle_increment,
+        apex_factor,
+        floor,
+        run_factor,
+        cfg.refine_radius,
+        cfg.refine_exclude,
+        cfg.min_points,
+        cfg.max_fit_rmse,
+        cfg.max_gap_beams,
+    )
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -225,10 +238,20 @@ def _covariances(
         if refine_radius > 0.0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
             used = int(
                 _refined_covariance(
-                    x, y, cx, cy, j, refine_radius, refine_exclude, min_points, max_rmse,
-                    sigma2, max_gap, acc,
+                    x,
+                    y,
+                    cx,
+                    cy,
+                    j,
+                    refine_radius,
+                    refine_exclude,
+                    min_points,
+                    max_rmse,
+                    sigma2,
+                    max_gap,
+                    acc,
                 )
-            )  # fmt: skip
+            )
         if used == 0 and 0 <= j < x.shape[0] and math.isfinite(x[j]):
             scale_factor = run_factor
             k0 = max(scale_index[t], 0)

@@ -38,8 +38,10 @@ def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005)
     detector = CornerDetector(DetectorParams())
     keypoints = detector.detect(scan)
     truth = world.visible_corners(DEMO_POSE, UST_10LX)
-    print(f"Simulated {UST_10LX.name} scan: {scan.n_beams} beams, {scan.n_gaps} gaps, "
-          f"range noise sigma {noise_sigma} m")  # fmt: skip
+    print(
+        f"Simulated {UST_10LX.name} scan: {scan.n_beams} beams, {scan.n_gaps} gaps, "
+        f"range noise sigma {noise_sigma} m"
+    )
     print(f"{len(keypoints)} keypoints, {len(truth)} true corners in view\n")
     print(f"{'true x':>8} {'true y':>8} | {'kp x':>8} {'kp y':>8} {'error mm':>9} {'angle':>6}")
     missed = 0
@@ -49,8 +51,10 @@ def run_demo(output: Path | None = Path("demo.png"), noise_sigma: float = 0.005)
             i = int(np.argmin(d))
         if len(keypoints) and d[i] <= 0.1:
             kx, ky = keypoints.xy[i]
-            print(f"{tx:8.3f} {ty:8.3f} | {kx:8.3f} {ky:8.3f} {d[i] * 1e3:9.1f} "
-                  f"{keypoints.opening_angle_deg[i]:6.1f}")  # fmt: skip
+            print(
+                f"{tx:8.3f} {ty:8.3f} | {kx:8.3f} {ky:8.3f} {d[i] * 1e3:9.1f} "
+                f"{keypoints.opening_angle_deg[i]:6.1f}"
+            )
         else:
             missed += 1
             print(f"{tx:8.3f} {ty:8.3f} |   (missed)")

@@ -257,8 +257,17 @@ def candidates(
             if not dense and k < st - 2 * m:
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])
-            screened[k] = screen(ps, inv, j, start[k], stop[k], cfg.min_points, loose_mse, max_cos2,
-                                 cfg.max_gap_beams > 0)  # fmt: skip
+            screened[k] = screen(
+                ps,
+                inv,
+                j,
+                start[k],
+                stop[k],
+                cfg.min_points,
+                loose_mse,
+                max_cos2,
+                cfg.max_gap_beams > 0,
+            )
             hit |= screened[k]
         if not hit:
             continue
@@ -273,8 +282,22 @@ def candidates(
             na = reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)[0]
             nd = reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)[0]
         rm = (rm_a, rm_d, na, nd, px, py, mode)
-        _screen_rest(ps, inv, j, start, stop, screened, r2, m, st, cfg.min_points, loose_mse,
-                     max_cos2, want_table, rm)  # fmt: skip
+        _screen_rest(
+            ps,
+            inv,
+            j,
+            start,
+            stop,
+            screened,
+            r2,
+            m,
+            st,
+            cfg.min_points,
+            loose_mse,
+            max_cos2,
+            want_table,
+            rm,
+        )
         if not want_table and not keep_runs(screened, m):
             continue
         _test_scales(x, y, ps, ox, oy, j, start, stop, screened, cfg, limits, passed, res, table)
@@ -290,8 +313,22 @@ def _walks(j: int, px, py, r2_max: float, r2_a: float, r2_b: float) -> tuple:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, min_points: int,
-                 loose_mse: float, max_cos2: float, want_all: bool, rm: tuple) -> None:  # fmt: skip
+def _screen_rest(
+    ps,
+    inv,
+    j: int,
+    start,
+    stop,
+    screened,
+    r2,
+    m: int,
+    st: int,
+    min_points: int,
+    loose_mse: float,
+    max_cos2: float,
+    want_all: bool,
+    rm: tuple,
+) -> None:
     """Screen the scales of p_j other than the sentinels (already in ``screened``).
 
     Every run of m consecutive scales holds a sentinel and lies between two failing ones,
@@ -328,13 +365,15 @@ def _screen_rest(ps, inv, j: int, start, stop, screened, r2, m: int, st: int, mi
             hi_d = stop[above] - j if above >= 0 else far
             start[k] = j - extend(j, -1, px, py, lo_a, hi_a, r2[k])
             stop[k] = j + extend(j, 1, px, py, lo_d, hi_d, r2[k])
-        screened[k] = screen(ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2,
-                             mode == 0)  # fmt: skip
+        screened[k] = screen(
+            ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2, mode == 0
+        )
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _test_scales(x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelConfig,
-                 limits, passed, res, table) -> None:  # fmt: skip
+def _test_scales(
+    x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelConfig, limits, passed, res, table
+) -> None:
     """The exact test (:func:`~laser_corners.scale_tests.full_test`) of the screened scales
     of p_j: ``passed[k]`` and ``res[k]`` (ix, iy, worst rmse, opening, bisector x, y)."""
     want_table = table.shape[0] == x.shape[0]

@@ -188,8 +188,9 @@ class Keypoints:
         """No keypoints."""
         z = np.zeros(0)
         zi = np.zeros(0, dtype=np.int64)
-        return cls(np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id,
-                   scale_index=zi)  # fmt: skip
+        return cls(
+            np.zeros((0, 2)), zi, z, z, zi, z, zi, stamp=stamp, frame_id=frame_id, scale_index=zi
+        )
 
     def __len__(self) -> int:
         xy = self.__dict__.get("xy")

@@ -249,8 +249,18 @@ def nearest(x, y, b: int, cx: float, cy: float, r2: float, max_gap: int) -> int:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: float,
-              max_gap: int, sums: NDArray[np.float64]) -> int:  # fmt: skip
+def wall_sums(
+    x,
+    y,
+    apex: int,
+    step: int,
+    cx: float,
+    cy: float,
+    r2: float,
+    e2: float,
+    max_gap: int,
+    sums: NDArray[np.float64],
+) -> int:
     """n, Σdx, Σdy, Σdx², Σdy², Σdxdy (relative to (cx, cy)) of one wall's run within
     ``r2`` of the keypoint, leaving out points closer than ``e2``; returns the index of the
     run's farthest counted point (``apex`` when none)."""
@@ -276,8 +286,14 @@ def wall_sums(x, y, apex: int, step: int, cx: float, cy: float, r2: float, e2: f
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def refine(x: NDArray[np.float64], y: NDArray[np.float64], rows: NDArray[np.float64],
-           n_rows: int, cfg: KernelConfig, max_shift: float) -> None:  # fmt: skip
+def refine(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    rows: NDArray[np.float64],
+    n_rows: int,
+    cfg: KernelConfig,
+    max_shift: float,
+) -> None:
     """Re-estimate keypoints from longer wall fits (option ``refine_radius``, not in the paper).
 
     For each keypoint row: the scan point nearest to it (searched outwards from its beam),
@@ -316,8 +332,13 @@ def refine(x: NDArray[np.float64], y: NDArray[np.float64], rows: NDArray[np.floa
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def finish(x: NDArray[np.float64], y: NDArray[np.float64], cand: NDArray[np.float64],
-           packed: NDArray[np.float64], rows: NDArray[np.float64]) -> int:  # fmt: skip
+def finish(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    cand: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    rows: NDArray[np.float64],
+) -> int:
     """Candidates -> keypoint rows (merged, refined as configured); returns their count.
 
     ``packed`` is the configuration from :func:`~laser_corners.kernel.kernel_config`.
@@ -334,9 +355,17 @@ def finish(x: NDArray[np.float64], y: NDArray[np.float64], cand: NDArray[np.floa
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def detect_into(ranges, cos_a, sin_a, range_min: float, range_max: float,
-                packed: NDArray[np.float64], x: NDArray[np.float64], y: NDArray[np.float64],
-                rows: NDArray[np.float64]) -> int:  # fmt: skip
+def detect_into(
+    ranges,
+    cos_a,
+    sin_a,
+    range_min: float,
+    range_max: float,
+    packed: NDArray[np.float64],
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    rows: NDArray[np.float64],
+) -> int:
     """One scan's ranges -> keypoint rows (returns their count), handing back the scan's points
     in ``x``, ``y`` (the detector keeps them for the covariances)."""
     n_valid = polar_to_xy(ranges, cos_a, sin_a, range_min, range_max, x, y)
@@ -362,8 +391,12 @@ def detect_scan(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def detect_xy(x: NDArray[np.float64], y: NDArray[np.float64], packed: NDArray[np.float64],
-              rows: NDArray[np.float64]) -> int:  # fmt: skip
+def detect_xy(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    packed: NDArray[np.float64],
+    rows: NDArray[np.float64],
+) -> int:
     """One scan's points (beam order, NaN for gaps) -> keypoint rows; returns their count."""
     cand = np.empty((x.shape[0], NC))
     candidates(x, y, packed, cand, np.empty((0, 0, 3)))

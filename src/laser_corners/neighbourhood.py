@@ -160,8 +160,9 @@ def _box_d2(box: NDArray[np.float64], lev: int, b: int, xj: float, yj: float) ->
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _skip(box: NDArray[np.float64], i: int, step: int, n: int, xj: float, yj: float,
-          r2: float) -> int:  # fmt: skip
+def _skip(
+    box: NDArray[np.float64], i: int, step: int, n: int, xj: float, yj: float, r2: float
+) -> int:
     """Size of the largest aligned block starting at ``i`` (towards ``step``) that lies
     within ``r2`` of (xj, yj), or 0."""
     edge = i if step > 0 else i + 1  # aligned block boundary at the walk's near side
@@ -246,9 +247,17 @@ def padded(x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.boo
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
-          r2_max: float, r2_a: float, r2_b: float, running_max: NDArray[np.float64],
-          store: bool) -> tuple:  # fmt: skip
+def reach(
+    j: int,
+    step: int,
+    px: NDArray[np.float64],
+    py: NDArray[np.float64],
+    r2_max: float,
+    r2_a: float,
+    r2_b: float,
+    running_max: NDArray[np.float64],
+    store: bool,
+) -> tuple:
     """Walk from p_j towards ``step`` up to the largest scale, point by point.
 
     Follows the running maximum of the squared distance to p_j (a gap, or the scan's end, is
@@ -294,8 +303,15 @@ def reach(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def counts(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64],
-           r2_max: float, r2_a: float, r2_b: float) -> tuple:  # fmt: skip
+def counts(
+    j: int,
+    step: int,
+    px: NDArray[np.float64],
+    py: NDArray[np.float64],
+    r2_max: float,
+    r2_a: float,
+    r2_b: float,
+) -> tuple:
     """What :func:`reach` returns without ``store``: the numbers of leading steps from p_j
     towards ``step`` within sqrt(``r2_max``), sqrt(``r2_a``) and sqrt(``r2_b``) (each at most
     ``r2_max``), :data:`W` points at a time.
@@ -346,8 +362,9 @@ def within(running_max: NDArray[np.float64], steps: int, r2: float) -> int:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def extend(j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64], lo: int,
-           hi: int, r2: float) -> int:  # fmt: skip
+def extend(
+    j: int, step: int, px: NDArray[np.float64], py: NDArray[np.float64], lo: int, hi: int, r2: float
+) -> int:
     """Number of leading steps of a :func:`reach` walk from p_j within sqrt(``r2``), given
     that the first ``lo`` steps are within it and at most ``hi`` are (the counts of a smaller
     and a larger scale): only the steps after ``lo`` are looked at, point by point.

@@ -37,8 +37,17 @@ def _sums(ps: NDArray[np.float64], a: int, b: int) -> tuple:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def screen(ps: NDArray[np.float64], inv: NDArray[np.float64], j: int, s: int, e: int,
-           min_points: int, loose_mse: float, max_cos2: float, bridged: bool) -> bool:  # fmt: skip
+def screen(
+    ps: NDArray[np.float64],
+    inv: NDArray[np.float64],
+    j: int,
+    s: int,
+    e: int,
+    min_points: int,
+    loose_mse: float,
+    max_cos2: float,
+    bridged: bool,
+) -> bool:
     """Necessary condition for a scale to pass, without divisions (a hair permissive).
 
     The RMSE tests of eqs. 8-9 as D <= max_rmse² · n · spread (D = Sxx·Syy - Sxy², spread =
@@ -134,8 +143,9 @@ def full_test(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def best_run(passed: NDArray[np.bool_], q: NDArray[np.float64], min_consecutive: int,
-             max_cd2: float) -> tuple:  # fmt: skip
+def best_run(
+    passed: NDArray[np.bool_], q: NDArray[np.float64], min_consecutive: int, max_cd2: float
+) -> tuple:
     """The winning run of consecutive passing scales: ``(k0, length, cx, cy)``.
 
     The longest run of at least ``min_consecutive`` scales whose intersections ``q[k, :2]``

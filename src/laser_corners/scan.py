@@ -34,6 +34,7 @@ __all__ = [
 # rounded to float32 by drivers
 _MAX_FIELD_OF_VIEW = 2.0 * math.pi * (1.0 + 1e-4)
 
+
 def _finite_float(name: str, value: object) -> float:
     try:
         number = float(value)  # type: ignore[arg-type]
@@ -166,10 +167,15 @@ class LaserScan:
         """
         scan = object.__new__(cls)
         for name, value in (
-            ("ranges", ranges), ("angle_min", angle_min), ("angle_increment", angle_increment),
-            ("range_min", range_min), ("range_max", range_max), ("stamp", stamp),
-            ("frame_id", frame_id), ("pose", pose),
-        ):  # fmt: skip
+            ("ranges", ranges),
+            ("angle_min", angle_min),
+            ("angle_increment", angle_increment),
+            ("range_min", range_min),
+            ("range_max", range_max),
+            ("stamp", stamp),
+            ("frame_id", frame_id),
+            ("pose", pose),
+        ):
             object.__setattr__(scan, name, value)  # frozen dataclass, as __post_init__ does
         return scan
 
@@ -185,8 +191,7 @@ class LaserScan:
         """``(n_beams, angle_min, angle_increment, range_min, range_max)``: scans with equal
         geometry share beam angles and validity limits (one ``detect_many`` call, one preset
         adaptation)."""
-        return (self.n_beams, self.angle_min, self.angle_increment, self.range_min,
-                self.range_max)  # fmt: skip
+        return (self.n_beams, self.angle_min, self.angle_increment, self.range_min, self.range_max)
 
     @property
     def angles(self) -> NDArray[np.float64]:

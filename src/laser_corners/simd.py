@@ -32,8 +32,10 @@ def far_masks(typingctx, px, py, base, xj, yj, r2_a, r2_b, r2_c):  # type: ignor
     ``px``, ``py``: C-contiguous float64 arrays; the caller guarantees that indices
     ``base`` to ``base + W - 1`` are within both (no bounds check, no wrap-around).
     """
-    ok = all(isinstance(a, types.Array) and a.dtype == types.float64 and a.layout == "C"
-             and a.ndim == 1 for a in (px, py))  # fmt: skip
+    ok = all(
+        isinstance(a, types.Array) and a.dtype == types.float64 and a.layout == "C" and a.ndim == 1
+        for a in (px, py)
+    )
     scalars = (xj, yj, r2_a, r2_b, r2_c)
     if not ok or not isinstance(base, types.Integer) or any(t != types.float64 for t in scalars):
         return None

@@ -205,8 +205,12 @@ def test_dask_cluster_batch_with_damaged_inputs_resumes(tmp_path: Path, cluster)
     assert [r.output for r in report.already_done] == ["fr079-corrected.parquet"]
     assert (outdir / "fr079-corrected.parquet").stat().st_mtime_ns == done_mtime
     by_input = {Path(r.input).name: r for r in report.results}
-    assert set(by_input) == {"intel-corrected.clf.gz", "aces.bag", "truncated.bag",
-                             "flipped.clf.gz"}  # fmt: skip
+    assert set(by_input) == {
+        "intel-corrected.clf.gz",
+        "aces.bag",
+        "truncated.bag",
+        "flipped.clf.gz",
+    }
     assert report.workers == 2
     assert len({r.worker for r in report.results}) == 2  # both worker processes got jobs
 
@@ -230,14 +234,16 @@ def test_dask_cluster_batch_with_damaged_inputs_resumes(tmp_path: Path, cluster)
 
     latest = _latest(outdir)
     assert {Path(k).name: r.status for k, r in latest.items()} == {
-        "fr079-corrected.clf.gz": "done", "intel-corrected.clf.gz": "done",
-        "aces.bag": "done", "truncated.bag": "failed", "flipped.clf.gz": "failed",
-    }  # fmt: skip
+        "fr079-corrected.clf.gz": "done",
+        "intel-corrected.clf.gz": "done",
+        "aces.bag": "done",
+        "truncated.bag": "failed",
+        "flipped.clf.gz": "failed",
+    }
 
     # running again retries only the failed jobs
     again = _on_cluster(inputs, outdir, scheduler=cluster.scheduler_address, timeout=30)
-    assert sorted(Path(r.input).name for r in again.results) == ["flipped.clf.gz",
-                                                                 "truncated.bag"]  # fmt: skip
+    assert sorted(Path(r.input).name for r in again.results) == ["flipped.clf.gz", "truncated.bag"]
     assert len(again.already_done) == 3
 
 
@@ -264,12 +270,24 @@ def test_stopped_run_resumes_without_redoing_or_trusting_partials(
     intel = real_file("intel-corrected.clf.gz")
     log = real_file("fr079-corrected.clf.gz")
     outdir = tmp_path / "out"
-    command = [str(Path(sys.executable).parent / "laser-corners"), "batch", str(intel), str(aces),
-               str(log), "-o", str(outdir), "-w", workers]  # fmt: skip
+    command = [
+        str(Path(sys.executable).parent / "laser-corners"),
+        "batch",
+        str(intel),
+        str(aces),
+        str(log),
+        "-o",
+        str(outdir),
+        "-w",
+        workers,
+    ]
     process = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        command,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
         preexec_fn=default_sigint,
-    )  # fmt: skip
+    )
     manifest = outdir / MANIFEST_NAME
     deadline = time.monotonic() + 120
     try:

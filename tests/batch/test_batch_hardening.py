@@ -26,8 +26,10 @@ def _room_log(path: Path, n: int) -> Path:
     """A CARMEN log of ``n`` noisy 181-beam scans of a rectangular room (written here)."""
     rng = np.random.default_rng(len(path.name) + n)
     angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
-    base = np.minimum(3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
-                      2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9))  # fmt: skip
+    base = np.minimum(
+        3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
+        2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9),
+    )
     with path.open("w") as handle:
         for i in range(n):
             ranges = base + rng.normal(0.0, 0.005, base.size)
@@ -98,8 +100,11 @@ def test_killed_batch_leaves_no_worker_running(tmp_path: Path) -> None:
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and process.poll() is None:
-            workers = [p for p in _children(process.pid)
-                       if b"spawn_main" in Path(f"/proc/{p}/cmdline").read_bytes()]  # fmt: skip
+            workers = [
+                p
+                for p in _children(process.pid)
+                if b"spawn_main" in Path(f"/proc/{p}/cmdline").read_bytes()
+            ]
             if len(workers) >= 2:
                 break
             time.sleep(0.05)
@@ -123,9 +128,12 @@ def test_ctrl_c_keeps_every_finished_output_in_the_manifest(tmp_path: Path) -> N
     outdir = tmp_path / "out"
     command = [*CLI, "batch", *map(str, logs), "-o", str(outdir), "-w", "2"]
     process = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        command,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
         preexec_fn=default_sigint,
-    )  # fmt: skip
+    )
     manifest = outdir / MANIFEST_NAME
     try:
         deadline = time.monotonic() + 120

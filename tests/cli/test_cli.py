@@ -185,7 +185,6 @@ def test_malformed_log_lines_are_reported_in_the_summary(tmp_path: Path) -> None
     assert "first at line 6" in result.stdout
 
 
-
 def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
     # a plain-text CARMEN log of twenty copies of intel-corrected (53,440 scans): several
     # seconds of reading; what the CSV writer's buffer holds at the interrupt must be kept too
@@ -197,9 +196,11 @@ def test_ctrl_c_keeps_what_was_written(tmp_path: Path) -> None:
     out = tmp_path / "intel.csv"
     process = subprocess.Popen(
         [*CLI, "detect", str(log), "-o", str(out), "--preset", "auto"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
         preexec_fn=default_sigint,
-    )  # fmt: skip
+    )
     # interrupt once rows have reached the file under its temporary name (the name until it
     # is complete): however loaded the machine or cold the kernel cache, the interrupt then
     # lands mid-run with something written

@@ -36,8 +36,10 @@ def _one_line_error(result, *needles: str) -> str:
 def _small_log(path: Path, n: int = 5) -> Path:
     """A CARMEN log of ``n`` 181-beam scans of a square room (written here)."""
     angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
-    ranges = np.minimum(3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
-                        2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9))  # fmt: skip
+    ranges = np.minimum(
+        3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
+        2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9),
+    )
     lines = []
     for i in range(n):
         body = " ".join(f"{r:.3f}" for r in ranges)
@@ -59,8 +61,10 @@ def _small_bag(path: Path, n: int = 300) -> Path:
     )
     time_type = store.types["builtin_interfaces/msg/Time"]
     angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
-    walls = np.minimum(3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
-                       2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9))  # fmt: skip
+    walls = np.minimum(
+        3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
+        2.0 / np.maximum(np.abs(np.sin(angles)), 1e-9),
+    )
     ranges = walls.astype(np.float32)
     with Writer(path) as writer:
         connection = writer.add_connection("/scan", scan_type.__msgtype__, typestore=store)
@@ -68,13 +72,20 @@ def _small_bag(path: Path, n: int = 300) -> Path:
             stamp = 1_000_000_000 + i * 100_000_000
             msg = scan_type(
                 header=header_type(
-                    seq=i, stamp=time_type(sec=stamp // 10**9, nanosec=stamp % 10**9),
+                    seq=i,
+                    stamp=time_type(sec=stamp // 10**9, nanosec=stamp % 10**9),
                     frame_id="laser",
                 ),
-                angle_min=-np.pi, angle_max=np.pi, angle_increment=2 * np.pi / 360,
-                time_increment=0.0, scan_time=0.1, range_min=0.05, range_max=30.0,
-                ranges=ranges, intensities=np.zeros(0, dtype=np.float32),
-            )  # fmt: skip
+                angle_min=-np.pi,
+                angle_max=np.pi,
+                angle_increment=2 * np.pi / 360,
+                time_increment=0.0,
+                scan_time=0.1,
+                range_min=0.05,
+                range_max=30.0,
+                ranges=ranges,
+                intensities=np.zeros(0, dtype=np.float32),
+            )
             writer.write(connection, stamp, store.serialize_ros1(msg, scan_type.__msgtype__))
     return path
 
@@ -159,8 +170,11 @@ def test_folder_outputs_onto_an_existing_file_fail_in_one_line(tmp_path: Path) -
     taken = tmp_path / "taken"
     taken.write_text("not a folder")
     _one_line_error(_invoke("simulate", "-o", taken, "--scans", "2"), "taken", "--output")
-    _one_line_error(_invoke("evaluate", "sim", "-o", taken, "--worlds", "1", "--poses", "1"),
-                    "taken", "--output")  # fmt: skip
+    _one_line_error(
+        _invoke("evaluate", "sim", "-o", taken, "--worlds", "1", "--poses", "1"),
+        "taken",
+        "--output",
+    )
     log = _small_log(tmp_path / "room.clf")
     _one_line_error(_invoke("evaluate", "real", log, "-o", taken), "taken", "--output")
     assert taken.read_text() == "not a folder"
@@ -202,9 +216,12 @@ def test_help_keeps_long_option_text_whole() -> None:
     text = PresetOption.__metadata__[0].help  # type: ignore[attr-defined]
     assert len(text) > 150
     process = subprocess.run(
-        [*CLI, "detect", "--help"], capture_output=True, text=True, check=True,
+        [*CLI, "detect", "--help"],
+        capture_output=True,
+        text=True,
+        check=True,
         env={**os.environ, "COLUMNS": "80"},
-    )  # fmt: skip
+    )
     flat = " ".join(process.stdout.replace("│", " ").split())
     assert " ".join(text.split()) in flat
     assert max(len(line) for line in process.stdout.splitlines()) > 80

@@ -29,12 +29,14 @@ from laser_corners.viz.report import write_accuracy_report
 def test_match_scan_counts_found_false_and_duplicates() -> None:
     visible = np.array([[1.0, 0.0], [0.0, 2.0]])
     all_corners = np.vstack([visible, [[5.0, 5.0]]])
-    keypoints = np.array([
-        [1.01, 0.0],    # finds corner 0 (10 mm)
-        [1.0, 0.05],    # a duplicate of corner 0
-        [5.0, 5.02],    # near a corner that is not visible: neither found nor false
-        [3.0, 3.0],     # false
-    ])  # fmt: skip
+    keypoints = np.array(
+        [
+            [1.01, 0.0],  # finds corner 0 (10 mm)
+            [1.0, 0.05],  # a duplicate of corner 0
+            [5.0, 5.02],  # near a corner that is not visible: neither found nor false
+            [3.0, 3.0],  # false
+        ]
+    )
     m = match_scan(keypoints, visible, all_corners, match_radius=0.1)
     assert (m.n_visible, m.n_found, m.n_keypoints, m.n_false, m.n_on_found) == (2, 1, 4, 1, 2)
     assert m.errors == pytest.approx([0.01])
@@ -81,8 +83,11 @@ def test_small_sweep_paper_and_baseline(tmp_path) -> None:
     # "baseline": the older name of split-and-merge, still accepted
     stats, used = run_sweep(cases, default_methods(["paper", "baseline"]), sigmas=(0.0, 0.02))
     assert [(s.method, s.sigma) for s in stats] == [
-        ("paper", 0.0), ("split-and-merge", 0.0), ("paper", 0.02), ("split-and-merge", 0.02)
-    ]  # fmt: skip
+        ("paper", 0.0),
+        ("split-and-merge", 0.0),
+        ("paper", 0.02),
+        ("split-and-merge", 0.02),
+    ]
     by = {(s.method, s.sigma): s for s in stats}
     assert by["paper", 0.0].n_visible > 20
     assert by["paper", 0.0].recall > 0.9
@@ -106,10 +111,23 @@ def test_default_methods_rejects_unknown_preset() -> None:
 
 def test_cli_evaluate_sim_small(tmp_path) -> None:
     out = tmp_path / "e"
-    result = CliRunner().invoke(app, [
-        "evaluate", "sim", "-o", str(out), "--worlds", "2", "--poses", "2",
-        "--noise", "0,0.01", "--methods", "paper,baseline",
-    ])  # fmt: skip
+    result = CliRunner().invoke(
+        app,
+        [
+            "evaluate",
+            "sim",
+            "-o",
+            str(out),
+            "--worlds",
+            "2",
+            "--poses",
+            "2",
+            "--noise",
+            "0,0.01",
+            "--methods",
+            "paper,baseline",
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert {"accuracy.csv", "accuracy.md", "accuracy.png", "config.yaml"} <= {
         p.name for p in out.iterdir()

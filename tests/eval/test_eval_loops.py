@@ -33,10 +33,30 @@ JSON_KEYS = {"precision", "recall", "min_inliers", "queries", "ms_per_pair"}
 def _world() -> World:
     """A 14 x 10 m hall with notched walls and square pillars: many distinct corners."""
     world = World(name="loop hall")
-    world.add_polygon([[0, 0], [6, 0], [6, -0.8], [7.5, -0.8], [7.5, 0], [14, 0], [14, 4],
-                       [14.7, 4], [14.7, 5.5], [14, 5.5], [14, 10], [8, 10], [8, 10.6],
-                       [6.5, 10.6], [6.5, 10], [0, 10], [0, 6], [-0.6, 6], [-0.6, 3.5],
-                       [0, 3.5]])  # fmt: skip
+    world.add_polygon(
+        [
+            [0, 0],
+            [6, 0],
+            [6, -0.8],
+            [7.5, -0.8],
+            [7.5, 0],
+            [14, 0],
+            [14, 4],
+            [14.7, 4],
+            [14.7, 5.5],
+            [14, 5.5],
+            [14, 10],
+            [8, 10],
+            [8, 10.6],
+            [6.5, 10.6],
+            [6.5, 10],
+            [0, 10],
+            [0, 6],
+            [-0.6, 6],
+            [-0.6, 3.5],
+            [0, 3.5],
+        ]
+    )
     for cx, cy, h in ((3.5, 5.2, 0.4), (10.5, 5.0, 0.5), (7.0, 3.0, 0.3), (7.2, 7.0, 0.35)):
         world.add_polygon([[cx - h, cy - h], [cx + h, cy - h], [cx + h, cy + h], [cx - h, cy + h]])
     return world
@@ -44,8 +64,7 @@ def _world() -> World:
 
 def _loop_poses(step: float = 0.35) -> np.ndarray:
     """A rectangular loop (2, 2) -> (12, 2) -> (12, 8) -> (2, 8) -> back, then 1.5 m more."""
-    corners = np.array([[2.0, 2.0], [12.0, 2.0], [12.0, 8.0], [2.0, 8.0], [2.0, 2.0],
-                        [3.5, 2.0]])  # fmt: skip
+    corners = np.array([[2.0, 2.0], [12.0, 2.0], [12.0, 8.0], [2.0, 8.0], [2.0, 2.0], [3.5, 2.0]])
     poses = []
     for a, b in itertools.pairwise(corners):
         n = max(1, round(float(np.hypot(*(b - a))) / step))
@@ -61,8 +80,10 @@ def _loop_poses(step: float = 0.35) -> np.ndarray:
 def loop_scans() -> list[LaserScan]:
     world = _world()
     rng = np.random.default_rng(3)
-    return [world.scan(tuple(p), UST_10LX, noise_sigma=0.005, rng=rng, stamp=0.1 * i)
-            for i, p in enumerate(_loop_poses())]  # fmt: skip
+    return [
+        world.scan(tuple(p), UST_10LX, noise_sigma=0.005, rng=rng, stamp=0.1 * i)
+        for i, p in enumerate(_loop_poses())
+    ]
 
 
 # ------------------------------------------------------------------ metric
@@ -118,16 +139,24 @@ def test_revisit_overlap_any_scan_direction() -> None:
     ranges_a = 3.0 / np.cos(angles)
     a = LaserScan(ranges_a, math.radians(-45.0), math.radians(0.5), 0.0, 50.0, pose=(0, 0, 0))
     ranges_b = (9.0 / np.cos(angles))[::-1]
-    b = LaserScan(ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 50.0,
-                  pose=(-6.0, 0.0, 0.0))  # fmt: skip
-    c = LaserScan(ranges_b, math.radians(45.0) + math.tau, -math.radians(0.5), 0.0, 50.0,
-                  pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    b = LaserScan(
+        ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 50.0, pose=(-6.0, 0.0, 0.0)
+    )
+    c = LaserScan(
+        ranges_b,
+        math.radians(45.0) + math.tau,
+        -math.radians(0.5),
+        0.0,
+        50.0,
+        pose=(-6.0, 0.0, 0.0),
+    )
     assert revisits([a, b], window_travel=1.0).tolist() == [1, -1]
     assert revisits([a, c], window_travel=1.0).tolist() == [1, -1]
     assert revisits([a, b], window_travel=1.0, overlap=0.4).tolist() == [1, 0]
     # a scan whose range ends before the wall sees none of it
-    far = LaserScan(ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 5.0,
-                    pose=(-6.0, 0.0, 0.0))  # fmt: skip
+    far = LaserScan(
+        ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 5.0, pose=(-6.0, 0.0, 0.0)
+    )
     assert revisits([a, far], window_travel=1.0)[0] == -1
 
 
@@ -151,10 +180,10 @@ def test_loop_matcher_recovers_the_relative_pose(loop_scans: list[LaserScan]) ->
         assert math.hypot(est[0] - truth[0], est[1] - truth[1]) < 0.1, j
         assert abs(math.remainder(est[2] - truth[2], math.tau)) < math.radians(2.0), j
     # the batch is the pairwise call, pair by pair
-    desc = [describe(s, kp)
-            for s, kp in ((loop_scans[last], kps[last]), (loop_scans[k], kps[k]))]  # fmt: skip
-    single = register_keypoints(kps[last], desc[0], kps[k], desc[1], LOOPS_MATCH,
-                                loop_scans[last], loop_scans[k])  # fmt: skip
+    desc = [describe(s, kp) for s, kp in ((loop_scans[last], kps[last]), (loop_scans[k], kps[k]))]
+    single = register_keypoints(
+        kps[last], desc[0], kps[k], desc[1], LOOPS_MATCH, loop_scans[last], loop_scans[k]
+    )
     assert single.accepted and single.n_inliers == res.n_inliers[k]
     assert np.allclose(single.pose, res.poses[k]) and single.agreement == res.agreement[k]
 
@@ -165,9 +194,12 @@ def test_evaluate_loops_finds_the_known_revisit(loop_scans: list[LaserScan], tmp
     seen: list[str] = []
     written: list[list[str]] = []
     result = evaluate_loops(
-        loop_scans, config, "sim", progress=lambda stage, done, total: seen.append(stage),
+        loop_scans,
+        config,
+        "sim",
+        progress=lambda stage, done, total: seen.append(stage),
         on_method=lambda partial: written.append(list(partial.methods)),
-    )  # fmt: skip
+    )
     assert written == [["paper"], ["paper", "falko-like"]]
     assert "paper: matching" in seen
     last = len(loop_scans) - 1
@@ -192,8 +224,10 @@ def test_bad_input_and_options(loop_scans: list[LaserScan], tmp_path) -> None:
         evaluate_loops(loop_scans[:5], LoopsConfig(methods=("foo",)))
     with pytest.raises(InvalidParamsError, match="thresholds"):
         LoopsConfig(thresholds=(0, 2))
-    no_pose = [LaserScan(s.ranges, s.angle_min, s.angle_increment, s.range_min, s.range_max)
-               for s in loop_scans[:3]]  # fmt: skip
+    no_pose = [
+        LaserScan(s.ranges, s.angle_min, s.angle_increment, s.range_min, s.range_max)
+        for s in loop_scans[:3]
+    ]
     with pytest.raises(InputError, match="fewer than two scans with a pose"):
         evaluate_loops(no_pose, LoopsConfig(methods=("paper",)), "x.npz")
     blocker = tmp_path / "file"
@@ -219,8 +253,9 @@ def test_cli_evaluate_loops(loop_scans: list[LaserScan], tmp_path) -> None:
     result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(log)])
     assert result.exit_code == 2
     assert "is a file; --output needs a folder" in result.output  # as evaluate real, sim
-    result = CliRunner().invoke(app, ["evaluate", "loops", str(log), "-o", str(out),
-                                      "--methods", "nope"])  # fmt: skip
+    result = CliRunner().invoke(
+        app, ["evaluate", "loops", str(log), "-o", str(out), "--methods", "nope"]
+    )
     assert result.exit_code == 2 and "unknown method 'nope'" in result.output
 
 

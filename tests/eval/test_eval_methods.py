@@ -61,8 +61,10 @@ def test_every_method_finds_the_clean_corner() -> None:
 
 def test_detect_all_mixed_geometries_chunks_and_progress() -> None:
     rng = np.random.default_rng(1)
-    scans = [corner_scan(sensor=UST_10LX if k % 3 else SICK_LMS_1DEG, noise_sigma=0.005, rng=rng)
-             for k in range(7)]  # fmt: skip
+    scans = [
+        corner_scan(sensor=UST_10LX if k % 3 else SICK_LMS_1DEG, noise_sigma=0.005, rng=rng)
+        for k in range(7)
+    ]
     detector = CornerDetector()
     steps: list[tuple[int, int]] = []
     got = detect_all(detector, scans, lambda done, total: steps.append((done, total)), chunk=3)

@@ -49,9 +49,20 @@ def write_log(path: Path, n: int) -> Path:
         scan = world.scan(pose, SICK_LMS_1DEG, noise_sigma=0.005, rng=rng, stamp=5.0 + 0.2 * k)
         ranges = scan.ranges.copy()
         ranges[30:75] = np.inf  # the open door: no return on 45 beams
-        lines.append(_line(LaserScan(ranges, scan.angle_min, scan.angle_increment,
-                                     scan.range_min, scan.range_max, scan.stamp, "laser",
-                                     pose)))  # fmt: skip
+        lines.append(
+            _line(
+                LaserScan(
+                    ranges,
+                    scan.angle_min,
+                    scan.angle_increment,
+                    scan.range_min,
+                    scan.range_max,
+                    scan.stamp,
+                    "laser",
+                    pose,
+                )
+            )
+        )
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -83,9 +94,14 @@ def test_no_return_readings_never_enter_the_maps(log: Path, tmp_path: Path) -> N
     steps: list[tuple[str, int, int]] = []
     messages: list[str] = []
     cfg = RealEvalConfig(min_views=5, max_pairs=40, pair_min_motion=0.3, methods=("paper",))
-    result = evaluate_real(scans, cfg, source=log.name, pose_source=pose_source,
-                           progress=messages.append,
-                           step=lambda *a: steps.append(a))  # fmt: skip
+    result = evaluate_real(
+        scans,
+        cfg,
+        source=log.name,
+        pose_source=pose_source,
+        progress=messages.append,
+        step=lambda *a: steps.append(a),
+    )
     assert result.no_return_range == pytest.approx(NO_RETURN, abs=0.002)
     assert any("no return" in note for note in result.notes)
     traj = result.trajectory_xy
@@ -136,8 +152,17 @@ def test_thin_evidence_is_said_plainly_never_nan(tmp_path: Path) -> None:
 
 def test_cli_on_the_log(log: Path, tmp_path: Path) -> None:
     out = tmp_path / "cli"
-    args = ["evaluate", "real", str(log), "-o", str(out), "--min-views", "5",
-            "--methods", "paper,falko-like"]  # fmt: skip
+    args = [
+        "evaluate",
+        "real",
+        str(log),
+        "-o",
+        str(out),
+        "--min-views",
+        "5",
+        "--methods",
+        "paper,falko-like",
+    ]
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.output
     info = json.loads((out / "summary.json").read_text())

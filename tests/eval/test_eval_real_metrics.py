@@ -28,8 +28,7 @@ from laser_corners.sim import corner_scan
 
 def wall_scan(distance: float, pose: tuple[float, float, float] | None = None) -> LaserScan:
     """181 beams over [-90, 90] deg, every beam hitting at ``distance`` (a circular wall)."""
-    return LaserScan(np.full(181, distance), -math.pi / 2, math.radians(1.0), 0.05, 30.0,
-                     pose=pose)  # fmt: skip
+    return LaserScan(np.full(181, distance), -math.pi / 2, math.radians(1.0), 0.05, 30.0, pose=pose)
 
 
 # ----------------------------------------------------------------------------- visibility
@@ -137,8 +136,12 @@ def test_associate_nearest_one_to_one_within_radius() -> None:
 
 def test_pair_distance_std_known_values() -> None:
     features = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [9.0, 9.0]])
-    shift = [np.array([0.01, -0.02]), np.array([-0.02, 0.0]), np.array([0.0, 0.01]),
-             np.array([0.01, 0.0])]  # fmt: skip
+    shift = [
+        np.array([0.01, -0.02]),
+        np.array([-0.02, 0.0]),
+        np.array([0.0, 0.01]),
+        np.array([0.01, 0.0]),
+    ]
     scans = []
     for s in range(4):
         a = features[0] + shift[s]  # features 0 and 1 move together: constant distance
@@ -174,12 +177,14 @@ def test_pair_repeatability_counts_visible_and_repeated() -> None:
     scan_b = wall_scan(5.0)
     pose_b_in_a = (1.0, 0.0, math.pi / 2)  # B is 1 m ahead of A, turned left
     # A's keypoints (A frame) -> B frame: (x, y) -> (y, 1 - x)
-    kps_a = np.array([
-        [1.0, 2.0],   # B: (2, 0) ahead of B: visible
-        [1.0, -2.0],  # B: (-2, 0) behind B: not visible
-        [0.0, 1.0],   # B: (1, 1): visible
-        [3.0, 1.0],   # B: (1, -2): visible
-    ])  # fmt: skip
+    kps_a = np.array(
+        [
+            [1.0, 2.0],  # B: (2, 0) ahead of B: visible
+            [1.0, -2.0],  # B: (-2, 0) behind B: not visible
+            [0.0, 1.0],  # B: (1, 1): visible
+            [3.0, 1.0],  # B: (1, -2): visible
+        ]
+    )
     kps_b = np.array([[2.03, 0.0], [1.0, 1.08], [4.0, 4.0]])
     counts = pair_repeatability(kps_a, kps_b, scan_b, pose_b_in_a, radii=(0.05, 0.1))
     assert counts.n_a == 4
@@ -281,13 +286,20 @@ def test_observability_block_culling_matches_the_per_point_test(occlusion: bool)
     world = rectangular_room()
     rng = np.random.default_rng(3)
     full_turn = LaserScan(np.full(360, 1.0), -math.pi, math.radians(1.0), 0.05, 30.0)
-    scans = [world.scan((-1.0, -0.5, 0.4), UST_10LX, 0.01, rng),
-             world.scan((2.0, 1.2, -2.5), UST_10LX, 0.01, rng),
-             LaserScan(world.cast((0.5, -1.0, 3.0), full_turn.angles), -math.pi,
-                       math.radians(1.0), 0.05, 30.0, pose=(0.5, -1.0, 3.0))]  # fmt: skip
+    scans = [
+        world.scan((-1.0, -0.5, 0.4), UST_10LX, 0.01, rng),
+        world.scan((2.0, 1.2, -2.5), UST_10LX, 0.01, rng),
+        LaserScan(
+            world.cast((0.5, -1.0, 3.0), full_turn.angles),
+            -math.pi,
+            math.radians(1.0),
+            0.05,
+            30.0,
+            pose=(0.5, -1.0, 3.0),
+        ),
+    ]
     grid = Grid(-3.5, -2.5, 0.05, (100, 140))
-    obs = observability_map(scans, [np.zeros((0, 2))] * 3, grid, occlusion=occlusion,
-                            max_range=4.0)  # fmt: skip
+    obs = observability_map(scans, [np.zeros((0, 2))] * 3, grid, occlusion=occlusion, max_range=4.0)
     rows, cols = np.indices(grid.shape)
     centres = grid.center_of(np.stack([rows.ravel(), cols.ravel()], axis=1))
     expected = np.zeros(grid.shape, dtype=int)

@@ -33,8 +33,9 @@ def room_scans(n: int = 24, noise: float = 0.002) -> tuple[list[LaserScan], np.n
     return scans, world.corners
 
 
-SMALL = RealEvalConfig(min_views=5, max_pairs=40, pair_min_motion=0.3,
-                       methods=("paper", "falko-like"))  # fmt: skip
+SMALL = RealEvalConfig(
+    min_views=5, max_pairs=40, pair_min_motion=0.3, methods=("paper", "falko-like")
+)
 
 
 @pytest.fixture(scope="module")
@@ -68,11 +69,20 @@ def test_pipeline_finds_the_room_corners_and_nothing_else(room_result) -> None:
 def test_report_files(room_result, tmp_path: Path) -> None:
     result, _ = room_result
     paths = write_real_report(result, tmp_path)
-    for name in ("observability.png", "observability_n8.png", "observability.npz",
-                 "observability_counts.npz", "association_matrix.png",
-                 "association_histogram.png", "association.npz", "repeatability.csv",
-                 "persistent_features.csv", "report.md", "summary.json",
-                 "params.yaml"):  # fmt: skip
+    for name in (
+        "observability.png",
+        "observability_n8.png",
+        "observability.npz",
+        "observability_counts.npz",
+        "association_matrix.png",
+        "association_histogram.png",
+        "association.npz",
+        "repeatability.csv",
+        "persistent_features.csv",
+        "report.md",
+        "summary.json",
+        "params.yaml",
+    ):
         assert (tmp_path / name).is_file(), name
         assert name in paths
     ratio = np.load(tmp_path / "observability.npz")["ratio_n8"]
@@ -97,8 +107,10 @@ def test_report_files(room_result, tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- CLI
 def _carmen_line(scan: LaserScan, with_pose: bool) -> str:
     ranges = np.where(np.isfinite(scan.ranges), scan.ranges, scan.range_max)
-    head = (f"{scan.angle_min:.6f} {math.radians(270):.6f} {scan.angle_increment:.8f} "
-            f"{scan.range_max:.1f} 0.01 0 {scan.n_beams} ")  # fmt: skip
+    head = (
+        f"{scan.angle_min:.6f} {math.radians(270):.6f} {scan.angle_increment:.8f} "
+        f"{scan.range_max:.1f} 0.01 0 {scan.n_beams} "
+    )
     body = " ".join(f"{r:.4f}" for r in ranges) + " 0 "
     if with_pose:
         x, y, th = scan.pose
@@ -112,8 +124,19 @@ def test_cli_evaluate_real_on_a_carmen_log(tmp_path: Path) -> None:
     log = tmp_path / "room.clf"
     log.write_text("\n".join(_carmen_line(s, True) for s in scans) + "\n")
     out = tmp_path / "report"
-    args = ["evaluate", "real", str(log), "-o", str(out), "--min-views", "4",
-            "--methods", "paper,falko", "--max-pairs", "20"]  # fmt: skip
+    args = [
+        "evaluate",
+        "real",
+        str(log),
+        "-o",
+        str(out),
+        "--min-views",
+        "4",
+        "--methods",
+        "paper,falko",
+        "--max-pairs",
+        "20",
+    ]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     assert (out / "report.md").is_file() and (out / "observability.png").is_file()
@@ -133,8 +156,9 @@ def test_cli_rejects_an_unknown_method(tmp_path: Path) -> None:
     log = tmp_path / "room.clf"
     log.write_text("\n".join(_carmen_line(s, True) for s in scans) + "\n")
     out = tmp_path / "report"
-    result = runner.invoke(app, ["evaluate", "real", str(log), "-o", str(out),
-                                 "--methods", "paper,nosuch"])  # fmt: skip
+    result = runner.invoke(
+        app, ["evaluate", "real", str(log), "-o", str(out), "--methods", "paper,nosuch"]
+    )
     assert result.exit_code == 2
     assert "unknown method 'nosuch'" in result.output and "falko-like" in result.output
     assert not (out / "report.md").exists()
@@ -150,12 +174,30 @@ def test_cli_needs_poses_or_a_trajectory(tmp_path: Path) -> None:
     assert "give a trajectory" in result.output  # the library names no CLI flag
     # the same scans with their poses from a TUM trajectory
     tum = tmp_path / "traj.tum"
-    tum.write_text("".join(
-        f"{s.stamp} {s.pose[0]} {s.pose[1]} 0 0 0 {math.sin(s.pose[2] / 2)} "
-        f"{math.cos(s.pose[2] / 2)}\n" for s in scans))  # fmt: skip
+    tum.write_text(
+        "".join(
+            f"{s.stamp} {s.pose[0]} {s.pose[1]} 0 0 0 {math.sin(s.pose[2] / 2)} "
+            f"{math.cos(s.pose[2] / 2)}\n"
+            for s in scans
+        )
+    )
     out = tmp_path / "with_traj"
-    result = runner.invoke(app, ["evaluate", "real", str(log), "-o", str(out), "--trajectory",
-                                 str(tum), "--min-views", "4", "--methods", "paper"])  # fmt: skip
+    result = runner.invoke(
+        app,
+        [
+            "evaluate",
+            "real",
+            str(log),
+            "-o",
+            str(out),
+            "--trajectory",
+            str(tum),
+            "--min-views",
+            "4",
+            "--methods",
+            "paper",
+        ],
+    )
     assert result.exit_code == 0, result.output
     info = json.loads((out / "summary.json").read_text())
     assert info["scans_with_pose"] == 12
@@ -163,8 +205,9 @@ def test_cli_needs_poses_or_a_trajectory(tmp_path: Path) -> None:
 
 
 def test_cli_bad_relations_mount_is_one_line(tmp_path: Path) -> None:
-    result = runner.invoke(app, ["evaluate", "real", str(tmp_path / "x.clf"),
-                                 "--relations-mount", "1,2"])  # fmt: skip
+    result = runner.invoke(
+        app, ["evaluate", "real", str(tmp_path / "x.clf"), "--relations-mount", "1,2"]
+    )
     assert result.exit_code == 2
     assert "--relations-mount needs x,y,theta" in result.output
 
@@ -174,8 +217,10 @@ def test_cli_bad_relations_mount_is_one_line(tmp_path: Path) -> None:
 def test_real_corrected_log_small(tmp_path: Path) -> None:
     log = real_file("fr079-corrected.clf.gz")
     out = tmp_path / "fr079"
-    result = runner.invoke(app, ["evaluate", "real", str(log), "-o", str(out), "--max-scans",
-                                 "150", "--max-pairs", "80"])  # fmt: skip
+    result = runner.invoke(
+        app,
+        ["evaluate", "real", str(log), "-o", str(out), "--max-scans", "150", "--max-pairs", "80"],
+    )
     assert result.exit_code == 0, result.output
     info = json.loads((out / "summary.json").read_text())
     assert info["scans"] == 150 and info["scans_with_pose"] == 150
@@ -194,8 +239,22 @@ def test_real_bag_uses_its_relations(tmp_path: Path) -> None:
     bag = real_file("fr079.bag")
     real_file("fr079.relations")
     out = tmp_path / "bag"
-    result = runner.invoke(app, ["evaluate", "real", str(bag), "-o", str(out), "--max-scans",
-                                 "600", "--max-pairs", "60", "--methods", "paper"])  # fmt: skip
+    result = runner.invoke(
+        app,
+        [
+            "evaluate",
+            "real",
+            str(bag),
+            "-o",
+            str(out),
+            "--max-scans",
+            "600",
+            "--max-pairs",
+            "60",
+            "--methods",
+            "paper",
+        ],
+    )
     assert result.exit_code == 0, result.output
     info = json.loads((out / "summary.json").read_text())
     assert info["repeatability"]["pairs_source"].startswith("ground-truth relations")

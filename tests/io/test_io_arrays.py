@@ -31,8 +31,10 @@ def test_npz_and_csv_round_trip_the_intel_log(tmp_path: Path) -> None:
             np.testing.assert_array_equal(a.ranges, b.ranges)
             assert (b.stamp, b.pose, b.frame_id) == (a.stamp, a.pose, a.frame_id)
             assert (b.angle_min, b.angle_increment, b.range_max) == (
-                a.angle_min, a.angle_increment, a.range_max,
-            )  # fmt: skip
+                a.angle_min,
+                a.angle_increment,
+                a.range_max,
+            )
 
 
 def test_csv_bad_rows_are_counted_and_missing_geometry_is_an_error(tmp_path: Path) -> None:

@@ -80,12 +80,17 @@ def _write_ros2_mcap(
                 stamp=time_type(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="base_laser"
             )
             msg = scan_type(
-                header=header, angle_min=scan.angle_min,
+                header=header,
+                angle_min=scan.angle_min,
                 angle_max=scan.angle_min + scan.angle_increment * (scan.n_beams - 1),
-                angle_increment=scan.angle_increment, time_increment=0.0, scan_time=0.0,
-                range_min=scan.range_min, range_max=scan.range_max,
-                ranges=scan.ranges.astype(np.float32), intensities=np.zeros(0, np.float32),
-            )  # fmt: skip
+                angle_increment=scan.angle_increment,
+                time_increment=0.0,
+                scan_time=0.0,
+                range_min=scan.range_min,
+                range_max=scan.range_max,
+                ranges=scan.ranges.astype(np.float32),
+                intensities=np.zeros(0, np.float32),
+            )
             writer.write(scan_conn, ns, store.serialize_cdr(msg, scan_type.__msgtype__))
             text = string_type(data="hello")
             writer.write(text_conn, ns, store.serialize_cdr(text, string_type.__msgtype__))
@@ -116,9 +121,11 @@ def test_ros2_mcap_in_and_keypoint_mcap_out(tmp_path: Path) -> None:
     with AnyReader([out]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert counts == {
-            "/base_scan": 40, "/chatter": 40, "/base_scan_corners": 40,
+            "/base_scan": 40,
+            "/chatter": 40,
+            "/base_scan_corners": 40,
             "/base_scan_corner_markers": 40,
-        }  # fmt: skip
+        }
         conns = [c for c in reader.connections if c.topic == "/base_scan_corners"]
         poses = [
             reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)

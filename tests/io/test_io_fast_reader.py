@@ -39,9 +39,13 @@ def _read(bag: Path, topic: str | None, lean: bool, monkeypatch: pytest.MonkeyPa
     except InputError as exc:
         error = str(exc)
     return {
-        "scans": scans, "error": error, "lean_runs": len(calls), "skipped": source.skipped,
-        "stamps_ns": list(source.stamps_ns), "log_times_ns": list(source.log_times_ns),
-    }  # fmt: skip
+        "scans": scans,
+        "error": error,
+        "lean_runs": len(calls),
+        "skipped": source.skipped,
+        "stamps_ns": list(source.stamps_ns),
+        "log_times_ns": list(source.log_times_ns),
+    }
 
 
 def _assert_same(old: dict, new: dict) -> None:
@@ -124,17 +128,24 @@ def _mixed_bag(path: Path) -> None:
             ns = 1_700_000_000 * 10**9 + i * 50_000_000
             beams = 90 if i % 7 else 120
             header = header_type(
-                seq=i, stamp=time_type(sec=ns // 10**9, nanosec=ns % 10**9),
+                seq=i,
+                stamp=time_type(sec=ns // 10**9, nanosec=ns % 10**9),
                 frame_id="laser" if i % 11 else "laser_b",
-            )  # fmt: skip
+            )
             ranges = (1.0 + 0.01 * i + np.sin(np.arange(beams) / 5.0)).astype(np.float32)
             ranges[i % beams] = np.nan
             msg = scan_type(
-                header=header, angle_min=-1.5, angle_max=1.5, angle_increment=3.0 / beams,
-                time_increment=0.0, scan_time=0.1, range_min=0.05,
+                header=header,
+                angle_min=-1.5,
+                angle_max=1.5,
+                angle_increment=3.0 / beams,
+                time_increment=0.0,
+                scan_time=0.1,
+                range_min=0.05,
                 range_max=0.01 if i == 17 else 30.0,  # i == 17: invalid, a counted skip
-                ranges=ranges, intensities=np.zeros(beams if i % 5 == 0 else 0, np.float32),
-            )  # fmt: skip
+                ranges=ranges,
+                intensities=np.zeros(beams if i % 5 == 0 else 0, np.float32),
+            )
             writer.write(scans, ns, store.serialize_ros1(msg, scan_type.__msgtype__))
             word = string_type(data=f"note {i}")
             writer.write(text, ns, store.serialize_ros1(word, string_type.__msgtype__))

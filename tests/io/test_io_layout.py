@@ -9,9 +9,17 @@ IO = Path(__file__).resolve().parents[2] / "src" / "laser_corners" / "io"
 READERS = {"rosbag", "carmen", "arrays"}
 WRITERS = {"writers", "bagwriter", "trajectory", "occupancy"}  # + TUM poses, map_server grids
 HELPERS = {
-    "poses", "ros1_decode", "ros1_chunks", "ros1_index", "ros1_lean", "ros1_runs", "bagfile",
-    "messages", "ros1_writer", "ros1_legacy",
-}  # fmt: skip
+    "poses",
+    "ros1_decode",
+    "ros1_chunks",
+    "ros1_index",
+    "ros1_lean",
+    "ros1_runs",
+    "bagfile",
+    "messages",
+    "ros1_writer",
+    "ros1_legacy",
+}
 LAZY_OK = {"pyarrow", "pyarrow.parquet"}  # heavy: imported when a Parquet writer opens
 
 

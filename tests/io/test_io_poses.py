@@ -24,9 +24,14 @@ def test_streaming_track_unwraps_yaw_exactly_as_np_unwrap() -> None:
     track.add_transforms([("base", "laser", (0.1, 0.0, 0.5))], is_static=True)
     ordered = np.array(sorted([*samples, late]))
     reference = PoseTrack(
-        "odom", "base", ordered[:, 0], ordered[:, 1], ordered[:, 2], np.unwrap(ordered[:, 3]),
+        "odom",
+        "base",
+        ordered[:, 0],
+        ordered[:, 1],
+        ordered[:, 2],
+        np.unwrap(ordered[:, 3]),
         {"laser": ("base", (0.1, 0.0, 0.5))},
-    )  # fmt: skip
+    )
     for stamp in np.linspace(-0.2, 40.3, 97):
         expected = reference.pose(float(stamp), "laser")
         got = track.pose(float(stamp), "laser")

@@ -52,10 +52,17 @@ def _write_bag(path: Path, compression: str = "none", increment: float = 0.01745
                 seq=i, stamp=time_type(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="laser"
             )
             msg = scan_type(
-                header=header, angle_min=-1.5707964, angle_max=1.5707964,
-                angle_increment=increment, time_increment=0.0, scan_time=0.1, range_min=0.05,
-                range_max=30.0, ranges=_ranges(i), intensities=np.zeros(0, np.float32),
-            )  # fmt: skip
+                header=header,
+                angle_min=-1.5707964,
+                angle_max=1.5707964,
+                angle_increment=increment,
+                time_increment=0.0,
+                scan_time=0.1,
+                range_min=0.05,
+                range_max=30.0,
+                ranges=_ranges(i),
+                intensities=np.zeros(0, np.float32),
+            )
             writer.write(scans, ns, store.serialize_ros1(msg, scan_type.__msgtype__))
             if i % 3 == 0:
                 word = string_type(data=f"note {i}")
@@ -108,8 +115,11 @@ def _debian_rosbag(path: Path) -> dict[str, object] | None:
     try:
         done = subprocess.run(
             ["/usr/bin/python3", "-c", script, str(path)],
-            capture_output=True, text=True, timeout=60, check=False,
-        )  # fmt: skip
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
     except (OSError, subprocess.TimeoutExpired):
         return None
     if done.returncode != 0:

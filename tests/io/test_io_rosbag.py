@@ -217,8 +217,11 @@ def test_fast_ros1_decoders_equal_rosbags_deserialize(name: str) -> None:
         assert stamp_ns == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         assert frame_id == msg.header.frame_id
         assert (angle_min, angle_increment, range_min, range_max) == (
-            msg.angle_min, msg.angle_increment, msg.range_min, msg.range_max,
-        )  # fmt: skip
+            msg.angle_min,
+            msg.angle_increment,
+            msg.range_min,
+            msg.range_max,
+        )
         assert ranges.dtype == np.float32
         np.testing.assert_array_equal(ranges, msg.ranges)
     odometry = _first_messages(bag, "/odom", 300)
@@ -298,5 +301,9 @@ def test_bag_read_through_the_rosbags_fallback_gives_the_same_scans(monkeypatch)
     for a, b in zip(fast, fallback, strict=True):
         np.testing.assert_array_equal(a.ranges, b.ranges)
         assert (a.stamp, a.frame_id, a.pose, a.angle_min, a.angle_increment) == (
-            b.stamp, b.frame_id, b.pose, b.angle_min, b.angle_increment,
-        )  # fmt: skip
+            b.stamp,
+            b.frame_id,
+            b.pose,
+            b.angle_min,
+            b.angle_increment,
+        )

@@ -22,8 +22,9 @@ def room() -> World:
 
 def _rotated(scan: LaserScan, delta: float) -> LaserScan:
     """The same ranges seen by a sensor turned by -delta: every point turns by +delta."""
-    return LaserScan(scan.ranges, scan.angle_min + delta, scan.angle_increment,
-                     scan.range_min, scan.range_max)  # fmt: skip
+    return LaserScan(
+        scan.ranges, scan.angle_min + delta, scan.angle_increment, scan.range_min, scan.range_max
+    )
 
 
 @pytest.mark.parametrize("kind", ["bsc", "csc"])
@@ -40,8 +41,10 @@ def test_descriptors_are_rotation_invariant(room: World, kind: str, delta: float
     da, db = describe(scan, ka, kind), describe(turned, kb, kind)
     inv = 1.0 / da.n_bits if da.n_bits else 0.0
     for i in range(len(ka)):
-        dist = [_distance(da.kind_code, da.bits, da.values, i, db.bits, db.values, j, inv)
-                for j in range(len(kb))]  # fmt: skip
+        dist = [
+            _distance(da.kind_code, da.bits, da.values, i, db.bits, db.values, j, inv)
+            for j in range(len(kb))
+        ]
         # the same corner: a small distance (a few cells flip at sector borders) and the
         # nearest of all
         assert dist[i] <= 0.08, (i, dist)

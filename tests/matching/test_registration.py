@@ -33,8 +33,11 @@ def _relative(pa: tuple[float, float, float], pb: tuple[float, float, float]) ->
     return np.array([c * dx + s * dy, -s * dx + c * dy, math.remainder(pb[2] - pa[2], 2 * math.pi)])
 
 
-POSES = [((0.0, 0.0, 0.0), (0.5, -0.3, 0.4)), ((-1.0, 0.5, 1.0), (-0.2, -0.4, 0.5)),
-         ((1.5, -1.0, 2.5), (2.0, 0.2, 2.0))]  # fmt: skip
+POSES = [
+    ((0.0, 0.0, 0.0), (0.5, -0.3, 0.4)),
+    ((-1.0, 0.5, 1.0), (-0.2, -0.4, 0.5)),
+    ((1.5, -1.0, 2.5), (2.0, 0.2, 2.0)),
+]
 
 
 @pytest.mark.parametrize("descriptor", ["csc", "bsc"])
@@ -82,8 +85,16 @@ def test_bad_inputs_give_unaccepted_registrations_or_clear_errors(room: World) -
     empty = Keypoints.empty()
     reg = register_keypoints(ka, da, empty, describe(a, empty))
     assert not reg.accepted and reg.reason == "too few keypoints" and reg.inliers.shape == (0, 2)
-    one = Keypoints(ka.xy[:1], ka.beam_index[:1], ka.opening_angle_deg[:1], ka.orientation[:1],
-                    ka.n_scales[:1], ka.rmse[:1], ka.n_merged[:1], cov=ka.cov[:1])  # fmt: skip
+    one = Keypoints(
+        ka.xy[:1],
+        ka.beam_index[:1],
+        ka.opening_angle_deg[:1],
+        ka.orientation[:1],
+        ka.n_scales[:1],
+        ka.rmse[:1],
+        ka.n_merged[:1],
+        cov=ka.cov[:1],
+    )
     reg = register_keypoints(ka, da, one, describe(a, one))
     assert not reg.accepted and reg.n_inliers == 0
     # a blank scan (no returns) and a scan of another geometry: no crash
@@ -141,8 +152,9 @@ def test_keypoints_without_covariance_or_orientation(room: World) -> None:
     det = CornerDetector()
 
     def bare(k: Keypoints, orientation: np.ndarray) -> Keypoints:
-        return Keypoints(k.xy, k.beam_index, k.opening_angle_deg, orientation, k.n_scales,
-                         k.rmse, k.n_merged)  # fmt: skip
+        return Keypoints(
+            k.xy, k.beam_index, k.opening_angle_deg, orientation, k.n_scales, k.rmse, k.n_merged
+        )
 
     ka, kb = det.detect(a), det.detect(b)
     na, nb = bare(ka, ka.orientation), bare(kb, kb.orientation)
@@ -157,7 +169,10 @@ def test_keypoints_without_covariance_or_orientation(room: World) -> None:
         reg = register_keypoints(na, describe(a, na, kind), nb2, describe(b, nb2, kind))
         assert isinstance(reg.accepted, bool)
         reg = register_keypoints(
-            na, describe(a, na, kind), nb2, describe(b, nb2, kind),
+            na,
+            describe(a, na, kind),
+            nb2,
+            describe(b, nb2, kind),
             MatchOptions(angle_tolerance=4.0),
-        )  # fmt: skip
+        )
         assert isinstance(reg.accepted, bool)

@@ -28,8 +28,10 @@ def _log(path: Path, n: int, step_deg: float = 1.0) -> Path:
     rng = np.random.default_rng(n)
     beams = round(180 / step_deg) + 1
     angles = np.linspace(-np.pi / 2, np.pi / 2, beams)
-    base = np.minimum(3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
-                      1.5 / np.maximum(np.abs(np.sin(angles)), 1e-9))  # fmt: skip
+    base = np.minimum(
+        3.0 / np.maximum(np.abs(np.cos(angles)), 1e-9),
+        1.5 / np.maximum(np.abs(np.sin(angles)), 1e-9),
+    )
     with path.open("w") as handle:
         for i in range(n):
             ranges = base + rng.normal(0.0, 0.003, beams)
@@ -126,10 +128,14 @@ def _room_scans(n: int) -> list[LaserScan]:
     rng = np.random.default_rng(5)
     world = demo_world()
     return [
-        world.scan((0.4 + 0.02 * i, -0.3, 0.25), get_sensor("sick-1deg") if i % 7 == 3 else
-                   UST_10LX, noise_sigma=0.005, rng=rng)
+        world.scan(
+            (0.4 + 0.02 * i, -0.3, 0.25),
+            get_sensor("sick-1deg") if i % 7 == 3 else UST_10LX,
+            noise_sigma=0.005,
+            rng=rng,
+        )
         for i in range(n)
-    ]  # fmt: skip
+    ]
 
 
 @pytest.mark.parametrize("prefetch", [False, True])
@@ -182,9 +188,14 @@ def test_ctrl_c_from_the_reader_stops_with_a_summary(prefetch: bool) -> None:
     writer = _Recorder()
     seen: list[RunSummary] = []
     summary = detect_recording(
-        source, CornerDetector(), writer, progress=seen.append, every=10, prefetch=prefetch,
+        source,
+        CornerDetector(),
+        writer,
+        progress=seen.append,
+        every=10,
+        prefetch=prefetch,
         chunk_scans=16,
-    )  # fmt: skip
+    )
     assert summary.interrupted and writer.closed
     assert summary.n_scans == len(writer.rows) == 45 and summary.position == "row 44"
     assert seen[-1] is summary and len(seen) >= 3

@@ -119,8 +119,14 @@ def _run_master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]
     tmp = tmp_path_factory.mktemp("ros1")
     port = _free_port()
     uri = f"http://127.0.0.1:{port}"
-    env = dict(os.environ, ROS_MASTER_URI=uri, ROS_IP="127.0.0.1", ROS_HOME=str(tmp),
-               ROS_LOG_DIR=str(tmp / "log"), PYTHONUNBUFFERED="1")  # fmt: skip
+    env = dict(
+        os.environ,
+        ROS_MASTER_URI=uri,
+        ROS_IP="127.0.0.1",
+        ROS_HOME=str(tmp),
+        ROS_LOG_DIR=str(tmp / "log"),
+        PYTHONUNBUFFERED="1",
+    )
     env.pop("ROS_HOSTNAME", None)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     saved = {
@@ -179,8 +185,15 @@ def _as_ros1(msg: Any) -> Any:
     out = LaserScanMsg()
     out.header.stamp = rospy.Time(msg.header.stamp.sec, msg.header.stamp.nanosec)
     out.header.frame_id = msg.header.frame_id
-    for name in ("angle_min", "angle_max", "angle_increment", "time_increment", "scan_time",
-                 "range_min", "range_max"):  # fmt: skip
+    for name in (
+        "angle_min",
+        "angle_max",
+        "angle_increment",
+        "time_increment",
+        "scan_time",
+        "range_min",
+        "range_max",
+    ):
         setattr(out, name, float(getattr(msg, name)))
     out.ranges = [float(r) for r in msg.ranges]
     out.intensities = [float(v) for v in msg.intensities]
@@ -208,8 +221,9 @@ def test_node_publishes_library_keypoints_for_every_scan(master: RosMaster) -> N
     messages = _fr079_messages(N_SCANS)
     assert len(messages) == N_SCANS
     detector = CornerDetector(DetectorParams(**NODE_OVERRIDES))
-    expected = {(m.header.stamp.sec, m.header.stamp.nanosec): _expected(m, detector)
-                for m in messages}  # fmt: skip
+    expected = {
+        (m.header.stamp.sec, m.header.stamp.nanosec): _expected(m, detector) for m in messages
+    }
     assert len(expected) == N_SCANS, "fr079 stamps are not unique"
     default = CornerDetector()
     assert any(
@@ -244,14 +258,22 @@ def test_node_publishes_library_keypoints_for_every_scan(master: RosMaster) -> N
     marker_sub = rospy.Subscriber("/corner_markers", MarkerArray, on_markers, queue_size=N_SCANS)
     pub = rospy.Publisher("/scan", LaserScanMsg, queue_size=N_SCANS + 10)
     try:
-        wait_for(lambda: master.subscribed("/scan", "/lc_main"), STARTUP_TIMEOUT,
-                  "the node to subscribe /scan", node)  # fmt: skip
         wait_for(
-            lambda: pub.get_num_connections() >= 1
-            and sub.get_num_connections() >= 1
-            and marker_sub.get_num_connections() >= 1,
-            STARTUP_TIMEOUT, "topic connections", node,
-        )  # fmt: skip
+            lambda: master.subscribed("/scan", "/lc_main"),
+            STARTUP_TIMEOUT,
+            "the node to subscribe /scan",
+            node,
+        )
+        wait_for(
+            lambda: (
+                pub.get_num_connections() >= 1
+                and sub.get_num_connections() >= 1
+                and marker_sub.get_num_connections() >= 1
+            ),
+            STARTUP_TIMEOUT,
+            "topic connections",
+            node,
+        )
         ros_msgs = [_as_ros1(m) for m in messages]
 
         # a malformed scan first: logged and skipped, the node carries on
@@ -335,10 +357,18 @@ def test_launch_file_starts_the_node(master: RosMaster) -> None:
     sub = rospy.Subscriber("/corners", PoseArray, got.append, queue_size=10)
     pub = rospy.Publisher("/launch_scan", LaserScanMsg, queue_size=10)
     try:
-        wait_for(lambda: master.subscribed("/launch_scan", "/laser_corners"), STARTUP_TIMEOUT,
-                  "the launched node to subscribe /launch_scan", proc)  # fmt: skip
-        wait_for(lambda: pub.get_num_connections() >= 1 and sub.get_num_connections() >= 1,
-                  STARTUP_TIMEOUT, "topic connections", proc)  # fmt: skip
+        wait_for(
+            lambda: master.subscribed("/launch_scan", "/laser_corners"),
+            STARTUP_TIMEOUT,
+            "the launched node to subscribe /launch_scan",
+            proc,
+        )
+        wait_for(
+            lambda: pub.get_num_connections() >= 1 and sub.get_num_connections() >= 1,
+            STARTUP_TIMEOUT,
+            "topic connections",
+            proc,
+        )
         msg = _as_ros1(_fr079_messages(1)[0])
         pub.publish(msg)
         wait_for(lambda: len(got) >= 1, 10.0, "a PoseArray from the launched node", proc)
@@ -355,8 +385,12 @@ def test_signal_stops_running_node_cleanly(master: RosMaster, sig: signal.Signal
     """Ctrl-C or SIGTERM to a connected node: exit code 0, a summary line, no traceback."""
     name = f"lc_{sig.name.lower()}"
     proc = master.start(master.node_command(f"__name:={name}", f"scan:=/{name}_scan"), name)
-    wait_for(lambda: master.subscribed(f"/{name}_scan", f"/{name}"), STARTUP_TIMEOUT,
-             f"the node to subscribe /{name}_scan", proc)  # fmt: skip
+    wait_for(
+        lambda: master.subscribed(f"/{name}_scan", f"/{name}"),
+        STARTUP_TIMEOUT,
+        f"the node to subscribe /{name}_scan",
+        proc,
+    )
     os.kill(proc.pid, sig)
     try:
         proc.wait(timeout=STARTUP_TIMEOUT)
@@ -373,16 +407,32 @@ def test_signal_while_waiting_for_master_exits_cleanly(tmp_path: Path, sig: sign
     """No master: rospy retries; Ctrl-C (or SIGTERM) ends it with one line and exit code 0."""
     _ros1()
     uri = f"http://127.0.0.1:{_free_port()}"  # nothing listens there
-    env = dict(os.environ, ROS_MASTER_URI=uri, ROS_IP="127.0.0.1", ROS_HOME=str(tmp_path),
-               ROS_LOG_DIR=str(tmp_path / "log"), PYTHONUNBUFFERED="1")  # fmt: skip
+    env = dict(
+        os.environ,
+        ROS_MASTER_URI=uri,
+        ROS_IP="127.0.0.1",
+        ROS_HOME=str(tmp_path),
+        ROS_LOG_DIR=str(tmp_path / "log"),
+        PYTHONUNBUFFERED="1",
+    )
     env.pop("ROS_HOSTNAME", None)
     out, err = tmp_path / "stdout.log", tmp_path / "stderr.log"
     with out.open("wb") as stdout, err.open("wb") as stderr:
-        proc = subprocess.Popen(cli_command("ros1"), env=env, stdout=stdout, stderr=stderr,
-                                start_new_session=True, preexec_fn=die_with_parent())  # fmt: skip
+        proc = subprocess.Popen(
+            cli_command("ros1"),
+            env=env,
+            stdout=stdout,
+            stderr=stderr,
+            start_new_session=True,
+            preexec_fn=die_with_parent(),
+        )
     try:
-        wait_for(lambda: "Unable to register with master" in out.read_text(errors="replace"),
-                 STARTUP_TIMEOUT, "rospy to say it waits for the master", proc)  # fmt: skip
+        wait_for(
+            lambda: "Unable to register with master" in out.read_text(errors="replace"),
+            STARTUP_TIMEOUT,
+            "rospy to say it waits for the master",
+            proc,
+        )
         os.kill(proc.pid, sig)
         try:
             proc.wait(timeout=STARTUP_TIMEOUT)

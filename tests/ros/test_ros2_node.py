@@ -77,8 +77,15 @@ class Ros2:
 
     def start(self, name: str, *ros_args: str) -> subprocess.Popen[bytes]:
         """``laser-corners ros2`` as node ``name`` in its own namespace; stopped at teardown."""
-        args = cli_command("ros2", "--ros-args", "-r", f"__ns:={NAMESPACE}/{name}",
-                           "-r", f"__node:={name}", *ros_args)  # fmt: skip
+        args = cli_command(
+            "ros2",
+            "--ros-args",
+            "-r",
+            f"__ns:={NAMESPACE}/{name}",
+            "-r",
+            f"__node:={name}",
+            *ros_args,
+        )
         with (self.tmp / f"{name}.log").open("wb") as log:
             proc = spawn(args, self.env, log)
         self.processes.append((proc, name))
@@ -118,8 +125,12 @@ def _run_ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
     from rclpy.signals import SignalHandlerOptions
 
     tmp = tmp_path_factory.mktemp("ros2")
-    ros_env = {"ROS_DOMAIN_ID": str(DOMAIN_ID), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-               "ROS_LOG_DIR": str(tmp / "log"), "RCUTILS_COLORIZED_OUTPUT": "0"}  # fmt: skip
+    ros_env = {
+        "ROS_DOMAIN_ID": str(DOMAIN_ID),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "ROS_LOG_DIR": str(tmp / "log"),
+        "RCUTILS_COLORIZED_OUTPUT": "0",
+    }
     env = dict(os.environ, PYTHONUNBUFFERED="1", **ros_env)
     for name in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS"):
         env.pop(name, None)
@@ -179,12 +190,20 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     params_file.write_text(yaml.safe_dump({"/**": {"ros__parameters": NODE_OVERRIDES}}))
 
     name = "lc_main"
-    proc = ros2.start(name, "-r", "scan:=front/scan", "--params-file", str(params_file),
-                      "-p", f"queue_size:={N_SCANS}")  # fmt: skip
+    proc = ros2.start(
+        name,
+        "-r",
+        "scan:=front/scan",
+        "--params-file",
+        str(params_file),
+        "-p",
+        f"queue_size:={N_SCANS}",
+    )
     out = Outputs()
     node = ros2.node
-    corners_sub = node.create_subscription(PoseArray, ros2.topic(name, "corners"),
-                                           out.on_corners, 2 * N_SCANS)  # fmt: skip
+    corners_sub = node.create_subscription(
+        PoseArray, ros2.topic(name, "corners"), out.on_corners, 2 * N_SCANS
+    )
     pub = node.create_publisher(LaserScanMsg, ros2.topic(name, "front/scan"), 2 * N_SCANS)
     marker_sub = None
     published_at: dict[Key, float] = {}
@@ -198,12 +217,17 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
         publish_paced(pub, msgs[:half], published_at)
         wait_for(lambda: out.count(keys[:half]) == half, 30.0, "PoseArrays of phase 1", proc)
         # 2) with a marker subscriber
-        marker_sub = node.create_subscription(MarkerArray, ros2.topic(name, "corner_markers"),
-                                              out.on_markers, 2 * N_SCANS)  # fmt: skip
+        marker_sub = node.create_subscription(
+            MarkerArray, ros2.topic(name, "corner_markers"), out.on_markers, 2 * N_SCANS
+        )
         n_probes = probe(pub, scans[0], 4, lambda k: k in out.markers, proc, "a MarkerArray")
         publish_paced(pub, msgs[half:], published_at)
-        wait_for(lambda: out.count(keys) == N_SCANS and out.count(keys[half:], True) == half,
-                 30.0, "PoseArrays and MarkerArrays of phase 2", proc)  # fmt: skip
+        wait_for(
+            lambda: out.count(keys) == N_SCANS and out.count(keys[half:], True) == half,
+            30.0,
+            "PoseArrays and MarkerArrays of phase 2",
+            proc,
+        )
         os.kill(proc.pid, signal.SIGINT)
         returncode = wait_exit(proc, "SIGINT")
     finally:
@@ -218,8 +242,11 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
     assert "Traceback" not in log, log
     assert re.search(r"skipped a malformed scan: .*angle_increment", log), log
     assert (1, 0) not in out.corners, "the malformed scan produced output"
-    summary = re.search(r"stopped by SIGINT: (\d+) scans processed, (\d+) skipped, "
-                        r"markers published for (\d+)", log)  # fmt: skip
+    summary = re.search(
+        r"stopped by SIGINT: (\d+) scans processed, (\d+) skipped, "
+        r"markers published for (\d+)",
+        log,
+    )
     assert summary, log
     n_processed, n_skipped, n_markers = map(int, summary.groups())
     assert n_skipped == 1
@@ -337,8 +364,12 @@ def test_signal_stops_node_cleanly(ros2: Ros2, sig: signal.Signals) -> None:
     """Ctrl-C or SIGTERM (ros2 launch, systemd, docker stop): exit 0, summary, no traceback."""
     name = f"lc_{sig.name.lower()}"
     proc = ros2.start(name)
-    wait_for(lambda: ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1,
-             STARTUP_TIMEOUT, "the node's scan subscription", proc)  # fmt: skip
+    wait_for(
+        lambda: ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1,
+        STARTUP_TIMEOUT,
+        "the node's scan subscription",
+        proc,
+    )
     os.kill(proc.pid, sig)
     returncode = wait_exit(proc, sig.name)
     log = ros2.log(name)

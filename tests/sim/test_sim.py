@@ -167,8 +167,9 @@ def test_export_round_trip_npz_and_bag(tmp_path) -> None:
 def test_cli_simulate_writes_files_and_reports_bad_sensor(tmp_path) -> None:
     runner = CliRunner()
     out = tmp_path / "s"
-    result = runner.invoke(app, ["simulate", "-o", str(out), "--scans", "5", "--world", "l_room",
-                                 "--noise", "0.01"])  # fmt: skip
+    result = runner.invoke(
+        app, ["simulate", "-o", str(out), "--scans", "5", "--world", "l_room", "--noise", "0.01"]
+    )
     assert result.exit_code == 0, result.output
     assert {p.name for p in out.iterdir()} == {"scans.npz", "truth.npz", "scans.bag"}
     assert "l_room" in result.output

@@ -38,8 +38,7 @@ def test_importing_the_report_writer_leaves_the_backend_alone() -> None:
         "import matplotlib; matplotlib.use('svg'); import laser_corners.viz.report; "
         "import laser_corners.eval.real; print(matplotlib.get_backend())"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True)  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "svg"
 
 
@@ -51,15 +50,26 @@ def test_eval_never_imports_viz() -> None:
         "    importlib.import_module('laser_corners.eval.' + m.name)\n"
         "print(json.dumps(sorted(k for k in sys.modules if k.startswith('laser_corners.viz'))))"
     )
-    out = subprocess.run([sys.executable, "-c", "import json\n" + code], capture_output=True,
-                         text=True, check=True)  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, "-c", "import json\n" + code], capture_output=True, text=True, check=True
+    )
     assert json.loads(out.stdout) == []
 
 
 def test_real_report_without_any_feature(tmp_path: Path) -> None:
     """A corridor of straight walls: no keypoint, no feature, no pair; still a clean report."""
-    scans = [LaserScan(np.full(181, 2.0), -math.pi / 2, math.radians(1.0), 0.05, 30.0,
-                       stamp=float(k), pose=(0.1 * k, 0.0, 0.0)) for k in range(30)]  # fmt: skip
+    scans = [
+        LaserScan(
+            np.full(181, 2.0),
+            -math.pi / 2,
+            math.radians(1.0),
+            0.05,
+            30.0,
+            stamp=float(k),
+            pose=(0.1 * k, 0.0, 0.0),
+        )
+        for k in range(30)
+    ]
     result = evaluate_real(scans)
     assert len(result.features) == 0
     assert result.warnings[0].startswith("only 0 persistent feature(s)")

@@ -154,9 +154,12 @@ def _client(scheduler: str, workers: int, timeout: float) -> tuple[Any, Any]:
         raise MissingDependencyError("Dask is needed: pip install 'laser-corners[dask]'") from None
     if scheduler == "local":
         cluster = LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
             silence_logs=logging.WARNING,
-        )  # fmt: skip
+        )
         return Client(cluster, timeout=timeout), cluster
     try:
         return Client(scheduler, timeout=timeout), None
@@ -196,11 +199,17 @@ def run_dask(
         started(len(client.scheduler_info().get("workers", {})) or workers)
         futures = {
             client.submit(
-                run_job, job, str(outdir), params, threads, prefetch,
-                key=f"laser-corners-{short_hash(job.key)}-{time.time_ns()}", pure=False,
+                run_job,
+                job,
+                str(outdir),
+                params,
+                threads,
+                prefetch,
+                key=f"laser-corners-{short_hash(job.key)}-{time.time_ns()}",
+                pure=False,
             ): job
             for job in jobs
-        }  # fmt: skip
+        }
         for future in as_completed(futures):
             delivered.add(future)
             try:

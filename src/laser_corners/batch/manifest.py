@@ -135,9 +135,13 @@ class JobResult:
         """The manifest record (JSON-friendly)."""
         record = asdict(self)
         for name in (
-            "seconds", "read_seconds", "detect_seconds", "write_seconds", "startup_seconds",
+            "seconds",
+            "read_seconds",
+            "detect_seconds",
+            "write_seconds",
+            "startup_seconds",
             "reader_seconds",
-        ):  # fmt: skip
+        ):
             record[name] = round(record[name], 4)
         return record
 

@@ -25,8 +25,20 @@ _BAG_KINDS = ("ros1", "ros2", "mcap")
 
 def _stem(path: Path) -> str:
     name = path.name
-    for suffix in (".gz", ".bz2", ".bag", ".mcap", ".db3", ".clf", ".log", ".npz", ".csv",
-                   ".carmen", ".txt", ".gfs"):  # fmt: skip
+    for suffix in (
+        ".gz",
+        ".bz2",
+        ".bag",
+        ".mcap",
+        ".db3",
+        ".clf",
+        ".log",
+        ".npz",
+        ".csv",
+        ".carmen",
+        ".txt",
+        ".gfs",
+    ):
         if name.lower().endswith(suffix) and len(name) > len(suffix):
             name = name[: -len(suffix)]
     return re.sub(r"[^A-Za-z0-9._-]+", "_", name) or "input"

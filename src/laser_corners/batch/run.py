@@ -118,9 +118,11 @@ def run_batch(
     completed = manifest.completed(outdir)
     pending = sorted((job for job in jobs if job.key not in completed), key=lambda job: -job.size)
     report = BatchReport(
-        outdir, already_done=[completed[j.key] for j in jobs if j.key in completed],
-        workers=n_workers, skipped=skipped,
-    )  # fmt: skip
+        outdir,
+        already_done=[completed[j.key] for j in jobs if j.key in completed],
+        workers=n_workers,
+        skipped=skipped,
+    )
     if on_plan is not None:
         on_plan(pending, report.already_done)
 
@@ -138,8 +140,18 @@ def run_batch(
         if not pending:
             pass
         elif scheduler is not None:
-            run_dask(pending, outdir, choice, scheduler, n_workers, threads, timeout, started,
-                     deliver, prefetch)  # fmt: skip
+            run_dask(
+                pending,
+                outdir,
+                choice,
+                scheduler,
+                n_workers,
+                threads,
+                timeout,
+                started,
+                deliver,
+                prefetch,
+            )
         elif n_workers == 1 or len(pending) == 1:
             report.workers = 1
             run_here(pending, outdir, choice, threads, deliver, prefetch)

@@ -78,14 +78,15 @@ def _worker_name() -> str:
 def _open_writer(recording: Recording, partial: Path, job: BatchJob) -> KeypointWriter:
     # the Parquet writer by name: the partial file's suffix is not ".parquet"
     return ParquetKeypointWriter(
-        partial, recording.has_poses,
+        partial,
+        recording.has_poses,
         metadata={
             "laser_corners.params": recording.params.to_yaml(),
             "laser_corners.method": CITATION,
             "laser_corners.input": job.input,
             "laser_corners.topic": job.topic or "",
         },
-    )  # fmt: skip
+    )
 
 
 def run_job(
@@ -170,6 +171,9 @@ def run_job(
 def failed_result(job: BatchJob, exc: BaseException) -> JobResult:
     """The result of a job whose worker failed before returning one (crash, lost worker)."""
     return JobResult(
-        job.input, job.topic, job.output, "failed",
+        job.input,
+        job.topic,
+        job.output,
+        "failed",
         error=f"worker failed: {type(exc).__name__}: {first_line(exc)}",
-    )  # fmt: skip
+    )

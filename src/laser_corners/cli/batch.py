@@ -84,9 +84,12 @@ def batch(
 
     err = Console(stderr=True)
     bar = Progress(
-        TextColumn("[bold]batch"), BarColumn(), MofNCompleteColumn(),
-        TextColumn("{task.fields[scans]} scans"), console=err,
-    )  # fmt: skip
+        TextColumn("[bold]batch"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[scans]} scans"),
+        console=err,
+    )
     task = bar.add_task("jobs", total=None, scans=0)
 
     def planned(jobs: list[Any], done: list[Any]) -> None:
@@ -102,9 +105,16 @@ def batch(
 
     try:
         report = run_batch(
-            inputs, outdir, params=choice, topic=topic, workers=workers,
-            scheduler=scheduler, threads=threads, on_result=finished, on_plan=planned,
-        )  # fmt: skip
+            inputs,
+            outdir,
+            params=choice,
+            topic=topic,
+            workers=workers,
+            scheduler=scheduler,
+            threads=threads,
+            on_result=finished,
+            on_plan=planned,
+        )
     except MissingDependencyError as exc:
         raise fail(f"--scheduler: {exc}") from None
     finally:
@@ -123,8 +133,9 @@ def _present(report: BatchReport, outdir: Path, err: Any) -> None:
     for skipped in report.skipped:
         err.print(
             quoted(f"skipped {skipped.input}: not a recording ({skipped.reason})"),
-            highlight=False, soft_wrap=True,
-        )  # fmt: skip
+            highlight=False,
+            soft_wrap=True,
+        )
     table = new_table(f"batch -> {outdir}", caption="r/d/w: seconds reading/detecting/writing")
     names = [quoted(Path(r.output).stem) for r in report.results]
     widest = max((len(name) for name in names), default=3)
@@ -134,10 +145,14 @@ def _present(report: BatchReport, outdir: Path, err: Any) -> None:
         table.add_column(column, justify="right")
     for name, r in zip(names, report.results, strict=True):
         table.add_row(
-            name, r.status, str(r.scans), str(r.keypoints),
-            f"{r.seconds:.2f}", f"{r.scans_per_second:.0f}",
+            name,
+            r.status,
+            str(r.scans),
+            str(r.keypoints),
+            f"{r.seconds:.2f}",
+            f"{r.scans_per_second:.0f}",
             f"{r.read_seconds:.2f}/{r.detect_seconds:.2f}/{r.write_seconds:.2f}",
-        )  # fmt: skip
+        )
     Console().print(table)
     skipped = f", {len(report.skipped)} input(s) skipped" if report.skipped else ""
     typer.echo(

@@ -51,11 +51,12 @@ TopicOption = Annotated[
 PresetOption = Annotated[
     str | None,
     typer.Option(
-        "--preset", help="Parameter preset: paper (published values, default), auto (adapted "
+        "--preset",
+        help="Parameter preset: paper (published values, default), auto (adapted "
         "to the scan's angular resolution) or robust (adapted to the range noise estimated "
-        "from the scan)."
+        "from the scan).",
     ),
-]  # fmt: skip
+]
 ParamsOption = Annotated[
     Path | None, typer.Option("--params", help="YAML/TOML parameter file (instead of a preset).")
 ]

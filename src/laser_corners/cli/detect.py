@@ -46,11 +46,14 @@ def _progress_bar() -> Any:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     return Progress(
-        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
         TextColumn("{task.fields[rate]:.0f} scans/s"),
-        TextColumn("{task.fields[keypoints]} keypoints"), TimeElapsedColumn(),
+        TextColumn("{task.fields[keypoints]} keypoints"),
+        TimeElapsedColumn(),
         console=Console(stderr=True),
-    )  # fmt: skip
+    )
 
 
 def _summary_table(run: DetectRun) -> Any:
@@ -111,12 +114,18 @@ def detect(
         bar.start()
 
     def update(run: Any) -> None:
-        bar.update(task, completed=run.n_scans, rate=run.scans_per_second,
-                   keypoints=run.n_keypoints)  # fmt: skip
+        bar.update(
+            task, completed=run.n_scans, rate=run.scans_per_second, keypoints=run.n_keypoints
+        )
 
     try:
         result = detect_file(
-            input_path, output, topic=topic, params=choice, on_open=opened, progress=update,
+            input_path,
+            output,
+            topic=topic,
+            params=choice,
+            on_open=opened,
+            progress=update,
             compression=compression,
         )
     finally:
@@ -170,8 +179,16 @@ def _head_table(input_path: Path, description: dict[str, Any]) -> Any:
 def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
     import math
 
-    keys = ("scans", "beams", "resolution (deg)", "field of view (deg)", "range (m)", "frame",
-            "first stamp (s)", "sensor pose")  # fmt: skip
+    keys = (
+        "scans",
+        "beams",
+        "resolution (deg)",
+        "field of view (deg)",
+        "range (m)",
+        "frame",
+        "first stamp (s)",
+        "sensor pose",
+    )
     rows: dict[str, list[str]] = {k: [] for k in keys}
     labels = []
     for source in sources:
@@ -182,12 +199,15 @@ def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
             values = [str(count)] + ["-"] * (len(rows) - 1)
         else:
             values = [
-                str(count), str(scan.n_beams), f"{scan.resolution_deg:.4g}",
+                str(count),
+                str(scan.n_beams),
+                f"{scan.resolution_deg:.4g}",
                 f"{math.degrees(abs(scan.angle_increment) * scan.n_beams):.1f}",
-                f"{scan.range_min:g} - {scan.range_max:g}", quoted(scan.frame_id or "-"),
+                f"{scan.range_min:g} - {scan.range_max:g}",
+                quoted(scan.frame_id or "-"),
                 f"{scan.stamp:.6f}" if scan.stamp is not None else "-",
                 "yes" if scan.pose is not None else "no",
-            ]  # fmt: skip
+            ]
         for key, value in zip(rows, values, strict=True):
             rows[key].append(value)
     table = new_table("scans (geometry of the first scan)", "", *labels)

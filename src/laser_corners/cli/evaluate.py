@@ -174,18 +174,26 @@ def evaluate_real_command(
     from laser_corners.viz.report import write_real_report
 
     console = Console(stderr=True)
-    for option, value in (("--max-range", max_range), ("--resolution", resolution),
-                          ("--association-radius", association_radius),
-                          ("--min-ratio", min_ratio)):  # fmt: skip
+    for option, value in (
+        ("--max-range", max_range),
+        ("--resolution", resolution),
+        ("--association-radius", association_radius),
+        ("--min-ratio", min_ratio),
+    ):
         if value is not None:
             check_number(option, value, minimum=0.0)
     given = {
-        "resolution": resolution, "association_radius": association_radius,
-        "min_ratio": min_ratio, "min_views": min_views, "occlusion": occlusion,
-        "max_range": max_range, "max_scans": max_scans, "max_pairs": max_pairs,
+        "resolution": resolution,
+        "association_radius": association_radius,
+        "min_ratio": min_ratio,
+        "min_views": min_views,
+        "occlusion": occlusion,
+        "max_range": max_range,
+        "max_scans": max_scans,
+        "max_pairs": max_pairs,
         "relations_mount": None if relations_mount is None else _mount(relations_mount),
         "methods": None if methods is None else method_list(methods),
-    }  # fmt: skip
+    }
     config = RealEvalConfig(
         detector=params_choice(preset, params_file, set_),
         **{name: value for name, value in given.items() if value is not None},
@@ -195,17 +203,21 @@ def evaluate_real_command(
     scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
     relations_path = relations if relations is not None else default_relations(input_path)
     result = evaluate_real(
-        scans, config,
+        scans,
+        config,
         relations=read_relations(relations_path) if relations_path is not None else None,
-        source=input_path.name, pose_source=pose_source,
+        source=input_path.name,
+        pose_source=pose_source,
         progress=lambda message: console.print(quoted(message), highlight=False),
-    )  # fmt: skip
+    )
     paths = write_real_report(result, output)
     _print_real(console, result, config)
     for warning in result.warnings:
         console.print(f"[yellow]warning:[/yellow] {quoted(warning)}", highlight=False)
-    typer.echo(f"wrote {len(paths)} files to {output} ({paths['report.md']}) in "
-               f"{time.perf_counter() - t0:.1f} s")  # fmt: skip
+    typer.echo(
+        f"wrote {len(paths)} files to {output} ({paths['report.md']}) in "
+        f"{time.perf_counter() - t0:.1f} s"
+    )
 
 
 def _print_real(console: Console, result: RealEvaluation, config: RealEvalConfig) -> None:
@@ -220,8 +232,12 @@ def _print_real(console: Console, result: RealEvaluation, config: RealEvalConfig
         table.add_column(f"r={r:g} m", justify="right")
     for row in repeatability_rows(result):
         values = [row[f"repeatability_r{r:g}"] for r in config.radii]
-        table.add_row(row["method"], f"{row['keypoints_per_scan']:.2f}", str(row["visible"]),
-                      *("n/a" if v is None else f"{100 * v:.1f} %" for v in values))  # fmt: skip
+        table.add_row(
+            row["method"],
+            f"{row['keypoints_per_scan']:.2f}",
+            str(row["visible"]),
+            *("n/a" if v is None else f"{100 * v:.1f} %" for v in values),
+        )
     console.print(table)
 
 
@@ -261,20 +277,31 @@ def evaluate_sim_command(
     new_folder(output)
     t0 = time.perf_counter()
     cases = make_cases(worlds, poses, profile, seed=seed)
-    stats, used = run_sweep(cases, factories, sigmas, profile, seed=seed,
-                            match_radius=match_radius, progress=console.print)  # fmt: skip
+    stats, used = run_sweep(
+        cases,
+        factories,
+        sigmas,
+        profile,
+        seed=seed,
+        match_radius=match_radius,
+        progress=console.print,
+    )
     paths = write_accuracy_report(stats, output)
     console.print(
         _sim_table(f"{profile.name}: {len(cases)} poses in {worlds} random worlds", stats)
     )
     config = {
-        "sensor": sensor, "worlds": worlds, "poses_per_world": poses, "noise_sigmas": sigmas,
-        "match_radius": match_radius, "seed": seed,
+        "sensor": sensor,
+        "worlds": worlds,
+        "poses_per_world": poses,
+        "noise_sigmas": sigmas,
+        "match_radius": match_radius,
+        "seed": seed,
         "params": {
             name: {f"{sigma:g}": _params_record(det) for sigma, det in per_sigma.items()}
             for name, per_sigma in used.items()
         },
-    }  # fmt: skip
+    }
     _write_yaml(output / "config.yaml", config)
     for path in [*paths.values(), output / "config.yaml"]:
         typer.echo(f"wrote {path}")
@@ -283,17 +310,31 @@ def evaluate_sim_command(
 
 def _sim_table(title: str, stats: list[AccuracyStats]) -> Table:
     table = new_table(title)
-    for name in ("sigma m", "method", "recall", "false kp", "false/scan", "median mm",
-                 "p95 mm", "kp/corner", "ms/scan"):  # fmt: skip
+    for name in (
+        "sigma m",
+        "method",
+        "recall",
+        "false kp",
+        "false/scan",
+        "median mm",
+        "p95 mm",
+        "kp/corner",
+        "ms/scan",
+    ):
         table.add_column(name, justify="left" if name == "method" else "right")
     for s in stats:
         r = s.row()
         table.add_row(
-            f"{r['sigma_m']:g}", r["method"], f"{r['recall']:.3f}",
-            f"{100 * r['false_rate']:.1f} %", f"{r['false_per_scan']:.2f}",
-            f"{r['median_error_mm']:.1f}", f"{r['p95_error_mm']:.1f}",
-            f"{r['keypoints_per_corner']:.3f}", f"{r['ms_per_scan']:.2f}",
-        )  # fmt: skip
+            f"{r['sigma_m']:g}",
+            r["method"],
+            f"{r['recall']:.3f}",
+            f"{100 * r['false_rate']:.1f} %",
+            f"{r['false_per_scan']:.2f}",
+            f"{r['median_error_mm']:.1f}",
+            f"{r['p95_error_mm']:.1f}",
+            f"{r['keypoints_per_corner']:.3f}",
+            f"{r['ms_per_scan']:.2f}",
+        )
     return table
 
 

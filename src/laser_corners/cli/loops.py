@@ -71,8 +71,12 @@ def evaluate_loops_command(
 
     console = Console(stderr=True)
     t0 = time.perf_counter()
-    given = {"min_inliers": min_inliers, "max_scans": max_scans, "window_travel": window,
-             "methods": None if methods is None else method_list(methods)}  # fmt: skip
+    given = {
+        "min_inliers": min_inliers,
+        "max_scans": max_scans,
+        "window_travel": window,
+        "methods": None if methods is None else method_list(methods),
+    }
     config = LoopsConfig(**{k: v for k, v in given.items() if v is not None})
     new_folder(output)
     with _Phases(console) as progress:

@@ -54,9 +54,14 @@ def view(
         raise fail(f"{save}: is a folder; --save needs a file name")
     try:
         summary = view_recording(
-            input_path, topic=topic, params=choice, save=save, connect=connect, every=every,
+            input_path,
+            topic=topic,
+            params=choice,
+            save=save,
+            connect=connect,
+            every=every,
             max_scans=max_scans,
-        )  # fmt: skip
+        )
     except ViewerUnavailableError as exc:
         hint = "" if save is not None else "; use --save FILE.rrd (no display needed)"
         raise fail(f"{exc}{hint}") from None

@@ -263,18 +263,30 @@ class SplitAndMergeDetector:
                 continue
             bis = ua + ub
             rows.append(
-                (corner[0], corner[1], e1, math.degrees(math.acos(cos_open)),
-                 math.atan2(bis[1], bis[0]), max(rms_a, rms_b))
-            )  # fmt: skip
+                (
+                    corner[0],
+                    corner[1],
+                    e1,
+                    math.degrees(math.acos(cos_open)),
+                    math.atan2(bis[1], bis[0]),
+                    max(rms_a, rms_b),
+                )
+            )
         if not rows:
             return Keypoints.empty(stamp=scan.stamp, frame_id=scan.frame_id)
         a = np.array(rows)
         ones = np.ones(len(rows), dtype=np.int64)
         return Keypoints(
-            xy=a[:, :2], beam_index=a[:, 2].astype(np.int64), opening_angle_deg=a[:, 3],
-            orientation=a[:, 4], n_scales=ones, rmse=a[:, 5], n_merged=ones,
-            stamp=scan.stamp, frame_id=scan.frame_id,
-        )  # fmt: skip
+            xy=a[:, :2],
+            beam_index=a[:, 2].astype(np.int64),
+            opening_angle_deg=a[:, 3],
+            orientation=a[:, 4],
+            n_scales=ones,
+            rmse=a[:, 5],
+            n_merged=ones,
+            stamp=scan.stamp,
+            frame_id=scan.frame_id,
+        )
 
     def detect_many(self, scans: list[LaserScan]) -> list[Keypoints]:
         """:meth:`detect` over a list of scans."""

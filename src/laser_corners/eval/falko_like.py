@@ -219,10 +219,21 @@ class FalkoLikeDetector:
         rho = np.where(valid, scan.ranges, np.nan)
         rows = np.empty((scan.n_beams, 5))
         m = _falko_candidates(
-            x, y, rho, p.neigh_a, p.neigh_b, p.min_neighbours, p.side_ratio,
-            math.cos(math.radians(p.min_apex_deg)), math.cos(math.radians(p.max_apex_deg)),
-            p.sectors, p.max_mean_sector_distance, p.min_range, p.max_range, rows,
-        )  # fmt: skip
+            x,
+            y,
+            rho,
+            p.neigh_a,
+            p.neigh_b,
+            p.min_neighbours,
+            p.side_ratio,
+            math.cos(math.radians(p.min_apex_deg)),
+            math.cos(math.radians(p.max_apex_deg)),
+            p.sectors,
+            p.max_mean_sector_distance,
+            p.min_range,
+            p.max_range,
+            rows,
+        )
         rows = rows[:m]
         beams = rows[:, 0].astype(np.int64)
         # non-maximum suppression: lowest score first, then the larger triangle height

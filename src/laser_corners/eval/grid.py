@@ -68,10 +68,12 @@ class Grid:
         """Map-frame centres of ``(row, col)`` cells, shape (M, 2)."""
         rc = np.asarray(cells, dtype=np.float64).reshape(-1, 2)
         return np.stack(
-            [self.x0 + (rc[:, 1] + 0.5) * self.resolution,
-             self.y0 + (rc[:, 0] + 0.5) * self.resolution],
+            [
+                self.x0 + (rc[:, 1] + 0.5) * self.resolution,
+                self.y0 + (rc[:, 0] + 0.5) * self.resolution,
+            ],
             axis=1,
-        )  # fmt: skip
+        )
 
 
 def bounded_grid(

@@ -143,7 +143,13 @@ def line_fit_study(
         mean[chunk] = m
         worse += w
     return LineFitStudy(
-        angles_deg, mean[:, 0], mean[:, 1], mean[:, 2],
-        np.degrees(mean[:, 3]), np.degrees(mean[:, 4]), np.degrees(mean[:, 5]),
-        int(worse[0]), int(worse[1]),
-    )  # fmt: skip
+        angles_deg,
+        mean[:, 0],
+        mean[:, 1],
+        mean[:, 2],
+        np.degrees(mean[:, 3]),
+        np.degrees(mean[:, 4]),
+        np.degrees(mean[:, 5]),
+        int(worse[0]),
+        int(worse[1]),
+    )

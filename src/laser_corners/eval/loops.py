@@ -165,8 +165,7 @@ class LoopsResult:
     def curve(self, name: str) -> dict[str, NDArray[np.float64]]:
         """Precision-recall sweep of one method over ``config.thresholds``."""
         m = self.methods[name]
-        return precision_recall(m.best_inliers, m.correct, self.has_revisit,
-                                self.config.thresholds)  # fmt: skip
+        return precision_recall(m.best_inliers, m.correct, self.has_revisit, self.config.thresholds)
 
     def summary(self) -> dict[str, dict[str, dict[str, float | int | None]]]:
         """The content of ``loops.json``: each method at the default threshold."""
@@ -369,11 +368,19 @@ def evaluate_loops(
     say("revisits", 0, 1)
     rev = revisits(posed, cfg.window_travel, cfg.revisit_overlap, cfg.overlap_tolerance)
     say("revisits", 1, 1)
-    result = LoopsResult(source, cfg, len(posed), rev >= 0, rev, notes=notes,
-                         seconds={"revisits": time.perf_counter() - t0})  # fmt: skip
+    result = LoopsResult(
+        source,
+        cfg,
+        len(posed),
+        rev >= 0,
+        rev,
+        notes=notes,
+        seconds={"revisits": time.perf_counter() - t0},
+    )
     # compile or load the kernels once, so the first method's time is matching only
-    register_pairs(loop_bank(posed[:2], [Keypoints.empty(), Keypoints.empty()], cfg), [0], [1],
-                   cfg.match)  # fmt: skip
+    register_pairs(
+        loop_bank(posed[:2], [Keypoints.empty(), Keypoints.empty()], cfg), [0], [1], cfg.match
+    )
     for name, detect in detectors.items():
         result.methods[name] = _evaluate_method(name, detect, posed, cfg, say)
         if on_method is not None:

@@ -154,9 +154,15 @@ def detect_all(
     collected = _Collected()
     report = None if step is None else (lambda run: step(run.n_scans, len(scans)))
     summary = detect_recording(
-        scans, detector, collected, report, every=chunk,  # type: ignore[arg-type]
-        threads=None, chunk_scans=chunk, prefetch=False,
-    )  # fmt: skip
+        scans,
+        detector,
+        collected,
+        report,
+        every=chunk,  # type: ignore[arg-type]
+        threads=None,
+        chunk_scans=chunk,
+        prefetch=False,
+    )
     if summary.interrupted:
         raise KeyboardInterrupt
     return collected.found

@@ -160,9 +160,16 @@ def _accumulate_scan(
             px = c * dx + s * dy
             py = -s * dx + c * dy
             if not _block_may_be_seen(
-                px, py, half_diag, reach, ranges, angle_min, angle_increment, tolerance,
+                px,
+                py,
+                half_diag,
+                reach,
+                ranges,
+                angle_min,
+                angle_increment,
+                tolerance,
                 occlusion,
-            ):  # fmt: skip
+            ):
                 continue
             for row in range(br, min(br + _BLOCK, r1 + 1)):
                 dy = y0 + (row + 0.5) * res - pose_y
@@ -273,11 +280,26 @@ def observability_map(
         cells = grid.cell_of(keypoints_xy[i])
         view = view_of(scan, tolerance, occlusion, max_range)
         _accumulate_scan(
-            i, grid.x0, grid.y0, grid.resolution, float(pose[0]), float(pose[1]),
-            float(pose[2]), ranges_with_nan(scan), view, np.ascontiguousarray(cells), counters,
-        )  # fmt: skip
+            i,
+            grid.x0,
+            grid.y0,
+            grid.resolution,
+            float(pose[0]),
+            float(pose[1]),
+            float(pose[2]),
+            ranges_with_nan(scan),
+            view,
+            np.ascontiguousarray(cells),
+            counters,
+        )
         n_used += 1
     if step is not None:
         step(len(scans), len(scans))
-    return ObservabilityMap(grid, counters[_VIEW].copy(), counters[_HIT].copy(),
-                            counters[_VIEW8].copy(), counters[_HIT8].copy(), n_used)  # fmt: skip
+    return ObservabilityMap(
+        grid,
+        counters[_VIEW].copy(),
+        counters[_HIT].copy(),
+        counters[_VIEW8].copy(),
+        counters[_HIT8].copy(),
+        n_used,
+    )

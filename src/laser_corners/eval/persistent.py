@@ -119,6 +119,8 @@ def refine_positions(
 def take(features: PersistentFeatures, index: NDArray[np.int64]) -> PersistentFeatures:
     """The features at ``index`` (an index array or a boolean mask), in that order."""
     return PersistentFeatures(
-        features.xy[index], features.ratio_n8[index], features.in_view_n8[index],
+        features.xy[index],
+        features.ratio_n8[index],
+        features.in_view_n8[index],
         features.cells[index],
-    )  # fmt: skip
+    )

@@ -95,8 +95,10 @@ def clean_scans(scans: list[LaserScan]) -> tuple[list[LaserScan], float | None, 
     if limit is None:
         return scans, None, []
     n = sum(int(np.count_nonzero(s.valid & (s.ranges >= limit))) for s in scans)
-    note = (f"{n} readings at {limit:.2f} m or more are a 'no return' value of the scanner "
-            "(repeated on many beams), not echoes: treated as gaps")  # fmt: skip
+    note = (
+        f"{n} readings at {limit:.2f} m or more are a 'no return' value of the scanner "
+        "(repeated on many beams), not echoes: treated as gaps"
+    )
     return without_no_returns(scans, limit), limit, [note]
 
 
@@ -130,8 +132,10 @@ def maps_phase(
     keypoints = phases.detect(detector, scans, phases.stepper("detection"))
     phases.timed("detection", t0)
     posed = [i for i, s in enumerate(scans) if s.pose is not None]
-    phases.say(f"{len(scans)} scans ({len(posed)} with a pose), "
-               f"{np.mean([len(k) for k in keypoints]):.2f} keypoints per scan")  # fmt: skip
+    phases.say(
+        f"{len(scans)} scans ({len(posed)} with a pose), "
+        f"{np.mean([len(k) for k in keypoints]):.2f} keypoints per scan"
+    )
     map_kps = [keypoints[i].transformed(scans[i].pose).xy for i in posed]  # type: ignore[arg-type]
     all_map_kps = np.concatenate(map_kps) if map_kps else np.zeros((0, 2))
     trajectory_xy = np.array([scans[i].pose[:2] for i in posed]).reshape(-1, 2)  # type: ignore[index]
@@ -140,19 +144,35 @@ def maps_phase(
     reach = _useful_reach(posed_scans, cfg.max_range)
     grid, notes = bounded_grid(all_map_kps, trajectory_xy, reach, cfg.resolution, cfg.max_cells)
     obs = observability_map(
-        posed_scans, map_kps, grid, occlusion=cfg.occlusion, tolerance=cfg.view_tolerance,
-        max_range=cfg.max_range, step=phases.stepper("observability"),
-    )  # fmt: skip
+        posed_scans,
+        map_kps,
+        grid,
+        occlusion=cfg.occlusion,
+        tolerance=cfg.view_tolerance,
+        max_range=cfg.max_range,
+        step=phases.stepper("observability"),
+    )
     features = persistent_features(obs, cfg.min_ratio, cfg.min_views, cfg.nms_radius)
     if len(features) > cfg.max_features:
         notes.append(f"{len(features)} persistent features, the best {cfg.max_features} kept")
         features = take(features, np.arange(cfg.max_features))
     features = refine_positions(features, all_map_kps, cfg.association_radius)
     phases.timed("observability", t0)
-    phases.say(f"observability map {grid.shape[1]}x{grid.shape[0]} cells of "
-               f"{grid.resolution:.3g} m, {len(features)} persistent features")  # fmt: skip
-    return MapsPhase(keypoints, posed, map_kps, all_map_kps, trajectory_xy,
-                     _map_points(posed_scans, 200_000), obs, features, notes)  # fmt: skip
+    phases.say(
+        f"observability map {grid.shape[1]}x{grid.shape[0]} cells of "
+        f"{grid.resolution:.3g} m, {len(features)} persistent features"
+    )
+    return MapsPhase(
+        keypoints,
+        posed,
+        map_kps,
+        all_map_kps,
+        trajectory_xy,
+        _map_points(posed_scans, 200_000),
+        obs,
+        features,
+        notes,
+    )
 
 
 @dataclass
@@ -193,9 +213,14 @@ def repeatability_phase(
     """
     t0 = time.perf_counter()
     pairs, source, notes = choose_pairs(
-        scans, relations, cfg.relations_mount, cfg.max_pairs, cfg.pair_min_motion,
-        cfg.pair_min_turn_deg, pose_source,
-    )  # fmt: skip
+        scans,
+        relations,
+        cfg.relations_mount,
+        cfg.max_pairs,
+        cfg.pair_min_motion,
+        cfg.pair_min_turn_deg,
+        pose_source,
+    )
     needed = sorted({k for i, j, _ in pairs for k in (i, j)})
     sub_scans = [scans[k] for k in needed]
     position = {k: n for n, k in enumerate(needed)}
@@ -210,9 +235,14 @@ def repeatability_phase(
             runs[name] = lambda d=detector, n=name: phases.detect(d, sub_scans, phases.stepper(n))
     for name, run in runs.items():
         table[name] = repeatability(
-            [k.xy for k in run()], sub_scans, sub_pairs, cfg.radii, cfg.view_tolerance,
-            cfg.occlusion, cfg.max_range,
-        )  # fmt: skip
+            [k.xy for k in run()],
+            sub_scans,
+            sub_pairs,
+            cfg.radii,
+            cfg.view_tolerance,
+            cfg.occlusion,
+            cfg.max_range,
+        )
         pairs_r = zip(cfg.radii, table[name].repeatability, strict=True)
         values = ", ".join(f"r={r:g} m {_pct(v)}" for r, v in pairs_r)
         phases.say(f"repeatability {name}: {values}")
@@ -234,23 +264,33 @@ def evidence_warnings(
     """Plain sentences naming every result that rests on too little evidence."""
     out: list[str] = []
     if len(features) < 2:
-        out.append(f"only {len(features)} persistent feature(s): no association distance "
-                   "(it needs pairs of features)")  # fmt: skip
+        out.append(
+            f"only {len(features)} persistent feature(s): no association distance "
+            "(it needs pairs of features)"
+        )
     elif stats.n_pairs_with_std == 0:
-        out.append("no pair of persistent features was seen together in 2 or more scans: "
-                   "no association distance")  # fmt: skip
+        out.append(
+            "no pair of persistent features was seen together in 2 or more scans: "
+            "no association distance"
+        )
     elif stats.n_pairs_with_std < cfg.min_pairs:
-        out.append(f"association distance rests on only {stats.n_pairs_with_std} feature "
-                   f"pairs (fewer than {cfg.min_pairs}): too little evidence")  # fmt: skip
+        out.append(
+            f"association distance rests on only {stats.n_pairs_with_std} feature "
+            f"pairs (fewer than {cfg.min_pairs}): too little evidence"
+        )
     if n_pairs == 0:
         out.append("no scan pair for repeatability")
     elif n_pairs < cfg.min_pairs:
-        out.append(f"repeatability rests on only {n_pairs} scan pairs (fewer than "
-                   f"{cfg.min_pairs}): too little evidence")  # fmt: skip
+        out.append(
+            f"repeatability rests on only {n_pairs} scan pairs (fewer than "
+            f"{cfg.min_pairs}): too little evidence"
+        )
     for name, rep in table.items():
         if n_pairs and rep.n_visible < cfg.min_visible:
-            out.append(f"repeatability of {name}: only {rep.n_visible} visible keypoints "
-                       f"(fewer than {cfg.min_visible}): too little evidence")  # fmt: skip
+            out.append(
+                f"repeatability of {name}: only {rep.n_visible} visible keypoints "
+                f"(fewer than {cfg.min_visible}): too little evidence"
+            )
     return out
 
 

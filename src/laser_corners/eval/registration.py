@@ -132,8 +132,10 @@ def registration_errors(
     orot = np.full(n, np.nan)
     n_inl = np.zeros(n, dtype=np.int64)
     t0 = time.perf_counter()
-    regs = [register_keypoints(kps[i], descs[i], kps[j], descs[j], options, scans[i], scans[j])
-            for i, j, _ in pairs]  # fmt: skip
+    regs = [
+        register_keypoints(kps[i], descs[i], kps[j], descs[j], options, scans[i], scans[j])
+        for i, j, _ in pairs
+    ]
     elapsed = time.perf_counter() - t0
     for k, ((i, j, truth), reg) in enumerate(zip(pairs, regs, strict=True)):
         acc[k] = reg.accepted

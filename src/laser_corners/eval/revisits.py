@@ -40,11 +40,18 @@ def candidates(travel: NDArray[np.float64], query: int, window_travel: float) ->
 
 @nb.njit(cache=True, nogil=True, parallel=True)
 def _revisits(
-    poses: NDArray[np.float64], travel: NDArray[np.float64], window: float,
-    pts: NDArray[np.float64], pt_off: NDArray[np.int64],
-    ranges: NDArray[np.float64], r_off: NDArray[np.int64], geom: NDArray[np.float64],
-    overlap: float, tol: float, out: NDArray[np.int64],
-) -> None:  # fmt: skip
+    poses: NDArray[np.float64],
+    travel: NDArray[np.float64],
+    window: float,
+    pts: NDArray[np.float64],
+    pt_off: NDArray[np.int64],
+    ranges: NDArray[np.float64],
+    r_off: NDArray[np.int64],
+    geom: NDArray[np.float64],
+    overlap: float,
+    tol: float,
+    out: NDArray[np.int64],
+) -> None:
     """``out[q]``: first candidate seeing ``overlap`` of query q's points, or -1."""
     n_scans = poses.shape[0]
     for q in nb.prange(n_scans):
@@ -119,8 +126,17 @@ def revisits(
     ranges = np.concatenate([np.nan_to_num(s.ranges, nan=-1.0, posinf=-1.0) for s in scans])
     geom = np.array([(s.angle_min, s.angle_increment, s.range_min, s.range_max) for s in scans])
     out = np.full(len(scans), -1, dtype=np.int64)
-    _revisits(poses, travel_distance(poses), float(window_travel),
-              np.ascontiguousarray(np.concatenate(pts_list), dtype=np.float64), pt_off,
-              ranges.astype(np.float64), r_off, geom.astype(np.float64), float(overlap),
-              float(tolerance), out)  # fmt: skip
+    _revisits(
+        poses,
+        travel_distance(poses),
+        float(window_travel),
+        np.ascontiguousarray(np.concatenate(pts_list), dtype=np.float64),
+        pt_off,
+        ranges.astype(np.float64),
+        r_off,
+        geom.astype(np.float64),
+        float(overlap),
+        float(tolerance),
+        out,
+    )
     return out

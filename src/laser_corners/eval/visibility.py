@@ -27,8 +27,14 @@ whether a scan sees a point (see :func:`point_in_view`)."""
 
 def view_of(scan: LaserScan, tolerance: float, occlusion: bool, max_range: float | None) -> View:
     """The :data:`View` of a scan (``max_range`` caps its ``range_max``)."""
-    return (scan.angle_min, scan.angle_increment, scan.range_min,
-            view_limit(scan, max_range), float(tolerance), bool(occlusion))  # fmt: skip
+    return (
+        scan.angle_min,
+        scan.angle_increment,
+        scan.range_min,
+        view_limit(scan, max_range),
+        float(tolerance),
+        bool(occlusion),
+    )
 
 
 @nb.njit(cache=True)

@@ -117,12 +117,15 @@ class NpzSource(ScanSource):
             self.position = f"row {index}"
             try:
                 yield LaserScan(
-                    self.ranges[index], self.angle_min, self.angle_increment, self.range_min,
+                    self.ranges[index],
+                    self.angle_min,
+                    self.angle_increment,
+                    self.range_min,
                     self.range_max,
                     float(self.stamps[index]) if self.stamps is not None else None,
                     self.frame_id,
                     tuple(self.poses[index]) if self.poses is not None else None,
-                )  # fmt: skip
+                )
             except (InvalidScanError, TypeError, ValueError) as exc:
                 self._skip("invalid row", f"row {index}", str(exc))
 
@@ -210,9 +213,15 @@ class CsvSource(ScanSource):
                         else None
                     )
                     yield LaserScan(
-                        values[self._range_cols], self.angle_min, self.angle_increment,
-                        self.range_min, self.range_max, stamp, self.frame_id, pose,
-                    )  # fmt: skip
+                        values[self._range_cols],
+                        self.angle_min,
+                        self.angle_increment,
+                        self.range_min,
+                        self.range_max,
+                        stamp,
+                        self.frame_id,
+                        pose,
+                    )
                 except (ValueError, InvalidScanError) as exc:
                     self._skip("malformed row", where, str(exc)[:80])
 
@@ -223,8 +232,10 @@ def _stack(path: Path, scans: Sequence[LaserScan]) -> np.ndarray:
     first = scans[0]
     for scan in scans[1:]:
         if (scan.n_beams, scan.angle_min, scan.angle_increment) != (
-            first.n_beams, first.angle_min, first.angle_increment,
-        ):  # fmt: skip
+            first.n_beams,
+            first.angle_min,
+            first.angle_increment,
+        ):
             raise OutputError(f"{path}: scans written to one array file must share their geometry")
     return np.stack([s.ranges for s in scans])
 

@@ -44,9 +44,19 @@ __all__ = [
 ]
 
 CORRUPT_ERRORS: tuple[type[BaseException], ...] = (
-    AnyReaderError, Reader1Error, Reader2Error, AssertionError, OSError, EOFError,
-    struct.error, zlib.error, UnicodeDecodeError, ValueError, IndexError, KeyError,
-)  # fmt: skip
+    AnyReaderError,
+    Reader1Error,
+    Reader2Error,
+    AssertionError,
+    OSError,
+    EOFError,
+    struct.error,
+    zlib.error,
+    UnicodeDecodeError,
+    ValueError,
+    IndexError,
+    KeyError,
+)
 """What rosbags lets through on damaged bags (it asserts on some, real or damaged)."""
 CHUNK_ERRORS = (*CORRUPT_ERRORS, RuntimeError)  # lz4 raises RuntimeError on bad frames
 

@@ -219,15 +219,20 @@ class BagKeypointWriter(KeypointWriter):
     def _add_copy(self, connection: Any) -> Any:
         if self._ros1:
             return self._writer.add_connection(
-                connection.topic, connection.msgtype, msgdef=connection.msgdef.data,
-                md5sum=connection.digest, callerid=connection.ext.callerid,
+                connection.topic,
+                connection.msgtype,
+                msgdef=connection.msgdef.data,
+                md5sum=connection.digest,
+                callerid=connection.ext.callerid,
                 latching=connection.ext.latching,
-            )  # fmt: skip
+            )
         return self._writer.add_connection(
-            connection.topic, connection.msgtype, typestore=self.typestore,
+            connection.topic,
+            connection.msgtype,
+            typestore=self.typestore,
             serialization_format=connection.ext.serialization_format,
             offered_qos_profiles=connection.ext.offered_qos_profiles,
-        )  # fmt: skip
+        )
 
     def _add_new(self, topic: str, msgtype: str) -> Any:
         return self._writer.add_connection(topic, msgtype, typestore=self.typestore)

@@ -50,8 +50,15 @@ __all__ = [
 CARMEN_SUFFIXES = frozenset({".clf", ".log", ".carmen", ".txt", ".gfs", ".g2o"})
 """Suffixes of CARMEN logs (and of ``.g2o`` files, read for their laser lines)."""
 CARMEN_WORDS: tuple[bytes, ...] = (
-    b"FLASER", b"ROBOTLASER1", b"RAWLASER", b"VERTEX", b"EDGE", b"ODOM", b"PARAM", b"#",
-)  # fmt: skip
+    b"FLASER",
+    b"ROBOTLASER1",
+    b"RAWLASER",
+    b"VERTEX",
+    b"EDGE",
+    b"ODOM",
+    b"PARAM",
+    b"#",
+)
 """First words that make a file without a known suffix a CARMEN log."""
 
 FLASER_MAX_RANGE = 80.0
@@ -61,10 +68,24 @@ _RAWLASERS = ("RAWLASER1", "RAWLASER2", "RAWLASER3", "RAWLASER4")
 _LASER_WORDS = ("FLASER", "ROBOTLASER1", *_RAWLASERS)
 _IGNORED_WORDS = frozenset(
     {
-        "VERTEX2", "VERTEX", "VERTEX_SE2", "EDGE2", "EDGE", "EDGE_SE2", "ODOM", "PARAM", "NEFF",
-        "TRUEPOS", "RLASER", "ROBOTLASER2", "SYNC", "GPSNMEA", "POSITIONLASER", "FIX",
+        "VERTEX2",
+        "VERTEX",
+        "VERTEX_SE2",
+        "EDGE2",
+        "EDGE",
+        "EDGE_SE2",
+        "ODOM",
+        "PARAM",
+        "NEFF",
+        "TRUEPOS",
+        "RLASER",
+        "ROBOTLASER2",
+        "SYNC",
+        "GPSNMEA",
+        "POSITIONLASER",
+        "FIX",
     }
-)  # fmt: skip
+)
 _IGNORED_PREFIXES = ("VERTEX", "EDGE", "PARAMS_")  # g2o graph lines
 
 
@@ -121,9 +142,15 @@ def parse_carmen_line(tokens: list[str]) -> LaserScan:
         rest = _floats(tokens, 2 + n, 7, "pose and timestamp")
         increment = math.pi / (n - 1) if n % 2 else math.pi / n
         return LaserScan(
-            ranges, -math.pi / 2, increment, 0.0, FLASER_MAX_RANGE,
-            stamp=float(rest[6]), frame_id="laser", pose=_pose(rest[0:3]),
-        )  # fmt: skip
+            ranges,
+            -math.pi / 2,
+            increment,
+            0.0,
+            FLASER_MAX_RANGE,
+            stamp=float(rest[6]),
+            frame_id="laser",
+            pose=_pose(rest[0:3]),
+        )
     # ROBOTLASER1 and RAWLASERk share the head
     geometry = _floats(tokens, 2, 5, "geometry")  # start fov res max_range accuracy
     start_angle, _fov, res, max_range, _accuracy = (float(v) for v in geometry)

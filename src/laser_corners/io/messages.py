@@ -89,11 +89,17 @@ def keypoints_to_marker_fields(
     """
     markers: list[dict[str, Any]] = [
         {
-            "ns": ns, "id": 0, "type": MARKER_ARROW, "action": MARKER_DELETEALL,
-            "position": (0.0, 0.0, 0.0), "orientation": (0.0, 0.0, 0.0, 1.0),
-            "scale": (0.0, 0.0, 0.0), "color": (0.0, 0.0, 0.0, 0.0), "lifetime": 0.0,
+            "ns": ns,
+            "id": 0,
+            "type": MARKER_ARROW,
+            "action": MARKER_DELETEALL,
+            "position": (0.0, 0.0, 0.0),
+            "orientation": (0.0, 0.0, 0.0, 1.0),
+            "scale": (0.0, 0.0, 0.0),
+            "color": (0.0, 0.0, 0.0, 0.0),
+            "lifetime": 0.0,
         }
-    ]  # fmt: skip
+    ]
     quaternions = yaw_quaternions(kps.orientation)
     for i in range(len(kps)):
         markers.append(

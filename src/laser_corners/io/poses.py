@@ -117,9 +117,14 @@ def track_from(
     }
     data = np.array(sorted(samples), dtype=np.float64)
     return PoseTrack(
-        odom_frame, base_frame, data[:, 0], data[:, 1], data[:, 2], np.unwrap(data[:, 3]),
+        odom_frame,
+        base_frame,
+        data[:, 0],
+        data[:, 1],
+        data[:, 2],
+        np.unwrap(data[:, 3]),
         parents,
-    )  # fmt: skip
+    )
 
 
 def add_transforms(

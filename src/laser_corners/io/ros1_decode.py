@@ -159,9 +159,11 @@ def odometry_of(msg: Any) -> tuple[str, str, OdomSample]:
     stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
     q = msg.pose.pose.orientation
     p = msg.pose.pose.position
-    return msg.header.frame_id, msg.child_frame_id, (
-        stamp, p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)
-    )  # fmt: skip
+    return (
+        msg.header.frame_id,
+        msg.child_frame_id,
+        (stamp, p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)),
+    )
 
 
 def transforms_of(msg: Any) -> list[Transform]:
@@ -169,10 +171,13 @@ def transforms_of(msg: Any) -> list[Transform]:
     found = []
     for transform in msg.transforms:
         t, q = transform.transform.translation, transform.transform.rotation
-        found.append((
-            transform.header.frame_id, transform.child_frame_id,
-            (t.x, t.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)),
-        ))  # fmt: skip
+        found.append(
+            (
+                transform.header.frame_id,
+                transform.child_frame_id,
+                (t.x, t.y, yaw_from_quaternion(q.x, q.y, q.z, q.w)),
+            )
+        )
     return found
 
 
@@ -180,6 +185,11 @@ def laserscan_fields(msg: Any) -> ScanFields:
     """What :func:`decode_ros1_laserscan` gives, from a deserialized message."""
     stamp_ns = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
     return (
-        stamp_ns, msg.header.frame_id, msg.angle_min, msg.angle_increment, msg.range_min,
-        msg.range_max, np.asarray(msg.ranges, dtype=np.float32),
-    )  # fmt: skip
+        stamp_ns,
+        msg.header.frame_id,
+        msg.angle_min,
+        msg.angle_increment,
+        msg.range_min,
+        msg.range_max,
+        np.asarray(msg.ranges, dtype=np.float32),
+    )

@@ -144,10 +144,14 @@ def _index_table(connection: Any) -> NDArray[np.int64]:
         return np.fromiter(flat, dtype=_I64, count=count).reshape(-1, 3)
     if not parts:
         return np.empty((0, 3), dtype=_I64)
-    table = np.concatenate([
-        np.stack([_times(a), np.full(a.size, pos, dtype=_I64), a["offset"].astype(_I64)], axis=1)
-        for pos, a in parts
-    ])  # fmt: skip
+    table = np.concatenate(
+        [
+            np.stack(
+                [_times(a), np.full(a.size, pos, dtype=_I64), a["offset"].astype(_I64)], axis=1
+            )
+            for pos, a in parts
+        ]
+    )
     return table[np.argsort(table[:, 0], kind="stable")]
 
 

@@ -215,20 +215,26 @@ def decode_scan_block(data: bytes, starts: NDArray[np.int64], length: int) -> Sc
     range_min, range_max = fields[:, 5], fields[:, 6]
     with np.errstate(invalid="ignore"):
         checked = (
-            np.isfinite(angle_min) & np.isfinite(angle_increment) & (angle_increment != 0)
+            np.isfinite(angle_min)
+            & np.isfinite(angle_increment)
+            & (angle_increment != 0)
             & (range_min < range_max)
-        )  # fmt: skip
+        )
     sec = _column(rows, 4, "<i4").astype(_I64)
     nsec = _column(rows, 8, "<u4").astype(_I64)
     ranges = np.ascontiguousarray(rows[:, ranges_at : ranges_at + 4 * n_ranges])
     ranges64 = ranges.view("<f4").astype(np.float64)
     ranges64.setflags(write=False)
     return ScanBlock(
-        (sec * 1_000_000_000 + nsec).tolist(), frame_id,
-        angle_min.astype(np.float64).tolist(), angle_increment.astype(np.float64).tolist(),
-        range_min.astype(np.float64).tolist(), range_max.astype(np.float64).tolist(),
-        ranges64, checked.tolist(),
-    )  # fmt: skip
+        (sec * 1_000_000_000 + nsec).tolist(),
+        frame_id,
+        angle_min.astype(np.float64).tolist(),
+        angle_increment.astype(np.float64).tolist(),
+        range_min.astype(np.float64).tolist(),
+        range_max.astype(np.float64).tolist(),
+        ranges64,
+        checked.tolist(),
+    )
 
 
 def decode_odometry_block(

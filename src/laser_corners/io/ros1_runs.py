@@ -160,7 +160,14 @@ class ChunkRun:
             return None
         block, r = found
         return RawScan(
-            where, log_time, block.stamps_ns[r], block.frame_id, block.angle_min[r],
-            block.angle_increment[r], block.range_min[r], block.range_max[r], block.ranges[r],
+            where,
+            log_time,
+            block.stamps_ns[r],
+            block.frame_id,
+            block.angle_min[r],
+            block.angle_increment[r],
+            block.range_min[r],
+            block.range_max[r],
+            block.ranges[r],
             block.checked[r],
-        )  # fmt: skip
+        )

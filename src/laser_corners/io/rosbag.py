@@ -230,9 +230,10 @@ class BagSource(ScanSource):
         with self.reader() as reader:
             # ROS 1 connections of the standard definitions: decode their bytes with numpy
             fast = {
-                c.id for c in reader.connections
+                c.id
+                for c in reader.connections
                 if not reader.is2 and ROS1_DIGESTS.get(c.msgtype) == c.digest
-            }  # fmt: skip
+            }
             track = StreamingTrack() if self.odom_topic is not None else None
             topics = [self.topic, *([self.odom_topic, *self.tf_topics] if track else [])]
             if self.lean and lean_readable(reader, topics, fast):
@@ -300,9 +301,15 @@ class BagSource(ScanSource):
             self._lean_index += lost
 
     def _lean_run(
-        self, reader: Any, run: ChunkRun, times: NDArray[np.int64], connections: list[Any],
-        ranks: NDArray[np.int64], track: StreamingTrack | None, waiting: deque[RawScan],
-    ) -> Iterator[LaserScan]:  # fmt: skip
+        self,
+        reader: Any,
+        run: ChunkRun,
+        times: NDArray[np.int64],
+        connections: list[Any],
+        ranks: NDArray[np.int64],
+        track: StreamingTrack | None,
+        waiting: deque[RawScan],
+    ) -> Iterator[LaserScan]:
         """The messages of one chunk run, in order (see :meth:`_scans`)."""
         log_times = times.tolist()
         for j, kind in enumerate(run.kinds):
@@ -312,8 +319,9 @@ class BagSource(ScanSource):
                 self.position = where
                 item = run.scan(j, where, log_times[j])
                 if item is None:
-                    item = self._raw_scan(reader, connections[ranks[j]], run.raw(j), where,
-                                          log_times[j])  # fmt: skip
+                    item = self._raw_scan(
+                        reader, connections[ranks[j]], run.raw(j), where, log_times[j]
+                    )
                     if item is None:
                         continue
                 if track is None or (not waiting and track.ready(item.stamp_ns, item.frame_id)):
@@ -359,15 +367,27 @@ class BagSource(ScanSource):
             self.stamps_ns.append(item.stamp_ns)
             self.log_times_ns.append(item.log_time_ns)
             yield LaserScan.from_checked(
-                item.ranges, item.angle_min, item.angle_increment, item.range_min,
-                item.range_max, stamp, item.frame_id, pose,
-            )  # fmt: skip
+                item.ranges,
+                item.angle_min,
+                item.angle_increment,
+                item.range_min,
+                item.range_max,
+                stamp,
+                item.frame_id,
+                pose,
+            )
             return
         try:
             scan = LaserScan(
-                item.ranges.astype(np.float64), item.angle_min, item.angle_increment,
-                item.range_min, item.range_max, stamp, item.frame_id, pose,
-            )  # fmt: skip
+                item.ranges.astype(np.float64),
+                item.angle_min,
+                item.angle_increment,
+                item.range_min,
+                item.range_max,
+                stamp,
+                item.frame_id,
+                pose,
+            )
         except InvalidScanError as exc:
             self._skip("invalid LaserScan fields", item.where, str(exc))
             return

@@ -35,9 +35,20 @@ __all__ = [
 ]
 
 TABLE_COLUMNS: tuple[str, ...] = (
-    "stamp", "scan_index", "beam_index", "x", "y", "opening_angle_deg", "orientation",
-    "n_scales", "rmse", "n_merged", "cov_xx", "cov_xy", "cov_yy",
-)  # fmt: skip
+    "stamp",
+    "scan_index",
+    "beam_index",
+    "x",
+    "y",
+    "opening_angle_deg",
+    "orientation",
+    "n_scales",
+    "rmse",
+    "n_merged",
+    "cov_xx",
+    "cov_xy",
+    "cov_yy",
+)
 """Columns of the CSV/Parquet keypoint tables (``map_x, map_y`` follow when poses are known)."""
 MAP_COLUMNS: tuple[str, ...] = ("map_x", "map_y")
 _INT_COLUMNS = frozenset({"scan_index", "beam_index", "n_scales", "n_merged"})

@@ -79,9 +79,20 @@ class KeypointBank:
 
     def arrays(self) -> Bank:
         """The bank as the kernels' :class:`~laser_corners.matching.kernel_args.Bank`."""
-        return Bank(self.xy, self.cov, self.orientation, self.opening, self.bits, self.values,
-                self.offsets, self.ranges, self.range_offsets, self.geometry, self.points,
-                self.point_offsets)  # fmt: skip
+        return Bank(
+            self.xy,
+            self.cov,
+            self.orientation,
+            self.opening,
+            self.bits,
+            self.values,
+            self.offsets,
+            self.ranges,
+            self.range_offsets,
+            self.geometry,
+            self.points,
+            self.point_offsets,
+        )
 
     @classmethod
     def from_lists(
@@ -97,8 +108,9 @@ class KeypointBank:
         if len(keypoints) != len(descriptors) or not descriptors:
             raise InvalidScanError("KeypointBank: need as many descriptor sets as keypoint sets")
         if scans is not None and len(scans) != len(keypoints):
-            raise InvalidScanError(f"KeypointBank: {len(scans)} scans, {len(keypoints)} "
-                                   "keypoint sets")  # fmt: skip
+            raise InvalidScanError(
+                f"KeypointBank: {len(scans)} scans, {len(keypoints)} keypoint sets"
+            )
         kinds = {d.kind for d in descriptors}
         if len(kinds) != 1:
             raise InvalidScanError(f"KeypointBank: mixed descriptor kinds {sorted(kinds)}")
@@ -158,9 +170,12 @@ class BatchResult:
 
 
 def _run(
-    bank_a: KeypointBank, bank_b: KeypointBank, qa: NDArray[np.int64], cb: NDArray[np.int64],
+    bank_a: KeypointBank,
+    bank_b: KeypointBank,
+    qa: NDArray[np.int64],
+    cb: NDArray[np.int64],
     options: MatchOptions,
-) -> BatchResult:  # fmt: skip
+) -> BatchResult:
     if options.verify_scan and not (bank_a.has_scans and bank_b.has_scans):
         raise InvalidScanError("verify_scan needs the scans: KeypointBank.from_lists(..., scans)")
     for name, idx, bank in (("query", qa, bank_a), ("candidate", cb, bank_b)):
@@ -174,9 +189,19 @@ def _run(
     agreement = np.zeros(c)
     inv_bits = 1.0 / bank_b.n_bits if bank_b.n_bits else 0.0
     register_batch(
-        1 if bank_b.kind == "csc" else 0, inv_bits, bank_a.arrays(), bank_b.arrays(), qa, cb,
-        options.kernel_options(bank_b.kind), status, n_inl, poses, covs, agreement,
-    )  # fmt: skip
+        1 if bank_b.kind == "csc" else 0,
+        inv_bits,
+        bank_a.arrays(),
+        bank_b.arrays(),
+        qa,
+        cb,
+        options.kernel_options(bank_b.kind),
+        status,
+        n_inl,
+        poses,
+        covs,
+        agreement,
+    )
     accepted = status == 0
     poses[~accepted] = 0.0
     return BatchResult(cb, accepted, n_inl, poses, covs, agreement, status)
@@ -207,8 +232,11 @@ def register_many(
         raise InvalidScanError("register_many: verify_scan needs the query's scan (scan_a)")
     scans = [scan_a] if opt.verify_scan else None
     query = KeypointBank.from_lists([kp_a], [desc_a], scans, opt.scan_points)  # type: ignore[arg-type]
-    which = (np.arange(len(bank), dtype=np.int64) if candidates is None
-             else np.ascontiguousarray(candidates, dtype=np.int64))  # fmt: skip
+    which = (
+        np.arange(len(bank), dtype=np.int64)
+        if candidates is None
+        else np.ascontiguousarray(candidates, dtype=np.int64)
+    )
     return _run(query, bank, np.zeros(which.shape[0], dtype=np.int64), which, opt)
 
 

@@ -19,10 +19,15 @@ CLIQUE_BUDGET = 20000
 
 @nb.njit(cache=True, nogil=True)
 def max_clique(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    members: NDArray[np.int64], oa: NDArray[np.float64], ob: NDArray[np.float64],
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
+    members: NDArray[np.int64],
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
     options: KernelOptions,
-) -> int:  # fmt: skip
+) -> int:
     """Largest set of pairwise-consistent matches (FALKO's CCDA); returns its size.
 
     Exact branch and bound on bitsets when n <= 64 (stopping after ``CLIQUE_BUDGET`` node

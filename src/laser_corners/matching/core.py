@@ -25,9 +25,15 @@ VERIFY_CLIQUE = 1
 
 @nb.njit(cache=True, nogil=True)
 def _pose_two(
-    a1x: float, a1y: float, a2x: float, a2y: float,
-    b1x: float, b1y: float, b2x: float, b2y: float,
-) -> tuple[float, float, float]:  # fmt: skip
+    a1x: float,
+    a1y: float,
+    a2x: float,
+    a2y: float,
+    b1x: float,
+    b1y: float,
+    b2x: float,
+    b2y: float,
+) -> tuple[float, float, float]:
     """SE(2) mapping b1, b2 onto a1, a2 (rotation of the segment, centroids aligned)."""
     th = math.atan2(a2y - a1y, a2x - a1x) - math.atan2(b2y - b1y, b2x - b1x)
     c = math.cos(th)
@@ -41,10 +47,17 @@ def _pose_two(
 
 @nb.njit(cache=True, nogil=True)
 def _count_inliers(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    tx: float, ty: float, th: float, tol2: float,
-    rot: NDArray[np.float64], cos_tol: float,
-) -> tuple[int, float]:  # fmt: skip
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
+    tx: float,
+    ty: float,
+    th: float,
+    tol2: float,
+    rot: NDArray[np.float64],
+    cos_tol: float,
+) -> tuple[int, float]:
     c = math.cos(th)
     s = math.sin(th)
     cnt = 0
@@ -71,9 +84,13 @@ def cos_tolerance(angle_tolerance: float) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def _prepare(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    oa: NDArray[np.float64], ob: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:  # fmt: skip
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Inter-keypoint distances of A and of B, and each match's implied rotation as a unit
     vector (cos, sin), so that the pairwise tests need no square root or angle wrapping."""
     na = xa.shape[0]
@@ -96,9 +113,16 @@ def _prepare(
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _pair_fast(
-    da: NDArray[np.float64], db: NDArray[np.float64], rot: NDArray[np.float64],
-    m: NDArray[np.int64], p: int, q: int, tol: float, min_sep: float, cos_tol: float,
-) -> bool:  # fmt: skip
+    da: NDArray[np.float64],
+    db: NDArray[np.float64],
+    rot: NDArray[np.float64],
+    m: NDArray[np.int64],
+    p: int,
+    q: int,
+    tol: float,
+    min_sep: float,
+    cos_tol: float,
+) -> bool:
     """Pairwise consistency of matches p and q (FALKO's CCDA): distinct keypoints, equal
     inter-keypoint distances in A and B within ``tol`` (and at least ``min_sep``), and (ours)
     the same rotation implied by both matches' keypoint orientations, within the angle whose
@@ -122,16 +146,27 @@ def _better(cnt: int, cost: float, cnt2: int, cost2: float) -> bool:
 
 @nb.njit(cache=True, nogil=True)
 def _keep(
-    poses: NDArray[np.float64], counts: NDArray[np.int64], costs: NDArray[np.float64],
-    nk: int, tx: float, ty: float, th: float, cnt: int, cost: float, tol: float,
-) -> int:  # fmt: skip
+    poses: NDArray[np.float64],
+    counts: NDArray[np.int64],
+    costs: NDArray[np.float64],
+    nk: int,
+    tx: float,
+    ty: float,
+    th: float,
+    cnt: int,
+    cost: float,
+    tol: float,
+) -> int:
     """Insert a hypothesis into the list of the best ones (most inliers, then lowest cost),
     at most ``len(counts)`` of them; returns the new length. Hypotheses of one pose (within
     ``2·tol`` in translation and ``tol/2`` rad, e.g. the pairs and single matches of one
     inlier set) are kept once, the better one."""
     for h in range(nk):
-        if (abs(poses[h, 0] - tx) <= 2.0 * tol and abs(poses[h, 1] - ty) <= 2.0 * tol
-                and abs(wrap_angle(poses[h, 2] - th)) <= 0.5 * tol):  # fmt: skip
+        if (
+            abs(poses[h, 0] - tx) <= 2.0 * tol
+            and abs(poses[h, 1] - ty) <= 2.0 * tol
+            and abs(wrap_angle(poses[h, 2] - th)) <= 0.5 * tol
+        ):
             if not _better(cnt, cost, counts[h], costs[h]):
                 return nk
             for g in range(h, nk - 1):  # drop the worse copy
@@ -160,10 +195,16 @@ def _keep(
 
 @nb.njit(cache=True, nogil=True)
 def ransac(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    oa: NDArray[np.float64], ob: NDArray[np.float64], options: KernelOptions,
-    poses: NDArray[np.float64], counts: NDArray[np.int64],
-) -> int:  # fmt: skip
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+    options: KernelOptions,
+    poses: NDArray[np.float64],
+    counts: NDArray[np.int64],
+) -> int:
     """The best SE(2) hypotheses (most inliers within ``options.tolerance``; ties: lower
     cost).
 
@@ -221,9 +262,15 @@ def ransac(
         if not _pair_fast(da, db, rot, m, p, q, tol, options.min_separation, cos_tol):
             continue
         tx, ty, th = _pose_two(
-            xa[m[p, 0], 0], xa[m[p, 0], 1], xa[m[q, 0], 0], xa[m[q, 0], 1],
-            xb[m[p, 1], 0], xb[m[p, 1], 1], xb[m[q, 1], 0], xb[m[q, 1], 1],
-        )  # fmt: skip
+            xa[m[p, 0], 0],
+            xa[m[p, 0], 1],
+            xa[m[q, 0], 0],
+            xa[m[q, 0], 1],
+            xb[m[p, 1], 0],
+            xb[m[p, 1], 1],
+            xb[m[q, 1], 0],
+            xb[m[q, 1], 1],
+        )
         cnt, cost = _count_inliers(xa, xb, m, n, tx, ty, th, tol2, rot, cos_tol)
         if cnt > 0:
             nk = _keep(poses, counts, costs, nk, tx, ty, th, cnt, cost, tol)

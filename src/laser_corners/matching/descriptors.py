@@ -250,9 +250,19 @@ def describe_points(
     values = np.zeros((m, p.n_sectors * p.n_rings + 1))
     opening = np.ascontiguousarray(keypoints.opening_angle_deg, dtype=np.float64)
     _csc(
-        x, y, kxy, orient, opening, p.radius, p.n_sectors, p.n_rings, p.inner, p.max_step,
-        p.opening_weight, values,
-    )  # fmt: skip
+        x,
+        y,
+        kxy,
+        orient,
+        opening,
+        p.radius,
+        p.n_sectors,
+        p.n_rings,
+        p.inner,
+        p.max_step,
+        p.opening_weight,
+        values,
+    )
     return Descriptors("csc", np.zeros((m, 0), dtype=np.uint64), values, 0)
 
 

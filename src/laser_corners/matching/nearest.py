@@ -59,8 +59,9 @@ def _distance(
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _opening_ok(open_a: NDArray[np.float64], i: int, open_b: NDArray[np.float64], j: int,
-                max_open: float) -> bool:  # fmt: skip
+def _opening_ok(
+    open_a: NDArray[np.float64], i: int, open_b: NDArray[np.float64], j: int, max_open: float
+) -> bool:
     """Opening angles within ``max_open`` degrees (unknown, NaN, openings always pass)."""
     d = abs(open_a[i] - open_b[j])
     return not d > max_open
@@ -68,11 +69,21 @@ def _opening_ok(open_a: NDArray[np.float64], i: int, open_b: NDArray[np.float64]
 
 @nb.njit(cache=True, nogil=True)
 def _nearest_stream(
-    kind: int, bits_a: NDArray[np.uint64], vals_a: NDArray[np.float64],
-    bits_b: NDArray[np.uint64], vals_b: NDArray[np.float64], inv_bits: float,
-    open_a: NDArray[np.float64], open_b: NDArray[np.float64], max_open: float,
-    k: int, max_distance: float, na: int, nb_: int, out: NDArray[np.int64],
-) -> int:  # fmt: skip
+    kind: int,
+    bits_a: NDArray[np.uint64],
+    vals_a: NDArray[np.float64],
+    bits_b: NDArray[np.uint64],
+    vals_b: NDArray[np.float64],
+    inv_bits: float,
+    open_a: NDArray[np.float64],
+    open_b: NDArray[np.float64],
+    max_open: float,
+    k: int,
+    max_distance: float,
+    na: int,
+    nb_: int,
+    out: NDArray[np.int64],
+) -> int:
     """k nearest within ``max_distance`` without a distance matrix: each distance stops as
     soon as it exceeds the current k-th best (the result is that of exact distances)."""
     idx = np.empty(k, dtype=np.int64)
@@ -107,12 +118,23 @@ def _nearest_stream(
 
 @nb.njit(cache=True, nogil=True)
 def _nearest_matrix(
-    kind: int, bits_a: NDArray[np.uint64], vals_a: NDArray[np.float64],
-    bits_b: NDArray[np.uint64], vals_b: NDArray[np.float64], inv_bits: float,
-    open_a: NDArray[np.float64], open_b: NDArray[np.float64], max_open: float,
-    k_nearest: int, ratio: float, mutual: bool, max_distance: float, na: int, nb_: int,
+    kind: int,
+    bits_a: NDArray[np.uint64],
+    vals_a: NDArray[np.float64],
+    bits_b: NDArray[np.uint64],
+    vals_b: NDArray[np.float64],
+    inv_bits: float,
+    open_a: NDArray[np.float64],
+    open_b: NDArray[np.float64],
+    max_open: float,
+    k_nearest: int,
+    ratio: float,
+    mutual: bool,
+    max_distance: float,
+    na: int,
+    nb_: int,
     out: NDArray[np.int64],
-) -> int:  # fmt: skip
+) -> int:
     """Candidate matches with Lowe's ratio test and/or the mutual check (distance matrix)."""
     # distances above `bound` are never kept, never decide a ratio test (the second nearest
     # is then beyond d1/ratio) and never win a column of the mutual check against a kept
@@ -122,8 +144,7 @@ def _nearest_matrix(
     for i in range(na):
         for j in range(nb_):
             if _opening_ok(open_a, i, open_b, j, max_open):
-                dist[i, j] = _distance(kind, bits_a, vals_a, i, bits_b, vals_b, j, inv_bits,
-                                       bound)  # fmt: skip
+                dist[i, j] = _distance(kind, bits_a, vals_a, i, bits_b, vals_b, j, inv_bits, bound)
             else:
                 dist[i, j] = math.inf
     best_a = np.empty(nb_, dtype=np.int64)  # nearest keypoint of A for each of B
@@ -200,9 +221,37 @@ def candidate_matches(
         return 0
     if ratio >= 1.0 and not mutual:
         k = min(k_nearest, nb_)
-        return _nearest_stream(kind, bits_a, vals_a, bits_b, vals_b, inv_bits, open_a, open_b,
-                               max_open, k, max_distance, na, nb_, out)  # fmt: skip
+        return _nearest_stream(
+            kind,
+            bits_a,
+            vals_a,
+            bits_b,
+            vals_b,
+            inv_bits,
+            open_a,
+            open_b,
+            max_open,
+            k,
+            max_distance,
+            na,
+            nb_,
+            out,
+        )
     return _nearest_matrix(
-        kind, bits_a, vals_a, bits_b, vals_b, inv_bits, open_a, open_b, max_open, k_nearest,
-        ratio, mutual, max_distance, na, nb_, out,
-    )  # fmt: skip
+        kind,
+        bits_a,
+        vals_a,
+        bits_b,
+        vals_b,
+        inv_bits,
+        open_a,
+        open_b,
+        max_open,
+        k_nearest,
+        ratio,
+        mutual,
+        max_distance,
+        na,
+        nb_,
+        out,
+    )

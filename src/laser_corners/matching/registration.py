@@ -306,19 +306,35 @@ def register_keypoints(
     inl = np.empty((max(min(len(kp_a), len(kp_b)), 1), 2), dtype=np.int64)
     inv_bits = 1.0 / desc_a.n_bits if desc_a.n_bits else 0.0
     status, n_inl, n_cand, agreement = register_pair(
-        desc_a.kind_code, inv_bits, side_arrays(kp_a, desc_a, scans[0]),
-        side_arrays(kp_b, desc_b, scans[1]), opt.kernel_options(desc_a.kind), pose, pose_cov,
+        desc_a.kind_code,
+        inv_bits,
+        side_arrays(kp_a, desc_a, scans[0]),
+        side_arrays(kp_b, desc_b, scans[1]),
+        opt.kernel_options(desc_a.kind),
+        pose,
+        pose_cov,
         inl,
-    )  # fmt: skip
+    )
     if status != 0:
         return Registration(
-            False, _REASONS[status], int(n_inl), (0.0, 0.0, 0.0), np.full((3, 3), np.nan),
-            np.zeros((0, 2), np.int64), int(n_cand),
-        )  # fmt: skip
+            False,
+            _REASONS[status],
+            int(n_inl),
+            (0.0, 0.0, 0.0),
+            np.full((3, 3), np.nan),
+            np.zeros((0, 2), np.int64),
+            int(n_cand),
+        )
     return Registration(
-        True, "", int(n_inl), (float(pose[0]), float(pose[1]), float(pose[2])), pose_cov,
-        inl[:n_inl].copy(), int(n_cand), float(agreement),
-    )  # fmt: skip
+        True,
+        "",
+        int(n_inl),
+        (float(pose[0]), float(pose[1]), float(pose[2])),
+        pose_cov,
+        inl[:n_inl].copy(),
+        int(n_cand),
+        float(agreement),
+    )
 
 
 def register(

@@ -36,9 +36,14 @@ SCAN_DISAGREES = 4
 
 @nb.njit(cache=True, nogil=True)
 def _weight(
-    cov_a: NDArray[np.float64], cov_b: NDArray[np.float64], i: int, j: int,
-    c: float, s: float, default_var: float,
-) -> tuple[float, float, float]:  # fmt: skip
+    cov_a: NDArray[np.float64],
+    cov_b: NDArray[np.float64],
+    i: int,
+    j: int,
+    c: float,
+    s: float,
+    default_var: float,
+) -> tuple[float, float, float]:
     """Inverse of C_a + R C_b Rᵀ as (w00, w01, w11); unknown (NaN) covariances -> default."""
     a00 = cov_a[i, 0, 0]
     a01 = cov_a[i, 0, 1]
@@ -63,11 +68,19 @@ def _weight(
 
 @nb.njit(cache=True, nogil=True)
 def wls_pose(
-    xa: NDArray[np.float64], xb: NDArray[np.float64],
-    cov_a: NDArray[np.float64], cov_b: NDArray[np.float64],
-    m: NDArray[np.int64], sel: NDArray[np.int64], n_sel: int,
-    tx: float, ty: float, th: float, default_var: float, pose_cov: NDArray[np.float64],
-) -> tuple[float, float, float]:  # fmt: skip
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    cov_a: NDArray[np.float64],
+    cov_b: NDArray[np.float64],
+    m: NDArray[np.int64],
+    sel: NDArray[np.int64],
+    n_sel: int,
+    tx: float,
+    ty: float,
+    th: float,
+    default_var: float,
+    pose_cov: NDArray[np.float64],
+) -> tuple[float, float, float]:
     """Gauss-Newton on the Mahalanobis residuals r = a - (R b + t), weights (C_a + R C_b Rᵀ)⁻¹.
 
     Starts from (tx, ty, θ); ``pose_cov`` (3x3) receives (JᵀWJ)⁻¹ at the solution.
@@ -116,10 +129,19 @@ def wls_pose(
 
 @nb.njit(cache=True, nogil=True)
 def _final_inliers(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], m: NDArray[np.int64], n: int,
-    tx: float, ty: float, th: float, tol: float, sel: NDArray[np.int64],
-    oa: NDArray[np.float64], ob: NDArray[np.float64], angle_tol: float,
-) -> int:  # fmt: skip
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
+    tx: float,
+    ty: float,
+    th: float,
+    tol: float,
+    sel: NDArray[np.int64],
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+    angle_tol: float,
+) -> int:
     """Matches within ``tol`` of the pose, one per keypoint of A and of B (smallest residual)."""
     c = math.cos(th)
     s = math.sin(th)
@@ -127,8 +149,9 @@ def _final_inliers(
     for q in range(n):
         bx = xb[m[q, 1], 0]
         by = xb[m[q, 1], 1]
-        res[q] = math.hypot(xa[m[q, 0], 0] - (c * bx - s * by + tx),
-                            xa[m[q, 0], 1] - (s * bx + c * by + ty))  # fmt: skip
+        res[q] = math.hypot(
+            xa[m[q, 0], 0] - (c * bx - s * by + tx), xa[m[q, 0], 1] - (s * bx + c * by + ty)
+        )
         if abs(wrap_angle(oa[m[q, 0]] - ob[m[q, 1]] - th)) > angle_tol:
             res[q] = math.inf
     order = np.argsort(res, kind="mergesort")
@@ -149,9 +172,12 @@ def _final_inliers(
 
 @nb.njit(cache=True, nogil=True)
 def _rotation_support(
-    oa: NDArray[np.float64], ob: NDArray[np.float64], m: NDArray[np.int64], n: int,
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
     angle_tol: float,
-) -> int:  # fmt: skip
+) -> int:
     """Largest number of matches whose implied rotations lie within ``angle_tol`` of one's."""
     rot = np.empty(n)
     for q in range(n):
@@ -168,11 +194,18 @@ def _rotation_support(
 
 @nb.njit(cache=True, nogil=True)
 def _clique_pose(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], cov_a: NDArray[np.float64],
-    cov_b: NDArray[np.float64], oa: NDArray[np.float64], ob: NDArray[np.float64],
-    m: NDArray[np.int64], sel: NDArray[np.int64], n_sel: int, default_var: float,
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    cov_a: NDArray[np.float64],
+    cov_b: NDArray[np.float64],
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+    m: NDArray[np.int64],
+    sel: NDArray[np.int64],
+    n_sel: int,
+    default_var: float,
     pose_cov: NDArray[np.float64],
-) -> tuple[float, float, float]:  # fmt: skip
+) -> tuple[float, float, float]:
     """Pose of a clique: WLS from the rotation of its two farthest-apart matches (one match:
     the rotation of its keypoint orientations)."""
     p0 = sel[0]
@@ -187,8 +220,9 @@ def _clique_pose(
     best = -1.0
     for u in range(n_sel):
         for v in range(u + 1, n_sel):
-            d = math.hypot(xa[m[sel[u], 0], 0] - xa[m[sel[v], 0], 0],
-                           xa[m[sel[u], 0], 1] - xa[m[sel[v], 0], 1])  # fmt: skip
+            d = math.hypot(
+                xa[m[sel[u], 0], 0] - xa[m[sel[v], 0], 0], xa[m[sel[u], 0], 1] - xa[m[sel[v], 0], 1]
+            )
             if d > best:
                 best = d
                 p0 = sel[u]
@@ -200,12 +234,24 @@ def _clique_pose(
 
 @nb.njit(cache=True, nogil=True)
 def _refine(
-    xa: NDArray[np.float64], xb: NDArray[np.float64], cov_a: NDArray[np.float64],
-    cov_b: NDArray[np.float64], oa: NDArray[np.float64], ob: NDArray[np.float64],
-    m: NDArray[np.int64], n: int, tx: float, ty: float, th: float, tol: float,
-    angle_tol: float, need: int, default_var: float, sel: NDArray[np.int64],
+    xa: NDArray[np.float64],
+    xb: NDArray[np.float64],
+    cov_a: NDArray[np.float64],
+    cov_b: NDArray[np.float64],
+    oa: NDArray[np.float64],
+    ob: NDArray[np.float64],
+    m: NDArray[np.int64],
+    n: int,
+    tx: float,
+    ty: float,
+    th: float,
+    tol: float,
+    angle_tol: float,
+    need: int,
+    default_var: float,
+    sel: NDArray[np.int64],
     pose_cov: NDArray[np.float64],
-) -> tuple[int, float, float, float]:  # fmt: skip
+) -> tuple[int, float, float, float]:
     """Final inliers and two WLS rounds (the second on the inliers of the first); returns
     ``(n_inliers, tx, ty, θ)`` (``sel`` holds the inliers). With one inlier the WLS cannot
     fix the rotation: the pose stays, ``pose_cov`` is infinite."""
@@ -213,26 +259,44 @@ def _refine(
         n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
         if n_sel < need:
             return n_sel, tx, ty, th
-        tx, ty, th = wls_pose(xa, xb, cov_a, cov_b, m, sel, n_sel, tx, ty, th, default_var,
-                              pose_cov)  # fmt: skip
+        tx, ty, th = wls_pose(
+            xa, xb, cov_a, cov_b, m, sel, n_sel, tx, ty, th, default_var, pose_cov
+        )
     n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
     return n_sel, tx, ty, th
 
 
 @nb.njit(cache=True, nogil=True)
 def _hypotheses(
-    a: Side, b: Side, m: NDArray[np.int64], n: int, options: KernelOptions,
-    sel: NDArray[np.int64], hyp: NDArray[np.float64], counts: NDArray[np.int64],
+    a: Side,
+    b: Side,
+    m: NDArray[np.int64],
+    n: int,
+    options: KernelOptions,
+    sel: NDArray[np.int64],
+    hyp: NDArray[np.float64],
+    counts: NDArray[np.int64],
     pose_cov: NDArray[np.float64],
-) -> int:  # fmt: skip
+) -> int:
     """The verification's pose hypotheses, best first (RANSAC: up to ``max_hypotheses``;
     clique: one); returns how many."""
     if options.verification == VERIFY_CLIQUE:
         n_sel = max_clique(a.xy, b.xy, m, n, sel, a.orientation, b.orientation, options)
         if n_sel == 0:
             return 0
-        tx, ty, th = _clique_pose(a.xy, b.xy, a.cov, b.cov, a.orientation, b.orientation, m,
-                                  sel, n_sel, options.default_sigma**2, pose_cov)  # fmt: skip
+        tx, ty, th = _clique_pose(
+            a.xy,
+            b.xy,
+            a.cov,
+            b.cov,
+            a.orientation,
+            b.orientation,
+            m,
+            sel,
+            n_sel,
+            options.default_sigma**2,
+            pose_cov,
+        )
         hyp[0, 0], hyp[0, 1], hyp[0, 2] = tx, ty, th
         counts[0] = n_sel
         return 1
@@ -241,9 +305,15 @@ def _hypotheses(
 
 @nb.njit(cache=True, nogil=True)
 def register_pair(
-    kind: int, inv_bits: float, a: Side, b: Side, options: KernelOptions,
-    pose: NDArray[np.float64], pose_cov: NDArray[np.float64], inliers: NDArray[np.int64],
-) -> tuple[int, int, int, float]:  # fmt: skip
+    kind: int,
+    inv_bits: float,
+    a: Side,
+    b: Side,
+    options: KernelOptions,
+    pose: NDArray[np.float64],
+    pose_cov: NDArray[np.float64],
+    inliers: NDArray[np.int64],
+) -> tuple[int, int, int, float]:
     """Register side B to side A; returns ``(status, n_inliers, n_candidates, agreement)``.
 
     ``pose`` (3) receives (tx, ty, θ) of B in A, ``pose_cov`` (3, 3) its covariance,
@@ -260,15 +330,30 @@ def register_pair(
     if na < need or nb_ < need:
         return FEW_KEYPOINTS, 0, 0, 0.0
     m = np.empty((na * max(options.k_nearest, 1), 2), dtype=np.int64)
-    n = candidate_matches(kind, a.bits, a.values, b.bits, b.values, inv_bits, options.k_nearest,
-                          options.ratio, options.mutual, options.max_distance, m, a.opening,
-                          b.opening, options.max_opening_difference)  # fmt: skip
+    n = candidate_matches(
+        kind,
+        a.bits,
+        a.values,
+        b.bits,
+        b.values,
+        inv_bits,
+        options.k_nearest,
+        options.ratio,
+        options.mutual,
+        options.max_distance,
+        m,
+        a.opening,
+        b.opening,
+        options.max_opening_difference,
+    )
     if n < need:
         return FEW_CANDIDATES, 0, n, 0.0
     # inliers imply one rotation, so at least `need` matches must agree on the rotation
     # given by their keypoint orientations (bisectors) within angle_tolerance
-    if angle_tol < math.pi and _rotation_support(a.orientation, b.orientation, m, n,
-                                                 angle_tol) < need:  # fmt: skip
+    if (
+        angle_tol < math.pi
+        and _rotation_support(a.orientation, b.orientation, m, n, angle_tol) < need
+    ):
         return FEW_INLIERS, 0, n, 0.0
     sel = np.empty(n, dtype=np.int64)
     hyp = np.empty((max(options.max_hypotheses, 1), 3))
@@ -279,19 +364,34 @@ def register_pair(
     for h in range(nk):
         if counts[h] < need:
             break
-        if not precheck(a.ranges, a.geometry, b.points, hyp[h, 0], hyp[h, 1], hyp[h, 2],
-                        options):  # fmt: skip
+        if not precheck(a.ranges, a.geometry, b.points, hyp[h, 0], hyp[h, 1], hyp[h, 2], options):
             status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
             continue
-        n_sel, tx, ty, th = _refine(a.xy, b.xy, a.cov, b.cov, a.orientation, b.orientation, m,
-                                    n, hyp[h, 0], hyp[h, 1], hyp[h, 2], tol, angle_tol, need,
-                                    default_var, sel, pose_cov)  # fmt: skip
+        n_sel, tx, ty, th = _refine(
+            a.xy,
+            b.xy,
+            a.cov,
+            b.cov,
+            a.orientation,
+            b.orientation,
+            m,
+            n,
+            hyp[h, 0],
+            hyp[h, 1],
+            hyp[h, 2],
+            tol,
+            angle_tol,
+            need,
+            default_var,
+            sel,
+            pose_cov,
+        )
         best_n = max(best_n, n_sel)
         if n_sel < need:
             continue
-        agreement, tx, ty, th = verify_pose(a.ranges, a.geometry, a.points, b.ranges,
-                                            b.geometry, b.points, tx, ty, th,
-                                            options)  # fmt: skip
+        agreement, tx, ty, th = verify_pose(
+            a.ranges, a.geometry, a.points, b.ranges, b.geometry, b.points, tx, ty, th, options
+        )
         if agreement < 0.0:
             status = SCAN_DISAGREES
             continue
@@ -309,26 +409,41 @@ def _side(bank: Bank, s: int) -> Side:
     lo, hi = bank.offsets[s], bank.offsets[s + 1]
     r0, r1 = bank.range_offsets[s], bank.range_offsets[s + 1]
     p0, p1 = bank.point_offsets[s], bank.point_offsets[s + 1]
-    return Side(bank.xy[lo:hi], bank.cov[lo:hi], bank.orientation[lo:hi], bank.opening[lo:hi],
-                bank.bits[lo:hi], bank.values[lo:hi], bank.ranges[r0:r1], bank.geometry[s],
-                bank.points[p0:p1])  # fmt: skip
+    return Side(
+        bank.xy[lo:hi],
+        bank.cov[lo:hi],
+        bank.orientation[lo:hi],
+        bank.opening[lo:hi],
+        bank.bits[lo:hi],
+        bank.values[lo:hi],
+        bank.ranges[r0:r1],
+        bank.geometry[s],
+        bank.points[p0:p1],
+    )
 
 
 @nb.njit(cache=True, parallel=True)
 def register_batch(
-    kind: int, inv_bits: float, bank_a: Bank, bank_b: Bank, qa: NDArray[np.int64],
-    cb: NDArray[np.int64], options: KernelOptions, status: NDArray[np.int64],
-    n_inliers: NDArray[np.int64], poses: NDArray[np.float64], pose_covs: NDArray[np.float64],
+    kind: int,
+    inv_bits: float,
+    bank_a: Bank,
+    bank_b: Bank,
+    qa: NDArray[np.int64],
+    cb: NDArray[np.int64],
+    options: KernelOptions,
+    status: NDArray[np.int64],
+    n_inliers: NDArray[np.int64],
+    poses: NDArray[np.float64],
+    pose_covs: NDArray[np.float64],
     agreement: NDArray[np.float64],
-) -> None:  # fmt: skip
+) -> None:
     """:func:`register_pair` of scan ``qa[t]`` of ``bank_a`` (A) and scan ``cb[t]`` of
     ``bank_b`` (B) for every t, in parallel; outputs are indexed by t."""
     for t in nb.prange(qa.shape[0]):
         a = _side(bank_a, qa[t])
         b = _side(bank_b, cb[t])
         inl = np.empty((max(min(a.xy.shape[0], b.xy.shape[0]), 1), 2), dtype=np.int64)
-        st, k, _, agr = register_pair(kind, inv_bits, a, b, options, poses[t], pose_covs[t],
-                                      inl)  # fmt: skip
+        st, k, _, agr = register_pair(kind, inv_bits, a, b, options, poses[t], pose_covs[t], inl)
         status[t] = st
         n_inliers[t] = k
         agreement[t] = agr

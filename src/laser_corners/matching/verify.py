@@ -98,9 +98,15 @@ def beam_of(bearing: float, amin: float, ainc: float) -> float:
 
 @nb.njit(cache=True, nogil=True)
 def scan_agreement(
-    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
-    tx: float, ty: float, th: float, tol: float, max_conflicts: int,
-) -> tuple[int, int, int]:  # fmt: skip
+    ranges: NDArray[np.float64],
+    geom: NDArray[np.float64],
+    pts: NDArray[np.float64],
+    tx: float,
+    ty: float,
+    th: float,
+    tol: float,
+    max_conflicts: int,
+) -> tuple[int, int, int]:
     """Points ``pts`` (another scan's frame), moved by ``p' = R(th)·p + t``, looked up along
     the beams of the scan ``(ranges, geom)``; returns ``(tested, agree, conflict)``.
 
@@ -144,9 +150,15 @@ def scan_agreement(
 
 @nb.njit(cache=True, nogil=True)
 def align(
-    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
-    tx: float, ty: float, th: float, iterations: int, max_d: float,
-) -> tuple[float, float, float]:  # fmt: skip
+    ranges: NDArray[np.float64],
+    geom: NDArray[np.float64],
+    pts: NDArray[np.float64],
+    tx: float,
+    ty: float,
+    th: float,
+    iterations: int,
+    max_d: float,
+) -> tuple[float, float, float]:
     """Refine ``p' = R(th)·p + t`` of ``pts`` onto the scan ``(ranges, geom)``: Gauss-Newton
     on point-to-line distances, each moved point paired with the return on its beam (the
     line through the two neighbouring returns), pairs farther than ``max_d`` (halved at each
@@ -208,9 +220,14 @@ def align(
 
 @nb.njit(cache=True, nogil=True)
 def _one_way(
-    ranges: NDArray[np.float64], geom: NDArray[np.float64], pts: NDArray[np.float64],
-    tx: float, ty: float, th: float, options: KernelOptions,
-) -> float:  # fmt: skip
+    ranges: NDArray[np.float64],
+    geom: NDArray[np.float64],
+    pts: NDArray[np.float64],
+    tx: float,
+    ty: float,
+    th: float,
+    options: KernelOptions,
+) -> float:
     """Share of ``pts`` that agree with the scan ``(ranges, geom)``; -1 when the check fails."""
     max_conflict = options.max_scan_conflict
     tested, agree, conflict = scan_agreement(
@@ -228,9 +245,14 @@ def _one_way(
 
 @nb.njit(cache=True, nogil=True)
 def precheck(
-    ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_b: NDArray[np.float64],
-    tx: float, ty: float, th: float, options: KernelOptions,
-) -> bool:  # fmt: skip
+    ranges_a: NDArray[np.float64],
+    geom_a: NDArray[np.float64],
+    pts_b: NDArray[np.float64],
+    tx: float,
+    ty: float,
+    th: float,
+    options: KernelOptions,
+) -> bool:
     """The cheap first look of :func:`verify_pose`: the first ``PRECHECK`` points of B
     (stored evenly spread) with a tolerance of ``3·scan_tolerance``; fails when fewer than
     ``min_scan_agreement`` of them agree or more than ``PRECHECK_CONFLICTS`` conflict. True
@@ -246,10 +268,17 @@ def precheck(
 
 @nb.njit(cache=True, nogil=True)
 def verify_pose(
-    ranges_a: NDArray[np.float64], geom_a: NDArray[np.float64], pts_a: NDArray[np.float64],
-    ranges_b: NDArray[np.float64], geom_b: NDArray[np.float64], pts_b: NDArray[np.float64],
-    tx: float, ty: float, th: float, options: KernelOptions,
-) -> tuple[float, float, float, float]:  # fmt: skip
+    ranges_a: NDArray[np.float64],
+    geom_a: NDArray[np.float64],
+    pts_a: NDArray[np.float64],
+    ranges_b: NDArray[np.float64],
+    geom_b: NDArray[np.float64],
+    pts_b: NDArray[np.float64],
+    tx: float,
+    ty: float,
+    th: float,
+    options: KernelOptions,
+) -> tuple[float, float, float, float]:
     """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
 
     ``options``: the ``verify_scan``, ``scan_tolerance``, ``min_scan_agreement``,

@@ -125,11 +125,16 @@ def detect_file(
     writer: KeypointWriter = KeypointWriter()
     try:
         writer = open_keypoint_writer(
-            out, recording.source, with_map=recording.has_poses,
-            metadata={"laser_corners.params": params_yaml, "laser_corners.input": str(path),
-                      "laser_corners.method": CITATION},
+            out,
+            recording.source,
+            with_map=recording.has_poses,
+            metadata={
+                "laser_corners.params": params_yaml,
+                "laser_corners.input": str(path),
+                "laser_corners.method": CITATION,
+            },
             compression=compression,
-        )  # fmt: skip
+        )
         if out is not None:
             Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")
     except KeyboardInterrupt:  # while the writer was opening (a bag copy takes a while)

@@ -189,8 +189,9 @@ class CornerNodeCore:
         self.config = config
         self._geometry: tuple[int, float, float, float, float] | None = None
         self.detector = CornerDetector(config.start_params())
-        warm_up = LaserScan(np.full(64, 2.0), angle_min=-0.5, angle_increment=0.01,
-                            range_min=0.01, range_max=30.0)  # fmt: skip
+        warm_up = LaserScan(
+            np.full(64, 2.0), angle_min=-0.5, angle_increment=0.01, range_min=0.01, range_max=30.0
+        )
         CornerDetector(self.detector.params).detect(warm_up)
 
     def reconfigure(self, config: NodeConfig) -> None:

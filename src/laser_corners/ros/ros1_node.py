@@ -161,8 +161,13 @@ class CornerNode:
         from visualization_msgs.msg import Marker, MarkerArray
 
         self._rospy = rospy
-        self._msg = {"Point": Point, "Pose": Pose, "PoseArray": PoseArray, "Marker": Marker,
-                     "MarkerArray": MarkerArray}  # fmt: skip
+        self._msg = {
+            "Point": Point,
+            "Pose": Pose,
+            "PoseArray": PoseArray,
+            "Marker": Marker,
+            "MarkerArray": MarkerArray,
+        }
         self.core = CornerNodeCore(config)
         self.n_scans = 0
         self.n_skipped = 0
@@ -174,9 +179,12 @@ class CornerNode:
         )
         rospy.loginfo(
             "laser_corners: %s -> %s, %s (preset %s, overrides %s)",
-            self.scan_sub.resolved_name, self.corners_pub.resolved_name,
-            self.markers_pub.resolved_name, config.preset, config.overrides or "none",
-        )  # fmt: skip
+            self.scan_sub.resolved_name,
+            self.corners_pub.resolved_name,
+            self.markers_pub.resolved_name,
+            config.preset,
+            config.overrides or "none",
+        )
 
     def on_scan(self, msg: Any) -> None:
         """Detect and publish; a malformed message is logged and skipped."""
@@ -206,18 +214,25 @@ class CornerNode:
             )
             self.markers_pub.publish(
                 fill_marker_array(
-                    self._msg["MarkerArray"](), self._msg["Marker"], self._msg["Point"],
-                    rospy.Duration.from_sec, msg.header, markers,
+                    self._msg["MarkerArray"](),
+                    self._msg["Marker"],
+                    self._msg["Point"],
+                    rospy.Duration.from_sec,
+                    msg.header,
+                    markers,
                 )
-            )  # fmt: skip
+            )
         rospy.logdebug(
             "laser_corners: scan %.6f: %d keypoints, %.3f ms",
-            keypoints.stamp, len(keypoints), seconds * 1e3,
-        )  # fmt: skip
+            keypoints.stamp,
+            len(keypoints),
+            seconds * 1e3,
+        )
 
 
-def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
-         debug: bool = False) -> int:  # fmt: skip
+def main(
+    argv: Sequence[str] | None = None, node_name: str = "laser_corners", debug: bool = False
+) -> int:
     """Run the ROS 1 node until shutdown.
 
     SIGINT (Ctrl-C), SIGTERM and ``rosnode kill`` end it cleanly, also while it still waits
@@ -250,9 +265,11 @@ def main(argv: Sequence[str] | None = None, node_name: str = "laser_corners",
     node: CornerNode | None = None
     try:
         rospy.init_node(
-            node_name, argv=args, log_level=rospy.DEBUG if debug else rospy.INFO,
+            node_name,
+            argv=args,
+            log_level=rospy.DEBUG if debug else rospy.INFO,
             disable_signals=False,
-        )  # fmt: skip
+        )
         node = CornerNode(_read_config(rospy), rospy)
         rospy.spin()
     except InvalidParamsError:

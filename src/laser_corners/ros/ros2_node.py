@@ -135,9 +135,11 @@ def _make_node_class() -> type:
             self.core = CornerNodeCore(config)
             depth = int(config.options["queue_size"])
             scan_qos = QoSProfile(  # rclpy's sensor-data profile, with our depth
-                history=HistoryPolicy.KEEP_LAST, depth=depth,
-                reliability=ReliabilityPolicy.BEST_EFFORT, durability=DurabilityPolicy.VOLATILE,
-            )  # fmt: skip
+                history=HistoryPolicy.KEEP_LAST,
+                depth=depth,
+                reliability=ReliabilityPolicy.BEST_EFFORT,
+                durability=DurabilityPolicy.VOLATILE,
+            )
             self.corners_pub = self.create_publisher(PoseArray, "corners", depth)
             self.markers_pub = self.create_publisher(MarkerArray, "corner_markers", depth)
             self.scan_sub = self.create_subscription(LaserScanMsg, "scan", self.on_scan, scan_qos)
@@ -156,8 +158,11 @@ def _make_node_class() -> type:
             rclpy itself would ignore them silently.
             """
             dynamic = ParameterDescriptor(dynamic_typing=True)
-            defaults = {"preset": "paper", **dict.fromkeys(DetectorParams.model_fields),
-                        **NODE_OPTIONS}  # fmt: skip
+            defaults = {
+                "preset": "paper",
+                **dict.fromkeys(DetectorParams.model_fields),
+                **NODE_OPTIONS,
+            }
             for name, default in defaults.items():
                 self.declare_parameter(name, default, dynamic)
             values = parameter_values(self.get_parameters(list(defaults)), Parameter.Type.NOT_SET)
@@ -292,8 +297,11 @@ def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
     context = rclpy.Context()
     try:
         _check_arguments(args)
-        rclpy.init(args=["laser_corners", *args], context=context,
-                   signal_handler_options=SignalHandlerOptions.NO)  # fmt: skip
+        rclpy.init(
+            args=["laser_corners", *args],
+            context=context,
+            signal_handler_options=SignalHandlerOptions.NO,
+        )
     except RuntimeError as exc:  # rclpy's RCLError, UnknownROSArgsError
         raise LaserCornersError(f"ROS 2 arguments: {_rcl_message(exc)}") from None
     node = None

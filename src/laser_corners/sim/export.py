@@ -91,8 +91,16 @@ def simulate_sequence(
         stamp = start_time + i / sensor.rate_hz
         scans.append(world.scan(pose, sensor, noise_sigma=noise_sigma, rng=rng, stamp=stamp))
         visible[i] = world.visible_corner_mask(pose, sensor, probe=probe, min_beams=min_beams)
-    return SimSequence(world, sensor, scans, np.asarray(poses, dtype=np.float64), visible,
-                       noise_sigma, probe, min_beams)  # fmt: skip
+    return SimSequence(
+        world,
+        sensor,
+        scans,
+        np.asarray(poses, dtype=np.float64),
+        visible,
+        noise_sigma,
+        probe,
+        min_beams,
+    )
 
 
 def write_sequence(sequence: SimSequence, output: Path, bag: bool = True) -> dict[str, Path]:
@@ -134,12 +142,16 @@ def write_bag(sequence: SimSequence, path: Path) -> None:
     store = get_typestore(Stores.ROS1_NOETIC)
     t = store.types
     scan_type, odom_type, array_type = (
-        "sensor_msgs/msg/LaserScan", "nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseArray"
-    )  # fmt: skip
+        "sensor_msgs/msg/LaserScan",
+        "nav_msgs/msg/Odometry",
+        "geometry_msgs/msg/PoseArray",
+    )
     header_cls = t["std_msgs/msg/Header"]
     point_cls, quat_cls, pose_cls = (
-        t["geometry_msgs/msg/Point"], t["geometry_msgs/msg/Quaternion"], t["geometry_msgs/msg/Pose"]
-    )  # fmt: skip
+        t["geometry_msgs/msg/Point"],
+        t["geometry_msgs/msg/Quaternion"],
+        t["geometry_msgs/msg/Pose"],
+    )
 
     def pose_msg(x: float, y: float, yaw: float) -> object:
         return pose_cls(

@@ -39,8 +39,12 @@ def _wall_with_doors(
     while step * (x1 - x) > 2.0:  # room left for a door and the wall after it
         width = rng.uniform(0.8, 1.0)
         depth = rng.uniform(0.15, 0.3)
-        out += [[x, y], [x, y + outward * depth], [x + step * width, y + outward * depth],
-                [x + step * width, y]]  # fmt: skip
+        out += [
+            [x, y],
+            [x, y + outward * depth],
+            [x + step * width, y + outward * depth],
+            [x + step * width, y],
+        ]
         x += step * (width + rng.uniform(1.2, 3.5))
     return out
 

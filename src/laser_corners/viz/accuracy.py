@@ -32,8 +32,7 @@ def plot_accuracy_metric(ax: Any, rows: Sequence[dict[str, Any]], metric: str) -
     methods = list(dict.fromkeys(r["method"] for r in rows))
     for method in methods:
         mine = [r for r in rows if r["method"] == method]
-        ax.plot([1e3 * r["sigma_m"] for r in mine], [r[metric] for r in mine], "o-",
-                label=method)  # fmt: skip
+        ax.plot([1e3 * r["sigma_m"] for r in mine], [r[metric] for r in mine], "o-", label=method)
     ax.set_xlabel("range noise sigma [mm]")
     ax.set_ylabel(_LABELS.get(metric, metric))
     ax.grid(True, alpha=0.3)

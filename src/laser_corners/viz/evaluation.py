@@ -54,15 +54,40 @@ def plot_observability(
         ax.plot(pts[:, 0], pts[:, 1], ",", color="0.75", zorder=1)
     if trajectory is not None:
         tr = np.asarray(trajectory, dtype=float).reshape(-1, 2)
-        ax.plot(tr[:, 0], tr[:, 1], "-", lw=0.5, color="tab:blue", alpha=0.6, zorder=2,
-                label="sensor path")  # fmt: skip
-    image = ax.imshow(shown, origin="lower", extent=extent, cmap="inferno_r", vmin=0.0,
-                      vmax=1.0, interpolation="nearest", zorder=3)  # fmt: skip
+        ax.plot(
+            tr[:, 0],
+            tr[:, 1],
+            "-",
+            lw=0.5,
+            color="tab:blue",
+            alpha=0.6,
+            zorder=2,
+            label="sensor path",
+        )
+    image = ax.imshow(
+        shown,
+        origin="lower",
+        extent=extent,
+        cmap="inferno_r",
+        vmin=0.0,
+        vmax=1.0,
+        interpolation="nearest",
+        zorder=3,
+    )
     if features is not None:
         ft = np.asarray(features, dtype=float).reshape(-1, 2)
         if len(ft):
-            ax.plot(ft[:, 0], ft[:, 1], "o", mfc="none", mec="tab:green", ms=6, mew=1.0,
-                    zorder=4, label="persistent features")  # fmt: skip
+            ax.plot(
+                ft[:, 0],
+                ft[:, 1],
+                "o",
+                mfc="none",
+                mec="tab:green",
+                ms=6,
+                mew=1.0,
+                zorder=4,
+                label="persistent features",
+            )
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     ax.set_aspect("equal")
@@ -94,15 +119,17 @@ def plot_pair_std_matrix(ax: Any, pair_std: ArrayLike, title: str = "") -> Any:
     """
     std_mm = np.asarray(pair_std, dtype=float) * 1000.0
     if std_mm.size == 0:
-        ax.text(0.5, 0.5, "no persistent features", ha="center", va="center",
-                transform=ax.transAxes)  # fmt: skip
+        ax.text(
+            0.5, 0.5, "no persistent features", ha="center", va="center", transform=ax.transAxes
+        )
         ax.set_axis_off()
         return None
     cmap = mpl.colormaps["viridis"].with_extremes(bad="0.9")
     finite = std_mm[np.isfinite(std_mm)]
     vmax = float(finite.max()) if finite.size else 1.0
-    image = ax.imshow(np.ma.masked_invalid(std_mm), cmap=cmap, vmin=0.0, vmax=vmax,
-                      interpolation="nearest")  # fmt: skip
+    image = ax.imshow(
+        np.ma.masked_invalid(std_mm), cmap=cmap, vmin=0.0, vmax=vmax, interpolation="nearest"
+    )
     ax.set_xlabel("feature")
     ax.set_ylabel("feature")
     ax.set_title(title or "std of pair distance [mm] (grey: never seen together)")
@@ -130,11 +157,9 @@ def plot_pair_std_histogram(
     values = std[iu]
     values = values[np.isfinite(values)] * 1000.0
     if values.size:
-        ax.hist(values, bins=min(50, max(5, values.size // 5)), color="tab:blue",
-                edgecolor="white")  # fmt: skip
+        ax.hist(values, bins=min(50, max(5, values.size // 5)), color="tab:blue", edgecolor="white")
     if threshold is not None:
-        ax.axvline(threshold * 1000.0, ls="--", color="tab:red",
-                   label=f"{threshold * 1000:g} mm")  # fmt: skip
+        ax.axvline(threshold * 1000.0, ls="--", color="tab:red", label=f"{threshold * 1000:g} mm")
         ax.legend(fontsize=8)
     ax.set_xlabel("std of pair distance [mm]")
     ax.set_ylabel("feature pairs")

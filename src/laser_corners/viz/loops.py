@@ -31,9 +31,13 @@ def plot_precision_recall(
         Axes title.
     """
     for name, curve in curves.items():
-        pts = [(float(r), float(p), int(t)) for t, p, r in
-               zip(curve["min_inliers"], curve["precision"], curve["recall"], strict=True)
-               if not math.isnan(float(p))]  # fmt: skip
+        pts = [
+            (float(r), float(p), int(t))
+            for t, p, r in zip(
+                curve["min_inliers"], curve["precision"], curve["recall"], strict=True
+            )
+            if not math.isnan(float(p))
+        ]
         if not pts:
             continue
         (line,) = ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", ms=3, label=name)

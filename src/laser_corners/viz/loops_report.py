@@ -58,20 +58,22 @@ def loops_rows(result: LoopsResult) -> list[dict[str, Any]]:
         t98, r98 = _at_precision(result.curve(name), 0.98)
         detected = m.best_inliers >= result.config.min_inliers
         outside = int((detected & m.correct & ~result.has_revisit).sum())
-        rows.append({
-            "method": name,
-            "keypoints_per_scan": m.keypoints_per_scan,
-            "min_inliers": s["min_inliers"],
-            "precision": s["precision"],
-            "recall": s["recall"],
-            "min_inliers_p98": t98,
-            "recall_p98": r98,
-            "queries": s["queries"],
-            "correct_without_revisit": outside,
-            "pairs": m.n_pairs,
-            "ms_per_pair": s["ms_per_pair"],
-            "seconds": sum(m.seconds.values()),
-        })  # fmt: skip
+        rows.append(
+            {
+                "method": name,
+                "keypoints_per_scan": m.keypoints_per_scan,
+                "min_inliers": s["min_inliers"],
+                "precision": s["precision"],
+                "recall": s["recall"],
+                "min_inliers_p98": t98,
+                "recall_p98": r98,
+                "queries": s["queries"],
+                "correct_without_revisit": outside,
+                "pairs": m.n_pairs,
+                "ms_per_pair": s["ms_per_pair"],
+                "seconds": sum(m.seconds.values()),
+            }
+        )
     return rows
 
 
@@ -128,12 +130,21 @@ def write_loops_report(result: LoopsResult, output: Path) -> dict[str, Path]:
         writer.writerow(["method", "min_inliers", "detections", "correct", "precision", "recall"])
         for name, c in curves.items():
             for k in range(len(c["min_inliers"])):
-                writer.writerow([name, int(c["min_inliers"][k]), int(c["detections"][k]),
-                                 int(c["correct"][k]), f"{c['precision'][k]:.4f}",
-                                 f"{c['recall'][k]:.4f}"])  # fmt: skip
+                writer.writerow(
+                    [
+                        name,
+                        int(c["min_inliers"][k]),
+                        int(c["detections"][k]),
+                        int(c["correct"][k]),
+                        f"{c['precision'][k]:.4f}",
+                        f"{c['recall'][k]:.4f}",
+                    ]
+                )
     paths["loops_curves.csv"] = path
-    arrays: dict[str, Any] = {"has_revisit": result.has_revisit,
-                              "revisit_candidate": result.revisit_candidate}  # fmt: skip
+    arrays: dict[str, Any] = {
+        "has_revisit": result.has_revisit,
+        "revisit_candidate": result.revisit_candidate,
+    }
     for name, m in result.methods.items():
         for key in ("best_candidate", "best_inliers", "position_error", "angle_error", "correct"):
             arrays[f"{name}/{key}"] = getattr(m, key)

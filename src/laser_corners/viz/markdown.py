@@ -74,8 +74,9 @@ def _maps(info: dict[str, Any]) -> list[str]:
         "| N8 observability | features |",
         "|---|---|",
     ]
-    return lines + [f"| >= {100 * level:g} % | {pf[f'n8_at_least_{level:g}']} |"
-                    for level in PERSISTENCE_LEVELS]  # fmt: skip
+    return lines + [
+        f"| >= {100 * level:g} % | {pf[f'n8_at_least_{level:g}']} |" for level in PERSISTENCE_LEVELS
+    ]
 
 
 def _association(info: dict[str, Any]) -> list[str]:
@@ -121,8 +122,11 @@ def _repeatability(info: dict[str, Any]) -> list[str]:
         flag = "" if row["enough_evidence"] else " (too little evidence)"
         per_scan = row["keypoints_per_scan"]
         per_scan_text = "-" if per_scan is None else f"{per_scan:.2f}"
-        lines.append(f"| {row['method']}{flag} | {per_scan_text} | {row['visible']} | "
-                     + " | ".join(values) + " |")  # fmt: skip
+        lines.append(
+            f"| {row['method']}{flag} | {per_scan_text} | {row['visible']} | "
+            + " | ".join(values)
+            + " |"
+        )
     return [*lines, "", "Table: [repeatability.csv](repeatability.csv)."]
 
 

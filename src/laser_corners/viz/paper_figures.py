@@ -20,9 +20,12 @@ def plot_line_fit_study(ax_rmse: Any, ax_angle: Any, study: LineFitStudy) -> tup
     a = study.angles_deg
     for ax, series, unit in (
         (ax_rmse, (study.rmse_yx, study.rmse_xy, study.rmse_sel), "mean RMSE [m]"),
-        (ax_angle, (study.angle_err_yx_deg, study.angle_err_xy_deg, study.angle_err_sel_deg),
-         "mean |angle error| [deg]"),
-    ):  # fmt: skip
+        (
+            ax_angle,
+            (study.angle_err_yx_deg, study.angle_err_xy_deg, study.angle_err_sel_deg),
+            "mean |angle error| [deg]",
+        ),
+    ):
         ax.plot(a, series[0], color="tab:blue", lw=1.2, label="y = b0 + b1 x (eqs. 2-4)")
         ax.plot(a, series[1], color="tab:orange", lw=1.2, label="x = a0 + a1 y (eqs. 5-7)")
         ax.plot(a, series[2], color="k", lw=1.6, ls="--", label="lower-RMSE selection")
@@ -68,13 +71,33 @@ def plot_neighbourhoods(
     near = valid & (np.hypot(*(xy - xy[j]).T) < span)
     ax.plot(xy[near, 0], xy[near, 1], ".", color="0.6", ms=4, label="scan points")
     pa, pd = xy[arrival], xy[departure]
-    ax.plot(pa[:, 0], pa[:, 1], "o", ms=5, mfc="none", color="tab:blue",
-            label=f"arrival N_a ({len(pa)} points)")  # fmt: skip
-    ax.plot(pd[:, 0], pd[:, 1], "s", ms=5, mfc="none", color="tab:orange",
-            label=f"departure N_d ({len(pd)} points)")  # fmt: skip
+    ax.plot(
+        pa[:, 0],
+        pa[:, 1],
+        "o",
+        ms=5,
+        mfc="none",
+        color="tab:blue",
+        label=f"arrival N_a ({len(pa)} points)",
+    )
+    ax.plot(
+        pd[:, 0],
+        pd[:, 1],
+        "s",
+        ms=5,
+        mfc="none",
+        color="tab:orange",
+        label=f"departure N_d ({len(pd)} points)",
+    )
     circle = np.linspace(0, 2 * np.pi, 200)
-    ax.plot(xy[j, 0] + radius * np.cos(circle), xy[j, 1] + radius * np.sin(circle), ":",
-            color="0.3", lw=1, label=f"R = {radius:g} m")  # fmt: skip
+    ax.plot(
+        xy[j, 0] + radius * np.cos(circle),
+        xy[j, 1] + radius * np.sin(circle),
+        ":",
+        color="0.3",
+        lw=1,
+        label=f"R = {radius:g} m",
+    )
     fa, fd = fit_line(pa), fit_line(pd)
     qx, qy, ok = intersect(fa.model, fa.intercept, fa.slope, fd.model, fd.intercept, fd.slope)
     info: dict[str, Any] = {"arrival": fa, "departure": fd, "intersection": None, "opening": None}
@@ -87,8 +110,7 @@ def plot_neighbourhoods(
         ud = _towards(fd, q, pd[-1])
         opening = math.degrees(math.acos(float(np.clip(ua @ ud, -1.0, 1.0))))
         info.update(intersection=q, opening=opening)
-        ax.plot(qx, qy, "X", color="tab:red", ms=12,
-                label=f"intersection ({opening:.1f} deg)")  # fmt: skip
+        ax.plot(qx, qy, "X", color="tab:red", ms=12, label=f"intersection ({opening:.1f} deg)")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -108,9 +130,13 @@ def _towards(fit: Any, origin: NDArray[np.float64], target: NDArray[np.float64])
 
 
 def _draw_fit(
-    ax: Any, fit: Any, pts: NDArray[np.float64], colour: str, extent: float,
+    ax: Any,
+    fit: Any,
+    pts: NDArray[np.float64],
+    colour: str,
+    extent: float,
     centre: NDArray[np.float64],
-) -> None:  # fmt: skip
+) -> None:
     d = _direction(fit)
     mean = pts.mean(axis=0)
     # a point of the fitted line near the neighbourhood's centroid
@@ -120,6 +146,11 @@ def _draw_fit(
         base = np.array([fit.intercept + fit.slope * mean[1], mean[1]])
     t0 = (centre - base) @ d
     t = np.array([t0 - extent, t0 + extent])
-    ax.plot(base[0] + t * d[0], base[1] + t * d[1], "-", color=colour, lw=1.5,
-            label=f"fit ({'y|x' if fit.model == Y_ON_X else 'x|y'}, RMSE "
-                  f"{1e3 * fit.rmse:.1f} mm)")  # fmt: skip
+    ax.plot(
+        base[0] + t * d[0],
+        base[1] + t * d[1],
+        "-",
+        color=colour,
+        lw=1.5,
+        label=f"fit ({'y|x' if fit.model == Y_ON_X else 'x|y'}, RMSE {1e3 * fit.rmse:.1f} mm)",
+    )

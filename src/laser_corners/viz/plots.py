@@ -39,18 +39,41 @@ def plot_scan(
     ax.plot([0], [0], marker=(3, 0, -90), ms=12, color="tab:blue", ls="none", label="sensor")
     if truth is not None:
         t = np.asarray(truth, dtype=float).reshape(-1, 2)
-        ax.plot(t[:, 0], t[:, 1], "o", mfc="none", mec="tab:green", ms=12, mew=1.5,
-                label="true corners")  # fmt: skip
+        ax.plot(
+            t[:, 0], t[:, 1], "o", mfc="none", mec="tab:green", ms=12, mew=1.5, label="true corners"
+        )
     if candidates is not None and len(candidates):
-        ax.plot(candidates.xy[:, 0], candidates.xy[:, 1], ".", ms=4, color="tab:orange",
-                label="candidates")  # fmt: skip
+        ax.plot(
+            candidates.xy[:, 0],
+            candidates.xy[:, 1],
+            ".",
+            ms=4,
+            color="tab:orange",
+            label="candidates",
+        )
     if keypoints is not None and len(keypoints):
-        ax.plot(keypoints.xy[:, 0], keypoints.xy[:, 1], "x", ms=10, mew=2, color="tab:red",
-                label="keypoints")  # fmt: skip
+        ax.plot(
+            keypoints.xy[:, 0],
+            keypoints.xy[:, 1],
+            "x",
+            ms=10,
+            mew=2,
+            color="tab:red",
+            label="keypoints",
+        )
         u = 0.2 * np.cos(keypoints.orientation)
         v = 0.2 * np.sin(keypoints.orientation)
-        ax.quiver(keypoints.xy[:, 0], keypoints.xy[:, 1], u, v, color="tab:red",
-                  angles="xy", scale_units="xy", scale=1, width=0.003)  # fmt: skip
+        ax.quiver(
+            keypoints.xy[:, 0],
+            keypoints.xy[:, 1],
+            u,
+            v,
+            color="tab:red",
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            width=0.003,
+        )
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")

@@ -56,9 +56,11 @@ def write_accuracy_report(stats: Sequence[AccuracyStats], output: Path) -> dict[
     rows = [s.row() for s in stats]
     fig = Figure(figsize=(10, 7.5))
     axes = fig.subplots(2, 2)
-    for ax, metric in zip(axes.ravel(),
-                          ("recall", "false_rate", "median_error_mm", "keypoints_per_corner"),
-                          strict=True):  # fmt: skip
+    for ax, metric in zip(
+        axes.ravel(),
+        ("recall", "false_rate", "median_error_mm", "keypoints_per_corner"),
+        strict=True,
+    ):
         plot_accuracy_metric(ax, rows, metric)
     fig.tight_layout()
     paths["plot"] = output / "accuracy.png"
@@ -90,23 +92,38 @@ def _observability(result: RealEvaluation, out: _Folder) -> None:
     grid = obs.grid
     width = 10.0
     height = max(3.0, min(12.0, width * grid.shape[0] / max(grid.shape[1], 1) + 1.0))
-    for name, ratio, label in (("observability", obs.ratio, "observability"),
-                               ("observability_n8", obs.ratio_n8, "N8 observability")):  # fmt: skip
+    for name, ratio, label in (
+        ("observability", obs.ratio, "observability"),
+        ("observability_n8", obs.ratio_n8, "N8 observability"),
+    ):
         fig = Figure(figsize=(width, height))
         ax = fig.subplots()
         image = plot_observability(
-            ax, ratio, grid.extent, result.scan_points_map_xy, result.features.xy,
-            result.trajectory_xy, title=f"{label}: {result.source}",
-        )  # fmt: skip
+            ax,
+            ratio,
+            grid.extent,
+            result.scan_points_map_xy,
+            result.features.xy,
+            result.trajectory_xy,
+            title=f"{label}: {result.source}",
+        )
         fig.colorbar(image, ax=ax, shrink=0.8, label=label)
         out.figure(fig, f"{name}.png")
-    np.savez_compressed(out.path("observability.npz"), ratio=obs.ratio.astype(np.float32),
-                        ratio_n8=obs.ratio_n8.astype(np.float32))  # fmt: skip
     np.savez_compressed(
-        out.path("observability_counts.npz"), in_view=obs.in_view, hits=obs.hits,
-        in_view_n8=obs.in_view_n8, hits_n8=obs.hits_n8, x0=grid.x0, y0=grid.y0,
+        out.path("observability.npz"),
+        ratio=obs.ratio.astype(np.float32),
+        ratio_n8=obs.ratio_n8.astype(np.float32),
+    )
+    np.savez_compressed(
+        out.path("observability_counts.npz"),
+        in_view=obs.in_view,
+        hits=obs.hits,
+        in_view_n8=obs.in_view_n8,
+        hits_n8=obs.hits_n8,
+        x0=grid.x0,
+        y0=grid.y0,
         resolution=grid.resolution,
-    )  # fmt: skip
+    )
 
 
 def _features_and_association(result: RealEvaluation, out: _Folder) -> None:
@@ -116,8 +133,11 @@ def _features_and_association(result: RealEvaluation, out: _Folder) -> None:
         writer.writerow(["x", "y", "ratio_n8", "in_view_n8"])
         for (x, y), ratio, views in zip(f.xy, f.ratio_n8, f.in_view_n8, strict=True):
             writer.writerow([f"{x:.4f}", f"{y:.4f}", f"{ratio:.4f}", int(views)])
-    np.savez_compressed(out.path("association.npz"), std=result.pair_std.astype(np.float32),
-                        together=result.pair_together.astype(np.int32))  # fmt: skip
+    np.savez_compressed(
+        out.path("association.npz"),
+        std=result.pair_std.astype(np.float32),
+        together=result.pair_together.astype(np.int32),
+    )
     fig = Figure(figsize=(7, 6))
     ax = fig.subplots()
     image = plot_pair_std_matrix(ax, result.pair_std)

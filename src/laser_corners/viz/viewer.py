@@ -139,10 +139,12 @@ def _log_keypoints(rr: Any, recording: Any, path: str, keypoints: Keypoints) -> 
     recording.log(
         path,
         rr.Points2D(
-            keypoints.xy, colors=_KEYPOINT_COLOR, radii=rr.Radius.ui_points(6.0),
+            keypoints.xy,
+            colors=_KEYPOINT_COLOR,
+            radii=rr.Radius.ui_points(6.0),
             labels=[f"{a:.0f}°" for a in keypoints.opening_angle_deg],
         ),
-    )  # fmt: skip
+    )
     vectors = ARROW_LENGTH * np.column_stack(
         (np.cos(keypoints.orientation), np.sin(keypoints.orientation))
     )
