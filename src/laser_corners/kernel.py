@@ -221,6 +221,8 @@ def candidates(
     na = nd = -1  # step counts of the walks to the top sentinel (dense: unused)
     ahead = False
     cur = (0, 0, 0, 0, 0, 0)
+    mp, bridging = cfg.min_points, cfg.max_gap_beams > 0
+    gate = (mp, loose_mse, max_cos2, want_table)
     for j in range(n):
         cand[j, C_NSC] = 0.0
         if want_table:
@@ -257,17 +259,7 @@ def candidates(
             if not dense and k < st - 2 * m:
                 start[k] = j - within(rm_a, na, r2[k])
                 stop[k] = j + within(rm_d, nd, r2[k])
-            screened[k] = screen(
-                ps,
-                inv,
-                j,
-                start[k],
-                stop[k],
-                cfg.min_points,
-                loose_mse,
-                max_cos2,
-                cfg.max_gap_beams > 0,
-            )
+            screened[k] = screen(ps, inv, j, start[k], stop[k], mp, loose_mse, max_cos2, bridging)
             hit |= screened[k]
         if not hit:
             continue
@@ -282,22 +274,7 @@ def candidates(
             na = reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)[0]
             nd = reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)[0]
         rm = (rm_a, rm_d, na, nd, px, py, mode)
-        _screen_rest(
-            ps,
-            inv,
-            j,
-            start,
-            stop,
-            screened,
-            r2,
-            m,
-            st,
-            cfg.min_points,
-            loose_mse,
-            max_cos2,
-            want_table,
-            rm,
-        )
+        _screen_rest(ps, inv, j, start, stop, screened, r2, m, st, gate, rm)
         if not want_table and not keep_runs(screened, m):
             continue
         _test_scales(x, y, ps, ox, oy, j, start, stop, screened, cfg, limits, passed, res, table)
@@ -323,23 +300,22 @@ def _screen_rest(
     r2,
     m: int,
     st: int,
-    min_points: int,
-    loose_mse: float,
-    max_cos2: float,
-    want_all: bool,
+    gate: tuple,
     rm: tuple,
 ) -> None:
     """Screen the scales of p_j other than the sentinels (already in ``screened``).
 
     Every run of m consecutive scales holds a sentinel and lies between two failing ones,
     so only scales next to a passing sentinel (within m-1) can be in a run; the others are
-    not screened (unless ``want_all``). ``rm`` holds the running maxima (mode 1) and step
+    not screened (unless ``want_all``). ``gate`` holds min_points, loose_mse, max_cos2 and
+    want_all. ``rm`` holds the running maxima (mode 1) and step
     counts of both walks, the padded coordinates and the mode: 0, the bounds are already in
     ``start``, ``stop``; 1, from the running maxima
     (:func:`~laser_corners.neighbourhood.within`); 2, from the bounds of the sentinels next
     to the scale (:func:`~laser_corners.neighbourhood.extend`).
     """
     rm_a, rm_d, na, nd, px, py, mode = rm
+    min_points, loose_mse, max_cos2, want_all = gate
     top = r2.shape[0] - 1
     far = px.shape[0]  # more steps than any walk takes (it stops at the padding)
     r = st % m  # (st - k) % m, counted down with k (no division per scale)

@@ -126,9 +126,6 @@ def run_batch(
     if on_plan is not None:
         on_plan(pending, report.already_done)
 
-    def started(count: int) -> None:
-        report.workers = count
-
     def deliver(result: JobResult) -> None:
         manifest.append(result)  # flushed and synced: a killed run keeps the record
         report.results.append(result)
@@ -137,29 +134,40 @@ def run_batch(
 
     start = time.perf_counter()
     try:
-        if not pending:
-            pass
-        elif scheduler is not None:
-            run_dask(
-                pending,
-                outdir,
-                choice,
-                scheduler,
-                n_workers,
-                threads,
-                timeout,
-                started,
-                deliver,
-                prefetch,
-            )
-        elif n_workers == 1 or len(pending) == 1:
-            report.workers = 1
-            run_here(pending, outdir, choice, threads, deliver, prefetch)
-        else:
-            report.workers = min(n_workers, len(pending))
-            run_pool(pending, outdir, choice, report.workers, threads, deliver, prefetch)
+        _dispatch(pending, outdir, choice, scheduler, threads, timeout, prefetch, report, deliver)
     except KeyboardInterrupt:
         report.interrupted = True
     finally:
         report.seconds = time.perf_counter() - start
     return report
+
+
+def _dispatch(
+    pending: list[BatchJob],
+    outdir: Path,
+    choice: ParamsChoice,
+    scheduler: str | None,
+    threads: int,
+    timeout: float,
+    prefetch: bool,
+    report: BatchReport,
+    deliver: Callable[[JobResult], None],
+) -> None:
+    """Run the pending jobs on a Dask cluster, in a process pool or here; ``report.workers``
+    says how many workers ran them."""
+    if not pending:
+        return
+
+    def started(count: int) -> None:
+        report.workers = count
+
+    n_workers = report.workers
+    if scheduler is not None:
+        args = (n_workers, threads, timeout, started, deliver, prefetch)
+        run_dask(pending, outdir, choice, scheduler, *args)
+    elif n_workers == 1 or len(pending) == 1:
+        report.workers = 1
+        run_here(pending, outdir, choice, threads, deliver, prefetch)
+    else:
+        report.workers = min(n_workers, len(pending))
+        run_pool(pending, outdir, choice, report.workers, threads, deliver, prefetch)
