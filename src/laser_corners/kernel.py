@@ -189,35 +189,13 @@ def candidates(
     want_table = table.shape[0] == n
     valid, ox, oy, ps = prepare(x, y)
     r2 = scales * scales
-    # dense scans (many points within the largest scale) and gap bridging: block-skipping
-    # walk; otherwise the short branch-free walk, counted per scale on demand
-    dense = cfg.max_gap_beams > 0 or points_within(x, y, valid, scales[n_scales - 1]) > 48.0
-    box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
-    if dense:
-        next_valid, prev_valid = links(valid)
-    else:
-        next_valid = prev_valid = np.empty(0, dtype=np.int64)
+    dense, box, next_valid, prev_valid = _walk_structures(x, y, valid, scales, cfg.max_gap_beams)
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
-    start = np.empty(n_scales, dtype=np.int64)
-    stop = np.empty(n_scales, dtype=np.int64)
-    inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
+    start, stop, inv, screened, passed, res = _buffers(n, n_scales)
     px, py = padded(x, y, valid)
-    screened = np.zeros(n_scales, dtype=np.bool_)
-    passed = np.zeros(n_scales, dtype=np.bool_)
-    res = np.empty((n_scales, 6))  # per scale: ix, iy, worst rmse, opening, bx, by
     m = cfg.min_consecutive_scales
     top = n_scales - 1
-    st = max(top - (m - 1), 0)  # sentinels: st = K-m, st - m, st - 2m, ... >= 0
-    # the walk counts the top three sentinels; with more it stores the running maxima
-    r2_a = r2[st - 2 * m] if st - 2 * m >= 0 else -1.0
-    r2_b = r2[st - m] if st - m >= 0 else -1.0
-    many = st - 3 * m >= 0
-    rm_a = np.empty(n + PAD if many else 0)  # running maxima (with more than three sentinels)
-    rm_d = np.empty(n + PAD if many else 0)
-    n_sent = st // m + 1
-    r2_sent = r2[st - (n_sent - 1) * m :: m].copy()  # the sentinels' squared radii, ascending
-    s_start = np.empty(n_sent, dtype=np.int64)
-    s_stop = np.empty(n_sent, dtype=np.int64)
+    st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop = _sentinels(r2, m, n)
     na = nd = -1  # step counts of the walks to the top sentinel (dense: unused)
     ahead = False
     cur = (0, 0, 0, 0, 0, 0)
@@ -231,12 +209,9 @@ def candidates(
         if not valid[j]:
             continue
         if dense:  # the sentinel scales only, for now
-            gap = cfg.max_gap_beams
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
-            for i in range(n_sent):
-                start[st - (n_sent - 1 - i) * m] = s_start[i]
-                stop[st - (n_sent - 1 - i) * m] = s_stop[i]
+            links_ = (valid, next_valid, prev_valid, box)
+            sent = (r2_sent, s_start, s_stop, st, m)
+            _dense_sentinel_bounds(j, x, y, links_, cfg.max_gap_beams, sent, start, stop)
         else:
             if many:  # store the running maxima, for within()
                 na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
@@ -254,14 +229,8 @@ def candidates(
                     stop[k] = j + cd
         # every run of m consecutive scales holds one of the sentinels; a run lies between
         # two failing sentinels, so only scales within m-1 of a passing one can be in one
-        hit = want_table
-        for k in range(st, -1, -m):
-            if not dense and k < st - 2 * m:
-                start[k] = j - within(rm_a, na, r2[k])
-                stop[k] = j + within(rm_d, nd, r2[k])
-            screened[k] = screen(ps, inv, j, start[k], stop[k], mp, loose_mse, max_cos2, bridging)
-            hit |= screened[k]
-        if not hit:
+        rm = (rm_a, rm_d, na, nd, dense)
+        if not _screen_sentinels(ps, inv, j, start, stop, screened, r2, m, st, gate, rm, bridging):
             continue
         if dense:  # again, every scale
             walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap_beams, start)
@@ -281,12 +250,106 @@ def candidates(
         _store(cand, j, passed, res, cfg.min_consecutive_scales, max_cd2)
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
+    """Which neighbourhood walk a scan gets, and its structures: (dense, boxes, links).
+
+    Dense scans (many points within the largest scale) and gap bridging take the
+    block-skipping :func:`~laser_corners.neighbourhood.walk` (block boxes, next/previous
+    valid point); the others the short branch-free walk, counted per scale on demand.
+    """
+    dense = max_gap_beams > 0 or points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
+    box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
+    if dense:
+        next_valid, prev_valid = links(valid)
+    else:
+        next_valid = prev_valid = np.empty(0, dtype=np.int64)
+    return dense, box, next_valid, prev_valid
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _sentinels(r2, m: int, n: int) -> tuple:
+    """The sentinel scales st = K-m, st - m, st - 2m, ... >= 0 and their walk buffers.
+
+    Returns (st, r2 of the second and third sentinel from the top (-1.0: none), whether
+    there are more than three, the running-maxima buffers of both walks (empty unless
+    more than three), the sentinels' squared radii ascending, their start/stop buffers).
+    """
+    top = r2.shape[0] - 1
+    st = max(top - (m - 1), 0)
+    # the walk counts the top three sentinels; with more it stores the running maxima
+    r2_a = r2[st - 2 * m] if st - 2 * m >= 0 else -1.0
+    r2_b = r2[st - m] if st - m >= 0 else -1.0
+    many = st - 3 * m >= 0
+    rm_a = np.empty(n + PAD if many else 0)
+    rm_d = np.empty(n + PAD if many else 0)
+    n_sent = st // m + 1
+    r2_sent = r2[st - (n_sent - 1) * m :: m].copy()
+    s_start = np.empty(n_sent, dtype=np.int64)
+    s_stop = np.empty(n_sent, dtype=np.int64)
+    return st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _buffers(n: int, n_scales: int) -> tuple:
+    """Per-point work buffers: start, stop (bounds per scale), 1/count table, screened,
+    passed, res (per scale: ix, iy, worst rmse, opening, bisector x, y)."""
+    start = np.empty(n_scales, dtype=np.int64)
+    stop = np.empty(n_scales, dtype=np.int64)
+    inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
+    screened = np.zeros(n_scales, dtype=np.bool_)
+    passed = np.zeros(n_scales, dtype=np.bool_)
+    res = np.empty((n_scales, 6))
+    return start, stop, inv, screened, passed, res
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _dense_sentinel_bounds(j: int, x, y, links_: tuple, gap: int, sent: tuple, start, stop):
+    """Dense walks of p_j to the sentinel radii only; their bounds into ``start``, ``stop``.
+
+    ``links_``: valid, next/previous valid point, block boxes; ``sent``: the sentinels'
+    squared radii (ascending), their start/stop buffers, the top sentinel st and m.
+    """
+    valid, next_valid, prev_valid, box = links_
+    r2_sent, s_start, s_stop, st, m = sent
+    walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
+    walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
+    n_sent = s_start.shape[0]
+    for i in range(n_sent):
+        start[st - (n_sent - 1 - i) * m] = s_start[i]
+        stop[st - (n_sent - 1 - i) * m] = s_stop[i]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _walks(j: int, px, py, r2_max: float, r2_a: float, r2_b: float) -> tuple:
     """Both :func:`~laser_corners.neighbourhood.counts` walks of p_j: arrival, departure."""
     na, na_a, na_b = counts(j, -1, px, py, r2_max, r2_a, r2_b)
     nd, nd_a, nd_b = counts(j, 1, px, py, r2_max, r2_a, r2_b)
     return na, na_a, na_b, nd, nd_a, nd_b
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _screen_sentinels(
+    ps, inv, j: int, start, stop, screened, r2, m: int, st: int, gate: tuple, rm: tuple, bridging
+) -> bool:
+    """Screen the sentinel scales st, st - m, ... of p_j; True if one passes (or ``want_all``).
+
+    ``rm``: the running maxima and step counts of both walks, and whether the scan is dense
+    (then every sentinel's bounds are in ``start``, ``stop``; else those below the top
+    three come from the running maxima, :func:`~laser_corners.neighbourhood.within`).
+    """
+    rm_a, rm_d, na, nd, dense = rm
+    min_points, loose_mse, max_cos2, want_all = gate
+    hit = want_all
+    for k in range(st, -1, -m):
+        if not dense and k < st - 2 * m:
+            start[k] = j - within(rm_a, na, r2[k])
+            stop[k] = j + within(rm_d, nd, r2[k])
+        screened[k] = screen(
+            ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2, bridging
+        )
+        hit |= screened[k]
+    return hit
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
