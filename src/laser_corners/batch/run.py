@@ -106,13 +106,66 @@ def run_batch(
     check_globs(inputs)  # the inputs and the scheduler first: nothing is written before
     check_scheduler(scheduler, timeout)
     _claim_folder(outdir, choice)
+    n_workers, threads, prefetch = _resources(workers, scheduler, threads, prefetch)
+    manifest = Manifest(outdir)
+    pending, report = _plan(manifest, outdir, inputs, topic, n_workers)
+    if on_plan is not None:
+        on_plan(pending, report.already_done)
+    deliver = _recorder(manifest, report, on_result)
+    _run_jobs(pending, outdir, choice, (scheduler, threads, timeout, prefetch), report, deliver)
+    return report
+
+
+def _recorder(
+    manifest: Manifest, report: BatchReport, on_result: Callable[[JobResult], None] | None
+) -> Callable[[JobResult], None]:
+    """What happens to each result as its job ends: manifest, report, then ``on_result``."""
+
+    def deliver(result: JobResult) -> None:
+        manifest.append(result)  # flushed and synced: a killed run keeps the record
+        report.results.append(result)
+        if on_result is not None:
+            on_result(result)
+
+    return deliver
+
+
+def _run_jobs(
+    pending: list[BatchJob],
+    outdir: Path,
+    choice: ParamsChoice,
+    how: tuple[str | None, int, float, bool],
+    report: BatchReport,
+    deliver: Callable[[JobResult], None],
+) -> None:
+    """Run the jobs (``how``: scheduler, threads, timeout, prefetch), timed in
+    ``report.seconds``; an interrupt ends the run with what is done (``report.interrupted``)."""
+    start = time.perf_counter()
+    try:
+        _dispatch(pending, outdir, choice, *how, report, deliver)
+    except KeyboardInterrupt:
+        report.interrupted = True
+    finally:
+        report.seconds = time.perf_counter() - start
+
+
+def _resources(
+    workers: int | None, scheduler: str | None, threads: int | None, prefetch: bool | None
+) -> tuple[int, int, bool]:
+    """Workers, numba threads per worker and prefetching, defaults filled in from the cores."""
     cores = os.cpu_count() or 1
     n_workers = max(1, int(workers) if workers else cores)
     if threads is None:
         threads = 1 if scheduler not in (None, "local") else max(1, cores // n_workers)
     if prefetch is None:
         prefetch = scheduler in (None, "local") and n_workers * threads < cores
-    manifest = Manifest(outdir)
+    return n_workers, threads, prefetch
+
+
+def _plan(
+    manifest: Manifest, outdir: Path, inputs: list[str | Path], topic: str | None, n_workers: int
+) -> tuple[list[BatchJob], BatchReport]:
+    """The jobs still to run (largest first) and a report holding those already done."""
     records = manifest.load()
     jobs, skipped = plan_inputs(inputs, topic, reserved={k: r.output for k, r in records.items()})
     completed = manifest.completed(outdir)
@@ -123,23 +176,7 @@ def run_batch(
         workers=n_workers,
         skipped=skipped,
     )
-    if on_plan is not None:
-        on_plan(pending, report.already_done)
-
-    def deliver(result: JobResult) -> None:
-        manifest.append(result)  # flushed and synced: a killed run keeps the record
-        report.results.append(result)
-        if on_result is not None:
-            on_result(result)
-
-    start = time.perf_counter()
-    try:
-        _dispatch(pending, outdir, choice, scheduler, threads, timeout, prefetch, report, deliver)
-    except KeyboardInterrupt:
-        report.interrupted = True
-    finally:
-        report.seconds = time.perf_counter() - start
-    return report
+    return pending, report
 
 
 def _dispatch(
