@@ -250,7 +250,7 @@ def candidates(
         _store(cand, j, passed, res, cfg.min_consecutive_scales, max_cd2)
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
     """Which neighbourhood walk a scan gets, and its structures: (dense, boxes, links).
 
@@ -267,7 +267,7 @@ def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
     return dense, box, next_valid, prev_valid
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _sentinels(r2, m: int, n: int) -> tuple:
     """The sentinel scales st = K-m, st - m, st - 2m, ... >= 0 and their walk buffers.
 
@@ -290,7 +290,7 @@ def _sentinels(r2, m: int, n: int) -> tuple:
     return st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _buffers(n: int, n_scales: int) -> tuple:
     """Per-point work buffers: start, stop (bounds per scale), 1/count table, screened,
     passed, res (per scale: ix, iy, worst rmse, opening, bisector x, y)."""

@@ -205,11 +205,7 @@ def evaluate_real(
     scans, no_return, notes = clean_scans(list(scans))
     if not any(s.pose is not None for s in scans):
         raise InputError(f"{source or 'recording'}: no scan has a sensor pose")
-    if params is None:
-        params = cfg.detector.resolve(scans[0])
-        maps_label = cfg.detector.label
-    else:
-        maps_label = "custom"
+    params, maps_label = _maps_params(params, cfg, scans[0])
     maps = maps_phase(scans, CornerDetector(params), cfg, phases)
     notes += maps.notes
     assoc = association_phase(maps, cfg, phases)
@@ -223,23 +219,25 @@ def evaluate_real(
         config=cfg,
         params=params,
         n_scans=len(scans),
-        n_scans_with_pose=len(maps.posed),
         pose_source=pose_source,
-        obs=maps.obs,
-        features=assoc.features,
-        observations=assoc.observations,
-        pair_std=assoc.pair_std,
-        pair_together=assoc.together,
-        association=assoc.stats,
         pairs_source=pairs_source,
         n_pairs=n_pairs,
         repeatability=table,
-        keypoints_map_xy=maps.all_map_kps,
-        scan_points_map_xy=maps.scan_points,
-        trajectory_xy=maps.trajectory_xy,
         maps_label=maps_label,
         no_return_range=no_return,
         notes=notes,
         warnings=warnings,
         seconds=phases.seconds,
+        **maps.report_fields(),
+        **assoc.report_fields(),
     )
+
+
+def _maps_params(
+    params: DetectorParams | None, cfg: RealEvalConfig, first: LaserScan
+) -> tuple[DetectorParams, str]:
+    """The maps' detector parameters and their label: given (``custom``), or the config's
+    choice resolved against the first scan."""
+    if params is None:
+        return cfg.detector.resolve(first), cfg.detector.label
+    return params, "custom"

@@ -10,6 +10,7 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -116,6 +117,16 @@ class MapsPhase:
     features: PersistentFeatures
     notes: list[str] = field(default_factory=list)
 
+    def report_fields(self) -> dict[str, Any]:
+        """This phase's fields of :class:`~laser_corners.eval.real.RealEvaluation`."""
+        return {
+            "n_scans_with_pose": len(self.posed),
+            "obs": self.obs,
+            "keypoints_map_xy": self.all_map_kps,
+            "scan_points_map_xy": self.scan_points,
+            "trajectory_xy": self.trajectory_xy,
+        }
+
 
 def _useful_reach(scans: Sequence[LaserScan], max_range: float | None) -> float:
     """99th percentile of the valid ranges (the far edge of what the scans measured)."""
@@ -184,6 +195,16 @@ class AssociationPhase:
     pair_std: NDArray[np.float64]
     together: NDArray[np.int64]
     stats: AssociationStats
+
+    def report_fields(self) -> dict[str, Any]:
+        """This phase's fields of :class:`~laser_corners.eval.real.RealEvaluation`."""
+        return {
+            "features": self.features,
+            "observations": self.observations,
+            "pair_std": self.pair_std,
+            "pair_together": self.together,
+            "association": self.stats,
+        }
 
 
 def association_phase(maps: MapsPhase, cfg: RealEvalConfig, phases: Phases) -> AssociationPhase:

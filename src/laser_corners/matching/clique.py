@@ -40,26 +40,40 @@ def max_clique(
     tol = options.tolerance
     cos_tol = cos_tolerance(options.angle_tolerance)
     if n > CLIQUE_EXACT_MAX:
-        adj_ok = np.zeros((n, n), dtype=np.bool_)
-        deg = np.zeros(n, dtype=np.int64)
-        for p in range(n):
-            for q in range(p + 1, n):
-                if _pair_fast(da, db, rot, m, p, q, tol, 0.0, cos_tol):
-                    adj_ok[p, q] = adj_ok[q, p] = True
-                    deg[p] += 1
-                    deg[q] += 1
-        order = np.argsort(-deg, kind="mergesort")
-        size = 0
-        for v in order:
-            ok = True
-            for r in range(size):
-                if not adj_ok[v, members[r]]:
-                    ok = False
-                    break
-            if ok:
-                members[size] = v
-                size += 1
-        return size
+        return _greedy_clique(da, db, rot, m, n, tol, cos_tol, members)
+    return _exact_clique(da, db, rot, m, n, tol, cos_tol, members)
+
+
+@nb.njit(cache=True, nogil=True)
+def _greedy_clique(da, db, rot, m, n: int, tol: float, cos_tol: float, members) -> int:
+    """Greedy clique by degree (many matches): the consistency graph as a boolean matrix,
+    vertices taken in decreasing degree when consistent with all taken so far."""
+    adj_ok = np.zeros((n, n), dtype=np.bool_)
+    deg = np.zeros(n, dtype=np.int64)
+    for p in range(n):
+        for q in range(p + 1, n):
+            if _pair_fast(da, db, rot, m, p, q, tol, 0.0, cos_tol):
+                adj_ok[p, q] = adj_ok[q, p] = True
+                deg[p] += 1
+                deg[q] += 1
+    order = np.argsort(-deg, kind="mergesort")
+    size = 0
+    for v in order:
+        ok = True
+        for r in range(size):
+            if not adj_ok[v, members[r]]:
+                ok = False
+                break
+        if ok:
+            members[size] = v
+            size += 1
+    return size
+
+
+@nb.njit(cache=True, nogil=True)
+def _exact_clique(da, db, rot, m, n: int, tol: float, cos_tol: float, members) -> int:
+    """Exact branch and bound on 64-bit sets (n <= 64), depth first, stopping after
+    ``CLIQUE_BUDGET`` node expansions with the best clique so far."""
     adj = np.zeros(n, dtype=np.uint64)
     one = np.uint64(1)
     for p in range(n):

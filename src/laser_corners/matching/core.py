@@ -194,6 +194,30 @@ def _keep(
 
 
 @nb.njit(cache=True, nogil=True)
+def _single_point_hypotheses(xa, xb, m, n: int, rot, tol: float, cos_tol: float, kept) -> int:
+    """One hypothesis per match (rotation: the difference of the two keypoint orientations,
+    translation from the keypoints) into the ``kept`` (poses, counts, costs); returns how
+    many are kept."""
+    poses, counts, costs = kept
+    tol2 = tol * tol
+    nk = 0
+    for q in range(n):
+        th = math.atan2(rot[q, 1], rot[q, 0])
+        if th != th:
+            continue
+        c = math.cos(th)
+        s = math.sin(th)
+        bx = xb[m[q, 1], 0]
+        by = xb[m[q, 1], 1]
+        tx = xa[m[q, 0], 0] - (c * bx - s * by)
+        ty = xa[m[q, 0], 1] - (s * bx + c * by)
+        cnt, cost = _count_inliers(xa, xb, m, n, tx, ty, th, tol2, rot, cos_tol)
+        if cnt > 0:
+            nk = _keep(poses, counts, costs, nk, tx, ty, th, cnt, cost, tol)
+    return nk
+
+
+@nb.njit(cache=True, nogil=True)
 def ransac(
     xa: NDArray[np.float64],
     xb: NDArray[np.float64],
@@ -222,19 +246,8 @@ def ransac(
     da, db, rot = _prepare(xa, xb, m, n, oa, ob)
     cos_tol = cos_tolerance(options.angle_tolerance)
     if options.single_point:
-        for q in range(n):
-            th = math.atan2(rot[q, 1], rot[q, 0])
-            if th != th:
-                continue
-            c = math.cos(th)
-            s = math.sin(th)
-            bx = xb[m[q, 1], 0]
-            by = xb[m[q, 1], 1]
-            tx = xa[m[q, 0], 0] - (c * bx - s * by)
-            ty = xa[m[q, 0], 1] - (s * bx + c * by)
-            cnt, cost = _count_inliers(xa, xb, m, n, tx, ty, th, tol2, rot, cos_tol)
-            if cnt > 0:
-                nk = _keep(poses, counts, costs, nk, tx, ty, th, cnt, cost, tol)
+        kept = (poses, counts, costs)
+        nk = _single_point_hypotheses(xa, xb, m, n, rot, tol, cos_tol, kept)
     n_pairs = n * (n - 1) // 2
     exhaustive = n_pairs <= options.iterations
     state = np.uint64(88172645463325252) ^ (np.uint64(options.seed) * np.uint64(2654435761))

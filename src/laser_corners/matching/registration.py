@@ -254,6 +254,17 @@ def side_arrays(k: Keypoints, d: Descriptors, scan: ScanArrays = NO_SCAN) -> Sid
     )
 
 
+def _scans_to_verify(
+    opt: MatchOptions, scan_a: LaserScan | None, scan_b: LaserScan | None
+) -> tuple[ScanArrays, ScanArrays]:
+    """The scans' kernel arrays for ``verify_scan`` (none without it)."""
+    if not opt.verify_scan:
+        return NO_SCAN, NO_SCAN
+    if not (isinstance(scan_a, LaserScan) and isinstance(scan_b, LaserScan)):
+        raise InvalidScanError("register_keypoints: verify_scan needs scan_a and scan_b")
+    return scan_arrays(scan_a, opt.scan_points), scan_arrays(scan_b, opt.scan_points)
+
+
 def register_keypoints(
     kp_a: Keypoints,
     desc_a: Descriptors,
@@ -296,11 +307,7 @@ def register_keypoints(
         or (desc_a.values.shape[1] != desc_b.values.shape[1])
     ):
         raise InvalidScanError("register_keypoints: descriptors of A and B differ in kind or size")
-    scans = [NO_SCAN, NO_SCAN]
-    if opt.verify_scan:
-        if not (isinstance(scan_a, LaserScan) and isinstance(scan_b, LaserScan)):
-            raise InvalidScanError("register_keypoints: verify_scan needs scan_a and scan_b")
-        scans = [scan_arrays(scan_a, opt.scan_points), scan_arrays(scan_b, opt.scan_points)]
+    scans = _scans_to_verify(opt, scan_a, scan_b)
     pose = np.zeros(3)
     pose_cov = np.full((3, 3), np.nan)
     inl = np.empty((max(min(len(kp_a), len(kp_b)), 1), 2), dtype=np.int64)

@@ -234,27 +234,24 @@ def _clique_pose(
 
 @nb.njit(cache=True, nogil=True)
 def _refine(
-    xa: NDArray[np.float64],
-    xb: NDArray[np.float64],
-    cov_a: NDArray[np.float64],
-    cov_b: NDArray[np.float64],
-    oa: NDArray[np.float64],
-    ob: NDArray[np.float64],
+    a: Side,
+    b: Side,
     m: NDArray[np.int64],
     n: int,
-    tx: float,
-    ty: float,
-    th: float,
-    tol: float,
-    angle_tol: float,
+    hyp: NDArray[np.float64],
+    options: KernelOptions,
     need: int,
-    default_var: float,
     sel: NDArray[np.int64],
     pose_cov: NDArray[np.float64],
 ) -> tuple[int, float, float, float]:
-    """Final inliers and two WLS rounds (the second on the inliers of the first); returns
-    ``(n_inliers, tx, ty, θ)`` (``sel`` holds the inliers). With one inlier the WLS cannot
-    fix the rotation: the pose stays, ``pose_cov`` is infinite."""
+    """Final inliers and two WLS rounds (the second on the inliers of the first), from the
+    hypothesis ``hyp`` (tx, ty, θ); returns ``(n_inliers, tx, ty, θ)`` (``sel`` holds the
+    inliers). With one inlier the WLS cannot fix the rotation: the pose stays, ``pose_cov``
+    is infinite."""
+    xa, xb, cov_a, cov_b, oa, ob = a.xy, b.xy, a.cov, b.cov, a.orientation, b.orientation
+    tol, angle_tol = options.tolerance, options.angle_tolerance
+    default_var = options.default_sigma**2
+    tx, ty, th = hyp[0], hyp[1], hyp[2]
     for _ in range(2):
         n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
         if n_sel < need:
@@ -304,6 +301,32 @@ def _hypotheses(
 
 
 @nb.njit(cache=True, nogil=True)
+def _candidates(
+    kind: int, inv_bits: float, a: Side, b: Side, options: KernelOptions
+) -> tuple[NDArray[np.int64], int]:
+    """The candidate matches (descriptor neighbours of A's keypoints among B's): ``m`` and
+    how many of its rows are filled."""
+    m = np.empty((a.xy.shape[0] * max(options.k_nearest, 1), 2), dtype=np.int64)
+    n = candidate_matches(
+        kind,
+        a.bits,
+        a.values,
+        b.bits,
+        b.values,
+        inv_bits,
+        options.k_nearest,
+        options.ratio,
+        options.mutual,
+        options.max_distance,
+        m,
+        a.opening,
+        b.opening,
+        options.max_opening_difference,
+    )
+    return m, n
+
+
+@nb.njit(cache=True, nogil=True)
 def register_pair(
     kind: int,
     inv_bits: float,
@@ -322,30 +345,13 @@ def register_pair(
     matches agreeing on a rotation. The hypotheses are then refined (WLS) and, with the scan
     check on, verified against the scans, best first; the first that passes is the result.
     """
-    tol, angle_tol = options.tolerance, options.angle_tolerance
-    default_var = options.default_sigma**2
+    angle_tol = options.angle_tolerance
     need = max(1 if options.verify_scan else 2, options.min_inliers)
     na = a.xy.shape[0]
     nb_ = b.xy.shape[0]
     if na < need or nb_ < need:
         return FEW_KEYPOINTS, 0, 0, 0.0
-    m = np.empty((na * max(options.k_nearest, 1), 2), dtype=np.int64)
-    n = candidate_matches(
-        kind,
-        a.bits,
-        a.values,
-        b.bits,
-        b.values,
-        inv_bits,
-        options.k_nearest,
-        options.ratio,
-        options.mutual,
-        options.max_distance,
-        m,
-        a.opening,
-        b.opening,
-        options.max_opening_difference,
-    )
+    m, n = _candidates(kind, inv_bits, a, b, options)
     if n < need:
         return FEW_CANDIDATES, 0, n, 0.0
     # inliers imply one rotation, so at least `need` matches must agree on the rotation
@@ -367,25 +373,7 @@ def register_pair(
         if not precheck(a.ranges, a.geometry, b.points, hyp[h, 0], hyp[h, 1], hyp[h, 2], options):
             status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
             continue
-        n_sel, tx, ty, th = _refine(
-            a.xy,
-            b.xy,
-            a.cov,
-            b.cov,
-            a.orientation,
-            b.orientation,
-            m,
-            n,
-            hyp[h, 0],
-            hyp[h, 1],
-            hyp[h, 2],
-            tol,
-            angle_tol,
-            need,
-            default_var,
-            sel,
-            pose_cov,
-        )
+        n_sel, tx, ty, th = _refine(a, b, m, n, hyp[h], options, need, sel, pose_cov)
         best_n = max(best_n, n_sel)
         if n_sel < need:
             continue

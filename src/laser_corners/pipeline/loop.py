@@ -215,47 +215,80 @@ def detect_recording(
             raise TypeError("detect_recording needs a detector unless given a Recording")
         detector = source.detector
     writer = writer if writer is not None else KeypointWriter()
-    holder: Any = source.source if isinstance(source, Recording) else source
-    scans = source.scans() if isinstance(source, Recording) else iter(source)
-    chunks = chunked(scans, holder, max(1, chunk_scans), max(1, step), max_scans)
+    holder, chunks = _chunks(source, chunk_scans, step, max_scans)
     summary = RunSummary()
     report = progress or (lambda _: None)
-    start = time.perf_counter()
-    cpu_start = time.thread_time()
+    start, cpu_start = time.perf_counter(), time.thread_time()
     previous = set_threads(None)
     n_threads = set_threads(threads)
     reader = prefetched(chunks, PREFETCH_CHUNKS) if prefetch else None
     stream: Iterator[Chunk] = iter(reader) if reader is not None else chunks
     try:
-        # several numba threads: whole chunks (a parallel launch per block costs); one thread
-        # and a reader thread: blocks; one thread alone: scan by scan
-        block = max(1, chunk_scans) if n_threads > 1 else (BLOCK_SCANS if prefetch else 0)
+        block = _block_scans(n_threads, chunk_scans, prefetch)
         with stop_requests() as stop:
             _run(stream, detector, writer, summary, report, every, block, start, stop)
     except KeyboardInterrupt:
-        summary.interrupted = True
-        # Ctrl-C inside a chunk's writing: the writer knows how many of its scans it took
-        written = getattr(writer, "n_scans", 0)
-        if written > summary.n_scans:
-            summary.n_scans = written
-            summary.n_keypoints = getattr(writer, "n_keypoints", summary.n_keypoints)
+        _interrupted(summary, writer)
     finally:
-        if reader is not None:
-            reader.stop()
-            summary.reader_seconds = reader.busy_seconds
-            summary.reader_cpu_seconds = reader.cpu_seconds
-        else:
-            chunks.close()
+        _stop_reading(reader, chunks, summary)
         set_threads(previous)
-        t0 = time.perf_counter()
-        writer.close()
-        summary.write_seconds += time.perf_counter() - t0
-        summary.seconds = time.perf_counter() - start
-        summary.cpu_seconds = time.thread_time() - cpu_start
-        summary.skipped = dict(getattr(holder, "skipped", {}))
-        summary.skip_examples = list(getattr(holder, "skip_examples", []))
+        _close_writer(writer, summary)
+        _totals(summary, holder, start, cpu_start)
     report(summary)
     return summary
+
+
+def _chunks(
+    source: Recording | Iterable[LaserScan], chunk_scans: int, step: int, max_scans: int | None
+) -> tuple[Any, Iterator[Chunk]]:
+    """The object that counts skipped messages, and the chunks of scans to detect in."""
+    holder: Any = source.source if isinstance(source, Recording) else source
+    scans = source.scans() if isinstance(source, Recording) else iter(source)
+    return holder, chunked(scans, holder, max(1, chunk_scans), max(1, step), max_scans)
+
+
+def _block_scans(n_threads: int, chunk_scans: int, prefetch: bool) -> int:
+    """Scans per ``detect_many`` call (0: scan by scan with ``detect``).
+
+    Several numba threads: whole chunks (a parallel launch per block costs); one thread and
+    a reader thread: blocks; one thread alone: scan by scan.
+    """
+    return max(1, chunk_scans) if n_threads > 1 else (BLOCK_SCANS if prefetch else 0)
+
+
+def _interrupted(summary: RunSummary, writer: KeypointWriter) -> None:
+    """Mark the run interrupted; after Ctrl-C inside a chunk's writing, the writer knows how
+    many of its scans it took."""
+    summary.interrupted = True
+    written = getattr(writer, "n_scans", 0)
+    if written > summary.n_scans:
+        summary.n_scans = written
+        summary.n_keypoints = getattr(writer, "n_keypoints", summary.n_keypoints)
+
+
+def _stop_reading(reader: Any, chunks: Any, summary: RunSummary) -> None:
+    """Stop the reader thread (its times into ``summary``), or close the chunk generator."""
+    if reader is not None:
+        reader.stop()
+        summary.reader_seconds = reader.busy_seconds
+        summary.reader_cpu_seconds = reader.cpu_seconds
+    else:
+        chunks.close()
+
+
+def _totals(summary: RunSummary, holder: Any, start: float, cpu_start: float) -> None:
+    """The run's wall and CPU time, and the messages the source skipped."""
+    summary.seconds = time.perf_counter() - start
+    summary.cpu_seconds = time.thread_time() - cpu_start
+    summary.skipped = dict(getattr(holder, "skipped", {}))
+    summary.skip_examples = list(getattr(holder, "skip_examples", []))
+
+
+def _close_writer(writer: KeypointWriter, summary: RunSummary) -> None:
+    """Close the writer, its time counted as writing."""
+    t0 = time.perf_counter()
+    writer.close()
+    summary.write_seconds += time.perf_counter() - t0
 
 
 def _run(

@@ -71,6 +71,32 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
+def _open_writer(
+    recording: Recording, out: Path | None, path: str | Path, compression: str | None
+) -> KeypointWriter:
+    """The keypoint writer of ``out`` (a null writer for None), the parameters recorded in
+    its metadata and beside it; Ctrl-C meanwhile closes what was opened and re-raises."""
+    params_yaml = recording.params.to_yaml()
+    writer = open_keypoint_writer(
+        out,
+        recording.source,
+        with_map=recording.has_poses,
+        metadata={
+            "laser_corners.params": params_yaml,
+            "laser_corners.input": str(path),
+            "laser_corners.method": CITATION,
+        },
+        compression=compression,
+    )
+    try:
+        if out is not None:
+            Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")
+    except KeyboardInterrupt:
+        writer.close()
+        raise
+    return writer
+
+
 def detect_file(
     path: str | Path,
     output: str | Path | None = None,
@@ -120,25 +146,10 @@ def detect_file(
     if on_open is not None:
         on_open(recording)
     out = Path(output) if output is not None else None
-    params_yaml = recording.params.to_yaml()
     start = time.perf_counter()
-    writer: KeypointWriter = KeypointWriter()
     try:
-        writer = open_keypoint_writer(
-            out,
-            recording.source,
-            with_map=recording.has_poses,
-            metadata={
-                "laser_corners.params": params_yaml,
-                "laser_corners.input": str(path),
-                "laser_corners.method": CITATION,
-            },
-            compression=compression,
-        )
-        if out is not None:
-            Path(f"{out}.params.yaml").write_text(params_yaml, encoding="utf-8")
+        writer = _open_writer(recording, out, path, compression)
     except KeyboardInterrupt:  # while the writer was opening (a bag copy takes a while)
-        writer.close()
         if out is not None:  # an incomplete copy without keypoints: not worth keeping
             _remove(out)
             Path(f"{out}.params.yaml").unlink(missing_ok=True)

@@ -49,21 +49,9 @@ def plot_observability(
     """
     r = np.asarray(ratio, dtype=float)
     shown = np.ma.masked_where(~np.isfinite(r) | (r <= 0.0), r)
-    if scan_points is not None:
-        pts = np.asarray(scan_points, dtype=float).reshape(-1, 2)
-        ax.plot(pts[:, 0], pts[:, 1], ",", color="0.75", zorder=1)
-    if trajectory is not None:
-        tr = np.asarray(trajectory, dtype=float).reshape(-1, 2)
-        ax.plot(
-            tr[:, 0],
-            tr[:, 1],
-            "-",
-            lw=0.5,
-            color="tab:blue",
-            alpha=0.6,
-            zorder=2,
-            label="sensor path",
-        )
+    _layer(ax, scan_points, ",", color="0.75", zorder=1)
+    trajectory_style = {"lw": 0.5, "color": "tab:blue", "alpha": 0.6, "label": "sensor path"}
+    _layer(ax, trajectory, "-", zorder=2, **trajectory_style)
     image = ax.imshow(
         shown,
         origin="lower",
@@ -74,20 +62,23 @@ def plot_observability(
         interpolation="nearest",
         zorder=3,
     )
-    if features is not None:
-        ft = np.asarray(features, dtype=float).reshape(-1, 2)
-        if len(ft):
-            ax.plot(
-                ft[:, 0],
-                ft[:, 1],
-                "o",
-                mfc="none",
-                mec="tab:green",
-                ms=6,
-                mew=1.0,
-                zorder=4,
-                label="persistent features",
-            )
+    feature_style = {"mfc": "none", "mec": "tab:green", "ms": 6, "mew": 1.0}
+    _layer(ax, features, "o", zorder=4, label="persistent features", **feature_style)
+    _map_axes(ax, extent, title)
+    return image
+
+
+def _layer(ax: Any, xy: ArrayLike | None, fmt: str, **style: Any) -> None:
+    """Draw map-frame points (N, 2) with ``ax.plot``; nothing for None or no points."""
+    if xy is None:
+        return
+    pts = np.asarray(xy, dtype=float).reshape(-1, 2)
+    if len(pts):
+        ax.plot(pts[:, 0], pts[:, 1], fmt, **style)
+
+
+def _map_axes(ax: Any, extent: tuple[float, float, float, float], title: str) -> None:
+    """Limits to the map's extent, equal aspect, metre labels, the title and a legend."""
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     ax.set_aspect("equal")
@@ -97,7 +88,6 @@ def plot_observability(
         ax.set_title(title)
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="upper right", fontsize=7)
-    return image
 
 
 def plot_pair_std_matrix(ax: Any, pair_std: ArrayLike, title: str = "") -> Any:
