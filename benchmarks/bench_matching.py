@@ -19,9 +19,9 @@ import numba
 import numpy as np
 
 from laser_corners import CornerDetector
-from laser_corners.covariance import keypoint_covariances
 from laser_corners.eval.real import load_scans
-from laser_corners.kernel import kernel_config
+from laser_corners.kernel.candidates import kernel_config
+from laser_corners.kernel.covariance import keypoint_covariances
 from laser_corners.matching import KeypointBank, MatchOptions, describe, register_many
 from laser_corners.presets import get_preset
 

@@ -46,8 +46,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.errors import InvalidScanError
+from laser_corners.kernel.linefit import (
+    centred_moments,
+    intersect,
+    line_direction,
+    select_from_sums,
+)
 from laser_corners.keypoints import Keypoints
-from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan
 

@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 
 from laser_corners import CornerDetector, DetectorParams
-from laser_corners.covariance import line_fit_covariance
 from laser_corners.eval.covariance import CHI2_2_95, covariance_consistency
+from laser_corners.kernel.covariance import line_fit_covariance
 from laser_corners.sim import corner_scan
 
 

@@ -138,7 +138,7 @@ def test_kernel_matches_reference_on_a_dense_scan() -> None:
         max_point_distance=0.03,
         max_fit_rmse=0.01,
     )
-    from laser_corners.neighbourhood import points_within as _points_within
+    from laser_corners.kernel.neighbourhood import points_within as _points_within
 
     x, y = CornerDetector()._scan_xy(scan)
     assert _points_within(x, y, np.isfinite(x), params.scales[-1]) > 48  # the dense path
@@ -171,8 +171,8 @@ def test_kernel_matches_reference_for_sentinel_layouts(n_scales: int, m: int) ->
 @pytest.mark.parametrize("radius", [0.05, 0.2, 1e-15])
 def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
     """The kernel's grid-based merge against the reference's all-pairs single linkage."""
-    from laser_corners.kernel import C_K0, C_NSC, C_OPEN, C_ORIENT, C_RMSE, C_X, C_Y, NC
-    from laser_corners.merge import M_BEAM, M_NMERGED, M_X, M_Y, NM, merge
+    from laser_corners.kernel.candidates import C_K0, C_NSC, C_OPEN, C_ORIENT, C_RMSE, C_X, C_Y, NC
+    from laser_corners.kernel.merge import M_BEAM, M_NMERGED, M_X, M_Y, NM, merge
 
     rng = np.random.default_rng(3)
     n = 400

@@ -5,7 +5,7 @@ level or inside a function), so an import hidden inside a function still counts.
 
 Layers, lowest first (a module may import its own layer and the layers below):
 
-0. the core: ``errors scan params linefit keypoints detector presets`` and the kernel modules
+0. the core: ``errors scan pose params keypoints detector presets ...`` and ``kernel/`` (numba)
 1. ``io``
 2. ``pipeline``
 3. ``sim``, ``matching``

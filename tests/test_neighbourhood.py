@@ -9,8 +9,8 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from laser_corners.neighbourhood import PAD, counts, extend, padded, reach, within
-from laser_corners.simd import W
+from laser_corners.kernel.neighbourhood import PAD, counts, extend, padded, reach, within
+from laser_corners.kernel.simd import W
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

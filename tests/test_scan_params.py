@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from laser_corners import DetectorParams, InvalidParamsError, LaserScan
-from laser_corners.linefit import X_ON_Y, Y_ON_X, fit_line
+from laser_corners.kernel.linefit import X_ON_Y, Y_ON_X, fit_line
 from laser_corners.params import PAPER_SCALES
 from laser_corners.presets import get_preset
 

@@ -32,10 +32,10 @@ passes only if both neighbourhoods reach at least that fraction of R_k from p_j)
 ``refine_radius`` (each keypoint re-estimated from lines fitted to longer runs of each wall)
 and ``max_gap_beams`` (neighbourhoods step over short runs of dropouts).
 
-The numba kernel lives in :mod:`laser_corners.kernel` (points -> per-point candidates, with
-:mod:`laser_corners.neighbourhood` and :mod:`laser_corners.scale_tests`) and
-:mod:`laser_corners.merge` (merging, refinement, the per-scan and batch drivers); this
-module is the public API around it.
+The numba kernel lives in :mod:`laser_corners.kernel`: :mod:`~laser_corners.kernel.candidates`
+(points -> per-point candidates, with :mod:`~laser_corners.kernel.neighbourhood` and
+:mod:`~laser_corners.kernel.scale_tests`) and :mod:`~laser_corners.kernel.merge` (merging,
+refinement, the per-scan and batch drivers); this module is the public API around it.
 """
 
 from __future__ import annotations
@@ -49,11 +49,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.choice import ParamsChoice
-from laser_corners.covariance import DeferredCovariances, DeferredScanCovariances
 from laser_corners.errors import InvalidParamsError, InvalidScanError
-from laser_corners.kernel import NC, candidates, kernel_config, polar_to_xy
-from laser_corners.keypoints import Keypoints
-from laser_corners.merge import (
+from laser_corners.kernel.candidates import NC, candidates, kernel_config, polar_to_xy
+from laser_corners.kernel.covariance import DeferredCovariances, DeferredScanCovariances
+from laser_corners.kernel.merge import (
     M_BEAM,
     M_K0,
     M_NMERGED,
@@ -70,6 +69,7 @@ from laser_corners.merge import (
     finish,
     raw_rows,
 )
+from laser_corners.keypoints import Keypoints
 from laser_corners.params import DetectorParams
 from laser_corners.scan import LaserScan
 
@@ -86,10 +86,10 @@ def _arrays_from_rows(
     rows: NDArray[np.float64], cov_class: type, cov_lead: tuple, cov_args: tuple
 ) -> tuple[dict[str, NDArray[np.generic]], DeferredCovariances]:
     """The arrays of :class:`Keypoints` from kernel rows, and the deferred covariance of each
-    (:mod:`laser_corners.covariance`): ``cov_class(*cov_lead, xy, beam_index, scale_index,
+    (:mod:`laser_corners.kernel.covariance`): ``cov_class(*cov_lead, xy, beam_index, scale_index,
     n_scales, *cov_args)``, with ``cov_lead`` the scan's x, y (NaN for gaps, not modified
     afterwards) for :class:`DeferredCovariances` and ``cov_args`` the beam spacing in
-    radians and the parameters from :func:`~laser_corners.kernel.kernel_config`.
+    radians and the parameters from :func:`~laser_corners.kernel.candidates.kernel_config`.
     """
     columns = rows.T.copy()  # one row per field, each contiguous: views below
     xy = rows[:, M_X : M_Y + 1].copy()

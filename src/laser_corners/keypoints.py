@@ -60,7 +60,7 @@ class Keypoints:
         representative candidate for merged keypoints); the run is scales k0 ..
         k0 + n_scales - 1. -1 when unknown (keypoints not made by the detector).
     cov : ndarray, shape (M, 2, 2)
-        Covariance of ``xy``, m² (:mod:`laser_corners.covariance`; NaN when unknown). For
+        Covariance of ``xy``, m² (:mod:`laser_corners.kernel.covariance`; NaN when unknown). For
         keypoints from the detector it is computed on first access and then kept, so a
         ``detect`` whose covariances are never read does not pay for them.
     stamp : float or None

@@ -52,7 +52,7 @@ def estimate_range_noise(scan: LaserScan, max_jump: float = 0.2) -> float:
 def second_difference_sigma(r: NDArray[np.float64], max_jump: float) -> float:
     """The estimator of :func:`estimate_range_noise` on ranges in beam order (NaN: a gap).
 
-    Also called from numba code (:mod:`laser_corners.covariance`, on the ranges of the scan's
+    Also called from numba code (:mod:`laser_corners.kernel.covariance`, on the ranges of the scan's
     points).
     """
     n = r.shape[0]

@@ -1,4 +1,4 @@
-"""Monte Carlo consistency of the keypoint covariance (:mod:`laser_corners.covariance`).
+"""Monte Carlo consistency of the keypoint covariance (:mod:`laser_corners.kernel.covariance`).
 
 Each trial simulates one concave corner (two 3 m walls, opening angle uniform in
 [60, 150] degrees, random bisector direction facing the sensor) at a range uniform in

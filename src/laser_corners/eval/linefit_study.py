@@ -3,7 +3,7 @@
 For each line orientation, ``n_samples`` noisy copies of a line of ``n_points`` points are
 fitted with y = β0 + β1·x (eqs. 2-4), x = α0 + α1·y (eqs. 5-7) and the lower-RMSE selection
 (eqs. 8-9), using the same compiled functions as the detector
-(:mod:`laser_corners.linefit`).
+(:mod:`laser_corners.kernel.linefit`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.linefit import fit_x_on_y, fit_y_on_x
+from laser_corners.kernel.linefit import fit_x_on_y, fit_y_on_x
 
 __all__ = ["LineFitStudy", "line_fit_study"]
 

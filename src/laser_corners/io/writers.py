@@ -8,7 +8,7 @@ what was written, and a killed one leaves only the temporary file.
 
 Table columns, one row per keypoint: ``stamp, scan_index, beam_index, x, y,
 opening_angle_deg, orientation, n_scales, rmse, n_merged, cov_xx, cov_xy, cov_yy`` (sensor
-frame; the keypoint covariance, m², see :mod:`laser_corners.covariance`), plus ``map_x,
+frame; the keypoint covariance, m², see :mod:`laser_corners.kernel.covariance`), plus ``map_x,
 map_y`` (the keypoint in the frame of the scan poses) when the recording has poses; empty
 (CSV) or null (Parquet) for a scan without a pose.
 """

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.eval.linefit_study import LineFitStudy
-from laser_corners.linefit import Y_ON_X, fit_line, intersect
+from laser_corners.kernel.linefit import Y_ON_X, fit_line, intersect
 from laser_corners.scan import LaserScan
 
 __all__ = ["neighbourhoods", "plot_line_fit_study", "plot_neighbourhoods"]

@@ -2,19 +2,19 @@
 
 Phases, each a small ``@njit`` function composed here:
 
-1. :func:`polar_to_xy`, then :func:`~laser_corners.neighbourhood.prepare`: gaps become NaN,
+1. :func:`polar_to_xy`, then :func:`~laser_corners.kernel.neighbourhood.prepare`: gaps become NaN,
    coordinates are shifted by the scan's centroid, prefix sums of x, y, x², y², xy and of the
    valid-point count (every fit costs O(1));
-2. :mod:`~laser_corners.neighbourhood`: the neighbourhood bounds of a point for every scale,
-   one outward walk per side (:func:`~laser_corners.neighbourhood.counts`, 16 points at a
-   time with bit masks; :func:`~laser_corners.neighbourhood.reach` with more than three
-   sentinels; the block-skipping :func:`~laser_corners.neighbourhood.walk` for dense scans
+2. :mod:`~laser_corners.kernel.neighbourhood`: the neighbourhood bounds of a point for every scale,
+   one outward walk per side (:func:`~laser_corners.kernel.neighbourhood.counts`, 16 points at a
+   time with bit masks; :func:`~laser_corners.kernel.neighbourhood.reach` with more than three
+   sentinels; the block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` for dense scans
    and gap bridging);
-3. :func:`~laser_corners.scale_tests.screen`: a division-free necessary condition of the
+3. :func:`~laser_corners.kernel.scale_tests.screen`: a division-free necessary condition of the
    RMSE tests (eqs. 8-9) and of the angle test; scales that fail it fail the full test;
-4. :func:`~laser_corners.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
+4. :func:`~laser_corners.kernel.scale_tests.full_test`: the exact per-scale test (eqs. 2-13,
    distance to p_j, opening angle);
-5. :func:`~laser_corners.scale_tests.best_run`: the runs of consecutive passing scales, the
+5. :func:`~laser_corners.kernel.scale_tests.best_run`: the runs of consecutive passing scales, the
    centroid test, the winner.
 
 A point needs ``min_consecutive_scales`` consecutive passing scales (m), so every such run
@@ -38,7 +38,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.neighbourhood import (
+from laser_corners.kernel.neighbourhood import (
     PAD,
     block_boxes,
     counts,
@@ -51,8 +51,8 @@ from laser_corners.neighbourhood import (
     walk,
     within,
 )
+from laser_corners.kernel.scale_tests import best_run, full_test, keep_runs, screen
 from laser_corners.params import DetectorParams
-from laser_corners.scale_tests import best_run, full_test, keep_runs, screen
 
 __all__ = ["KernelConfig", "candidates", "kernel_config", "polar_to_xy", "unpack"]
 
@@ -184,8 +184,7 @@ def candidates(
     """
     cfg = unpack(packed)
     n = x.shape[0]
-    scales = cfg.scales
-    n_scales = scales.shape[0]
+    scales, n_scales = cfg.scales, cfg.scales.shape[0]
     want_table = table.shape[0] == n
     valid, ox, oy, ps = prepare(x, y)
     r2 = scales * scales
@@ -193,25 +192,23 @@ def candidates(
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
     start, stop, inv, screened, passed, res = _buffers(n, n_scales)
     px, py = padded(x, y, valid)
-    m = cfg.min_consecutive_scales
-    top = n_scales - 1
+    m, top = cfg.min_consecutive_scales, n_scales - 1
     st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop = _sentinels(r2, m, n)
+    n_sent = r2_sent.shape[0]
     na = nd = -1  # step counts of the walks to the top sentinel (dense: unused)
-    ahead = False
-    cur = (0, 0, 0, 0, 0, 0)
-    mp, bridging = cfg.min_points, cfg.max_gap_beams > 0
+    ahead, cur = False, (0, 0, 0, 0, 0, 0)
+    mp, bridging, gap = cfg.min_points, cfg.max_gap_beams > 0, cfg.max_gap_beams
     gate = (mp, loose_mse, max_cos2, want_table)
+    _clear(cand, table, want_table)
     for j in range(n):
-        cand[j, C_NSC] = 0.0
-        if want_table:
-            table[j, :, 0:2] = math.nan
-            table[j, :, 2] = 0.0
         if not valid[j]:
             continue
         if dense:  # the sentinel scales only, for now
-            links_ = (valid, next_valid, prev_valid, box)
-            sent = (r2_sent, s_start, s_stop, st, m)
-            _dense_sentinel_bounds(j, x, y, links_, cfg.max_gap_beams, sent, start, stop)
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
+            for i in range(n_sent):
+                start[st - (n_sent - 1 - i) * m] = s_start[i]
+                stop[st - (n_sent - 1 - i) * m] = s_stop[i]
         else:
             if many:  # store the running maxima, for within()
                 na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
@@ -229,15 +226,19 @@ def candidates(
                     stop[k] = j + cd
         # every run of m consecutive scales holds one of the sentinels; a run lies between
         # two failing sentinels, so only scales within m-1 of a passing one can be in one
-        rm = (rm_a, rm_d, na, nd, dense)
-        if not _screen_sentinels(ps, inv, j, start, stop, screened, r2, m, st, gate, rm, bridging):
+        hit = want_table
+        for k in range(st, -1, -m):
+            if not dense and k < st - 2 * m:
+                start[k] = j - within(rm_a, na, r2[k])
+                stop[k] = j + within(rm_d, nd, r2[k])
+            screened[k] = screen(ps, inv, j, start[k], stop[k], mp, loose_mse, max_cos2, bridging)
+            hit |= screened[k]
+        if not hit:
             continue
         if dense:  # again, every scale
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap_beams, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, cfg.max_gap_beams, stop)
-        # bounds of the other scales: dense, already in start/stop (mode 0); with more than
-        # three sentinels, from the stored running maxima (1, after a walk to the largest
-        # scale); else extended from the sentinels' bounds, point by point (2)
+            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, gap, start)
+            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, gap, stop)
+        # the other scales' bounds (the modes of _screen_rest)
         mode = 0 if dense else (1 if many else 2)
         if mode == 1 and st < top:  # again, to the largest scale, storing the running maxima
             na = reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)[0]
@@ -255,7 +256,7 @@ def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
     """Which neighbourhood walk a scan gets, and its structures: (dense, boxes, links).
 
     Dense scans (many points within the largest scale) and gap bridging take the
-    block-skipping :func:`~laser_corners.neighbourhood.walk` (block boxes, next/previous
+    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes, next/previous
     valid point); the others the short branch-free walk, counted per scale on demand.
     """
     dense = max_gap_beams > 0 or points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
@@ -303,53 +304,21 @@ def _buffers(n: int, n_scales: int) -> tuple:
     return start, stop, inv, screened, passed, res
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _dense_sentinel_bounds(j: int, x, y, links_: tuple, gap: int, sent: tuple, start, stop):
-    """Dense walks of p_j to the sentinel radii only; their bounds into ``start``, ``stop``.
-
-    ``links_``: valid, next/previous valid point, block boxes; ``sent``: the sentinels'
-    squared radii (ascending), their start/stop buffers, the top sentinel st and m.
-    """
-    valid, next_valid, prev_valid, box = links_
-    r2_sent, s_start, s_stop, st, m = sent
-    walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
-    walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
-    n_sent = s_start.shape[0]
-    for i in range(n_sent):
-        start[st - (n_sent - 1 - i) * m] = s_start[i]
-        stop[st - (n_sent - 1 - i) * m] = s_stop[i]
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _clear(cand, table, want_table: bool) -> None:
+    """No candidate yet at any point; with the table, no intersection (NaN) and no pass."""
+    cand[:, C_NSC] = 0.0
+    if want_table:
+        table[:, :, 0:2] = math.nan
+        table[:, :, 2] = 0.0
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _walks(j: int, px, py, r2_max: float, r2_a: float, r2_b: float) -> tuple:
-    """Both :func:`~laser_corners.neighbourhood.counts` walks of p_j: arrival, departure."""
+    """Both :func:`~laser_corners.kernel.neighbourhood.counts` walks of p_j: arrival, departure."""
     na, na_a, na_b = counts(j, -1, px, py, r2_max, r2_a, r2_b)
     nd, nd_a, nd_b = counts(j, 1, px, py, r2_max, r2_a, r2_b)
     return na, na_a, na_b, nd, nd_a, nd_b
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _screen_sentinels(
-    ps, inv, j: int, start, stop, screened, r2, m: int, st: int, gate: tuple, rm: tuple, bridging
-) -> bool:
-    """Screen the sentinel scales st, st - m, ... of p_j; True if one passes (or ``want_all``).
-
-    ``rm``: the running maxima and step counts of both walks, and whether the scan is dense
-    (then every sentinel's bounds are in ``start``, ``stop``; else those below the top
-    three come from the running maxima, :func:`~laser_corners.neighbourhood.within`).
-    """
-    rm_a, rm_d, na, nd, dense = rm
-    min_points, loose_mse, max_cos2, want_all = gate
-    hit = want_all
-    for k in range(st, -1, -m):
-        if not dense and k < st - 2 * m:
-            start[k] = j - within(rm_a, na, r2[k])
-            stop[k] = j + within(rm_d, nd, r2[k])
-        screened[k] = screen(
-            ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2, bridging
-        )
-        hit |= screened[k]
-    return hit
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -374,8 +343,8 @@ def _screen_rest(
     want_all. ``rm`` holds the running maxima (mode 1) and step
     counts of both walks, the padded coordinates and the mode: 0, the bounds are already in
     ``start``, ``stop``; 1, from the running maxima
-    (:func:`~laser_corners.neighbourhood.within`); 2, from the bounds of the sentinels next
-    to the scale (:func:`~laser_corners.neighbourhood.extend`).
+    (:func:`~laser_corners.kernel.neighbourhood.within`); 2, from the bounds of the sentinels next
+    to the scale (:func:`~laser_corners.kernel.neighbourhood.extend`).
     """
     rm_a, rm_d, na, nd, px, py, mode = rm
     min_points, loose_mse, max_cos2, want_all = gate
@@ -413,7 +382,7 @@ def _screen_rest(
 def _test_scales(
     x, y, ps, ox, oy, j: int, start, stop, screened, cfg: KernelConfig, limits, passed, res, table
 ) -> None:
-    """The exact test (:func:`~laser_corners.scale_tests.full_test`) of the screened scales
+    """The exact test (:func:`~laser_corners.kernel.scale_tests.full_test`) of the screened scales
     of p_j: ``passed[k]`` and ``res[k]`` (ix, iy, worst rmse, opening, bisector x, y)."""
     want_table = table.shape[0] == x.shape[0]
     for k in range(screened.shape[0]):

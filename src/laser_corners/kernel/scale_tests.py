@@ -15,8 +15,13 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.linefit import centred_moments, intersect, line_direction, select_from_sums
-from laser_corners.neighbourhood import ROW
+from laser_corners.kernel.linefit import (
+    centred_moments,
+    intersect,
+    line_direction,
+    select_from_sums,
+)
+from laser_corners.kernel.neighbourhood import ROW
 
 __all__ = ["best_run", "full_test", "keep_runs", "screen"]
 

@@ -5,7 +5,7 @@ squared radii and returns the three comparison masks as integers (bit t: point t
 farther). Written as a numba loop, LLVM vectorises the distances but assembles each mask
 bit by bit (a masked move and an OR per vector, then a horizontal OR); here the vector
 comparison is bit-cast straight to an integer, one mask-register move on AVX-512 (a
-movemask elsewhere), which makes :func:`~laser_corners.neighbourhood.counts` about a third
+movemask elsewhere), which makes :func:`~laser_corners.kernel.neighbourhood.counts` about a third
 faster. The arithmetic is the scalar kernel's, lane by lane: (x - xj)·(x - xj) +
 (y - yj)·(y - yj) (no fused multiply-add) compared with ``>``, so every bit equals the
 scalar test.

@@ -1,6 +1,6 @@
 """Covariance of the closed-form line fits (eqs. 2-9) and of their intersection (eqs. 10-13).
 
-The building blocks of :mod:`laser_corners.covariance` (steps 1-2 of its docstring): for one
+The building blocks of :mod:`laser_corners.kernel.covariance` (steps 1-2 of its docstring): for one
 neighbourhood, the residual variance of the kept model gives the covariance of the line
 parameters; through the Jacobian of the intersection, the covariance of a scale's keypoint.
 """

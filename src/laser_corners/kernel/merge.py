@@ -15,7 +15,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.kernel import (
+from laser_corners.kernel.candidates import (
     C_K0,
     C_NSC,
     C_OPEN,
@@ -29,7 +29,7 @@ from laser_corners.kernel import (
     polar_to_xy,
     unpack,
 )
-from laser_corners.linefit import intersect, select_from_sums
+from laser_corners.kernel.linefit import intersect, select_from_sums
 
 __all__ = [
     "NM",
@@ -341,7 +341,7 @@ def finish(
 ) -> int:
     """Candidates -> keypoint rows (merged, refined as configured); returns their count.
 
-    ``packed`` is the configuration from :func:`~laser_corners.kernel.kernel_config`.
+    ``packed`` is the configuration from :func:`~laser_corners.kernel.candidates.kernel_config`.
     """
     cfg = unpack(packed)
     if cfg.merge_radius > 0.0:

@@ -6,9 +6,9 @@ For every scale R_k the arrival (departure) neighbourhood of p_j is the run of p
 exactly, for all scales in one pass per side:
 
 * :func:`counts`, for scans with a few dozen points within the largest scale and at most
-  three sentinel scales: the distances of :data:`~laser_corners.simd.W` points at a time,
+  three sentinel scales: the distances of :data:`~laser_corners.kernel.simd.W` points at a time,
   three bit masks of the points farther than each radius
-  (:func:`~laser_corners.simd.far_masks`), the count from the first set bit;
+  (:func:`~laser_corners.kernel.simd.far_masks`), the count from the first set bit;
 * :func:`reach`, with more sentinels: point by point, four steps per iteration,
   branch-free; it stores the running maximum of the squared distance, counted per scale
   afterwards (:func:`within`);
@@ -29,7 +29,7 @@ import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 from numpy.typing import NDArray
 
-from laser_corners.simd import W, far_masks
+from laser_corners.kernel.simd import W, far_masks
 
 __all__ = [
     "PAD",
@@ -371,8 +371,8 @@ def extend(
 
     Equal to :func:`within` on the running maxima: the first ``lo`` distances are at most
     the smaller radius, so the running maximum at a later step is within sqrt(``r2``)
-    exactly when every distance up to it is. :data:`~laser_corners.simd.W` points at a time
-    with :func:`~laser_corners.simd.far_masks`, as :func:`counts` (the first ``lo`` steps
+    exactly when every distance up to it is. :data:`~laser_corners.kernel.simd.W` points at a time
+    with :func:`~laser_corners.kernel.simd.far_masks`, as :func:`counts` (the first ``lo`` steps
     are valid points, so the chunks stay within the padding).
     """
     c = j + PAD

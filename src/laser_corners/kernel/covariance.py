@@ -51,15 +51,15 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.fit_covariance import (
+from laser_corners.kernel.candidates import polar_to_xy, unpack
+from laser_corners.kernel.fit_covariance import (
     fit_terms,
     line_fit_covariance,
     pair_covariance,
     scale_covariance,
     scan_range_noise,
 )
-from laser_corners.kernel import polar_to_xy, unpack
-from laser_corners.merge import nearest, wall_sums
+from laser_corners.kernel.merge import nearest, wall_sums
 
 __all__ = [
     "APEX_FACTOR",
@@ -123,7 +123,8 @@ def _refined_covariance(
     out: NDArray[np.float64],
 ) -> bool:
     """Step 2 for a keypoint refined from longer wall runs (option ``refine_radius``): the
-    runs of :func:`laser_corners.merge.refine` around the keypoint, with its radius halving."""
+    runs of :func:`~laser_corners.kernel.merge.refine` around the keypoint, with its radius
+    halving."""
     apex = nearest(x, y, beam, cx, cy, radius * radius, max_gap)
     rad = radius
     e2 = exclude * exclude
@@ -171,7 +172,7 @@ def keypoint_covariances(
     angle_increment : float
         Beam spacing, radians.
     config : ndarray
-        The detector's parameters from :func:`~laser_corners.kernel.kernel_config`: the
+        The detector's parameters from :func:`~laser_corners.kernel.candidates.kernel_config`: the
         radii R_k (``scales``), ``max_gap_beams`` (the wall runs step over that many dropped
         beams) and the refinement options: when ``refine_radius > 0`` a keypoint's
         covariance comes from the two wall runs the refinement fits (the keypoint is their
