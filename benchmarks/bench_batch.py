@@ -26,7 +26,7 @@ The machine is shared: the load average is printed with the numbers.
 First, fr079.bag alone (4,934 scans of 360 beams): read alone, and through the pipeline's
 detect loop into Parquet, one numba thread, with the ROS 1 bag read by the per-message path
 through rosbags (old, ``BagSource.lean = False``) and by the lean path (new,
-:mod:`laser_corners.io.ros1_lean`), each with the reader thread off and on (``prefetch``),
+:mod:`laser_corners.io.ros1.lean`), each with the reader thread off and on (``prefetch``),
 alternating in the same process, best of ``--repeats``: wall scans/s, and the CPU time of the
 main (detecting and writing) thread and of the reader thread per scan. ``bound`` is
 ``scans / max(thread CPU times)``: what one worker would reach with a core per thread (an

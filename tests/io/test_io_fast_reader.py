@@ -1,4 +1,4 @@
-"""The lean ROS 1 path (``io.ros1_index``, ``io.ros1_lean``, ``io.ros1_runs``) yields exactly
+"""The lean ROS 1 path (``io.ros1.index``, ``io.ros1.lean``, ``io.ros1.runs``) yields exactly
 what the per-message path through rosbags yields: scans, stamps, poses, skips and errors."""
 
 from __future__ import annotations

@@ -10,15 +10,16 @@ READERS = {"rosbag", "carmen", "arrays"}
 WRITERS = {"writers", "bagwriter", "trajectory", "occupancy"}  # + TUM poses, map_server grids
 HELPERS = {
     "poses",
-    "ros1_decode",
-    "ros1_chunks",
-    "ros1_index",
-    "ros1_lean",
-    "ros1_runs",
+    "ros1.decode",
+    "ros1.chunks",
+    "ros1.index",
+    "ros1.lean",
+    "ros1.runs",
     "bagfile",
     "messages",
-    "ros1_writer",
-    "ros1_legacy",
+    "ros1.writer",
+    "ros1.legacy",
+    "ros1",  # the package: a docstring, imports nothing
 }
 LAZY_OK = {"pyarrow", "pyarrow.parquet"}  # heavy: imported when a Parquet writer opens
 
@@ -39,14 +40,24 @@ def _io_imports(path: Path) -> tuple[set[str], list[str]]:
             nested.extend(names)
         for name in names:
             if name.startswith("laser_corners.io."):
-                top.add(name.split(".")[2])
+                top.add(".".join(name.split(".")[2:]))
             elif name == "laser_corners.io":
                 top.add("__init__")
     return top, nested
 
 
+def _io_modules() -> dict[str, Path]:
+    """``laser_corners.io`` modules by name below ``io`` (``base``, ``ros1.lean``, ``ros1``)."""
+    names = {}
+    for path in IO.rglob("*.py"):
+        parts = path.relative_to(IO).with_suffix("").parts
+        parts = parts[:-1] if parts[-1] == "__init__" and len(parts) > 1 else parts
+        names[".".join(parts)] = path
+    return names
+
+
 def test_io_imports_only_go_down() -> None:
-    graph = {p.stem: _io_imports(p) for p in IO.glob("*.py")}
+    graph = {name: _io_imports(path) for name, path in _io_modules().items()}
     layer = {"partial": -1, "base": 0, **dict.fromkeys(HELPERS, 1)}
     layer |= {**dict.fromkeys(READERS | WRITERS, 2), "registry": 3, "__init__": 4, "run": 5}
     assert set(graph) <= set(layer), f"unplaced modules: {set(graph) - set(layer)}"
@@ -71,9 +82,10 @@ def test_io_imports_only_go_down() -> None:
 
 
 def test_io_modules_and_functions_are_small() -> None:
-    for path in IO.glob("*.py"):
+    for path in _io_modules().values():
         source = path.read_text()
-        assert len(source.splitlines()) < 400, f"{path.name}: {len(source.splitlines())} lines"
+        # the package's module backstop (tests/test_layering.py); functions <= 80 lines
+        assert len(source.splitlines()) <= 600, f"{path.name}: {len(source.splitlines())} lines"
         for node in ast.walk(ast.parse(source)):
             if isinstance(node, ast.FunctionDef):
                 length = node.end_lineno - node.lineno + 1  # type: ignore[operator]

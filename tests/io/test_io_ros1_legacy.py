@@ -18,7 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from laser_corners import CornerDetector
 from laser_corners.io import open_keypoint_writer, open_scans
-from laser_corners.io.ros1_legacy import modern_names
+from laser_corners.io.ros1.legacy import modern_names
 from laser_corners.io.rosbag import BagSource
 from laser_corners.pipeline import detect_recording
 

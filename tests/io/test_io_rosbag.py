@@ -20,7 +20,7 @@ from laser_corners.io import (
     open_scans,
 )
 from laser_corners.io.poses import yaw_from_quaternion
-from laser_corners.io.ros1_decode import (
+from laser_corners.io.ros1.decode import (
     decode_ros1_laserscan,
     decode_ros1_odometry,
     decode_ros1_tf,

@@ -2,7 +2,7 @@
 
 The bag source and the bag writer both read bags through :func:`open_bag_reader` and
 :func:`iter_messages`. A ROS 1 bag whose index rosbags refuses is read from its chunk records
-(:class:`~laser_corners.io.ros1_chunks.ChunkOrderReader`); only when that fails too is the
+(:class:`~laser_corners.io.ros1.chunks.ChunkOrderReader`); only when that fails too is the
 file blamed. In a ROS 1 bag, :func:`lean_pieces` locates the messages chunk by chunk and skips
 (reporting them) the chunks that cannot be decompressed and the damaged message records, so
 the source and the bag writer read on after damage.
@@ -26,10 +26,10 @@ from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.typesys import Stores, get_typestore
 
 from laser_corners.errors import InputError, first_line
-from laser_corners.io.ros1_chunks import ChunkOrderReader
-from laser_corners.io.ros1_index import LeanIndexReader, LeanPlan, ModernNamesReader
-from laser_corners.io.ros1_lean import locate
-from laser_corners.io.ros1_runs import DAMAGED_CHUNK, DAMAGED_RECORD, ChunkCache
+from laser_corners.io.ros1.chunks import ChunkOrderReader
+from laser_corners.io.ros1.index import LeanIndexReader, LeanPlan, ModernNamesReader
+from laser_corners.io.ros1.lean import locate
+from laser_corners.io.ros1.runs import DAMAGED_CHUNK, DAMAGED_RECORD, ChunkCache
 
 __all__ = [
     "CHUNK_ERRORS",
@@ -95,7 +95,7 @@ def _chunk_reader(path: Path, refused: BaseException) -> AnyReader:
 def open_bag_reader(path: Path, kind: str, lean: bool = True) -> Iterator[AnyReader]:
     """An open rosbags ``AnyReader`` of the bag ``path`` of ``kind`` (closed on exit).
 
-    A ROS 1 bag is read by :class:`~laser_corners.io.ros1_index.LeanIndexReader` (rosbags'
+    A ROS 1 bag is read by :class:`~laser_corners.io.ros1.index.LeanIndexReader` (rosbags'
     reader, its index read with numpy; ``lean=False``: rosbags' own), with today's names for
     the types of bags recorded before ROS Electric (``roslib/Header``); one whose index
     rosbags refuses is read from its chunk records instead.

@@ -8,7 +8,7 @@ header (stamp and frame) and the scan's log time:
 * ``<scan_topic>_corner_markers``: ``visualization_msgs/msg/MarkerArray`` (a DELETEALL then one
   arrow per keypoint).
 
-A ROS 1 input gives a ``.bag`` (:class:`~laser_corners.io.ros1_writer.RosbagWriter`: rosbags'
+A ROS 1 input gives a ``.bag`` (:class:`~laser_corners.io.ros1.writer.RosbagWriter`: rosbags'
 writer with rosbag's header layout, chunks compressed with ``lz4`` by default, or ``bz2`` or
 ``none``); a ROS 2 or MCAP input gives one ``.mcap`` file (rosbags' ROS 2 MCAP storage, every
 message type's definition inside; rosbags and ``open_scans`` read it alone). The input is
@@ -38,7 +38,7 @@ from laser_corners.errors import InputError, OutputError
 from laser_corners.io.bagfile import BagInput, iter_messages, open_bag_reader, stock_typestore
 from laser_corners.io.base import KeypointWriter, PartialOutput
 from laser_corners.io.messages import keypoints_to_marker_fields, keypoints_to_pose_array_fields
-from laser_corners.io.ros1_writer import COMPRESSIONS, RosbagWriter
+from laser_corners.io.ros1.writer import COMPRESSIONS, RosbagWriter
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 

@@ -3,7 +3,7 @@
 Messages are matched on the type name ``sensor_msgs/msg/LaserScan`` and deserialized by the
 reader's typestore (from the bag's own definitions, else a stock typestore from
 ``get_typestore``), so no ROS installation is needed. A ROS 1 bag whose index rosbags refuses
-is read from its chunk records (:mod:`laser_corners.io.ros1_chunks`).
+is read from its chunk records (:mod:`laser_corners.io.ros1.chunks`).
 
 Sensor pose (:mod:`laser_corners.io.poses`): when the bag has a ``nav_msgs/msg/Odometry``
 topic, each scan gets the pose of its frame in the odometry frame, interpolated at its stamp.
@@ -12,10 +12,10 @@ Speed: the bag is read in one pass (scans, odometry and tf in log-time order, ea
 decompressed once); a scan waits in a small look-ahead buffer until an odometry sample stamped
 after it has been read, which gives the pose the whole-bag track (:meth:`BagSource.pose_track`)
 gives. ROS 1 LaserScan, Odometry and TFMessage bytes are decoded with ``struct``/numpy
-(:mod:`laser_corners.io.ros1_decode`); a message whose lengths do not add up, and every
+(:mod:`laser_corners.io.ros1.decode`); a message whose lengths do not add up, and every
 ROS 2/MCAP message, goes through rosbags' deserializer. ROS 1 bags of standard definitions are
 read by the lean path (:meth:`BagSource._lean_scans`: the messages of each chunk located and
-decoded in blocks, :mod:`laser_corners.io.ros1_lean`), which yields exactly what the
+decoded in blocks, :mod:`laser_corners.io.ros1.lean`), which yields exactly what the
 per-message path yields; ``BagSource.lean = False`` turns it off.
 """
 
@@ -46,7 +46,7 @@ from laser_corners.io.poses import (
     frame_name,
     track_from,
 )
-from laser_corners.io.ros1_decode import (
+from laser_corners.io.ros1.decode import (
     LASERSCAN,
     ODOMETRY,
     ROS1_DIGESTS,
@@ -58,9 +58,9 @@ from laser_corners.io.ros1_decode import (
     odometry_of,
     transforms_of,
 )
-from laser_corners.io.ros1_index import LeanPlan
-from laser_corners.io.ros1_lean import finite_pose
-from laser_corners.io.ros1_runs import (
+from laser_corners.io.ros1.index import LeanPlan
+from laser_corners.io.ros1.lean import finite_pose
+from laser_corners.io.ros1.runs import (
     LOST_SCANS,
     SCAN,
     ChunkRun,
@@ -109,7 +109,7 @@ class BagSource(ScanSource):
     """
 
     lean: bool = True
-    """Read ROS 1 bags with :mod:`laser_corners.io.ros1_lean` where it applies (False: the
+    """Read ROS 1 bags with :mod:`laser_corners.io.ros1.lean` where it applies (False: the
     per-message path through rosbags, e.g. to compare them)."""
 
     def __init__(
@@ -272,7 +272,7 @@ class BagSource(ScanSource):
         self, reader: Any, topics: list[str], track: StreamingTrack | None
     ) -> Iterator[LaserScan]:
         """What the per-message loop of :meth:`_scans` yields, chunk run by chunk run
-        (:mod:`laser_corners.io.ros1_lean`); an undecompressable chunk or a damaged record is
+        (:mod:`laser_corners.io.ros1.lean`); an undecompressable chunk or a damaged record is
         a counted skip (with its scans), and reading goes on after it."""
         connections = [c for c in reader.connections if c.topic in topics]
         plan = LeanPlan.of(connections)

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from rosbags.rosbag1 import Reader, ReaderError
 from rosbags.rosbag1.reader import IndexData, deserialize_uint32
 
-from laser_corners.io.ros1_legacy import modern_connection
+from laser_corners.io.ros1.legacy import modern_connection
 
 __all__ = ["LeanIndexReader", "LeanPlan", "ModernNamesReader"]
 
@@ -29,7 +29,7 @@ _ENTRY = np.dtype([("sec", "<u4"), ("nsec", "<u4"), ("offset", "<u4")])  # INDEX
 
 class ModernNamesReader(Reader):
     """rosbags' ROS 1 reader whose connections carry today's type names (bags recorded before
-    ROS Electric, :mod:`laser_corners.io.ros1_legacy`)."""
+    ROS Electric, :mod:`laser_corners.io.ros1.legacy`)."""
 
     def open(self) -> None:
         """Open the bag and read its index (as ``Reader.open``), then rename old types."""
@@ -93,7 +93,7 @@ class LeanIndexReader(ModernNamesReader):
 
         The record header is read as ``Reader.read_index_data`` reads it (the field layout
         of the first record assumed for all, the same checks and errors), so the same bags
-        are refused (and then read from their chunks, :mod:`laser_corners.io.ros1_chunks`).
+        are refused (and then read from their chunks, :mod:`laser_corners.io.ros1.chunks`).
         """
         assert self.bio
         buf = self.bio.read(55)

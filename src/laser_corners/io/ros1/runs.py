@@ -1,7 +1,7 @@
 """Runs of ROS 1 bag messages that lie in one chunk, decoded in blocks (the lean path).
 
 :class:`ChunkRun` holds the messages of one run located by
-:func:`~laser_corners.io.ros1_lean.locate`: scans and odometry decoded as matrices where their
+:func:`~laser_corners.io.ros1.lean.locate`: scans and odometry decoded as matrices where their
 layout allows, tf messages that repeat the transforms of an earlier one marked; the bag source
 (:class:`~laser_corners.io.rosbag.BagSource`) walks the run in order.
 """
@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 from rosbags.rosbag1 import Reader as Reader1
 from rosbags.rosbag1.reader import read_bytes
 
-from laser_corners.io.ros1_decode import ODOMETRY
-from laser_corners.io.ros1_lean import (
+from laser_corners.io.ros1.decode import ODOMETRY
+from laser_corners.io.ros1.lean import (
     ScanBlock,
     decode_odometry_block,
     decode_scan_block,
@@ -76,7 +76,7 @@ def kind_of(connection: Any, scan_topic: str) -> int:
 
 
 def lean_readable(reader: Any, topics: list[str], fast: set[int]) -> bool:
-    """Whether the lean path (:mod:`laser_corners.io.ros1_lean`) reads these topics: one
+    """Whether the lean path (:mod:`laser_corners.io.ros1.lean`) reads these topics: one
     ROS 1 bag read by rosbags' reader, standard message definitions only."""
     if reader.is2 or len(reader.readers) != 1 or not isinstance(reader.readers[0], Reader1):
         return False

@@ -1,14 +1,14 @@
 """A lean ROS 1 message path: whole chunks located and decoded with numpy, not per message.
 
 rosbags' ROS 1 reader yields one message at a time through Python (an index entry, a seek, a
-generic record-header parse, a copy): with the decoders of :mod:`laser_corners.io.ros1_decode`
+generic record-header parse, a copy): with the decoders of :mod:`laser_corners.io.ros1.decode`
 that loop was most of the reader's time on scan bags. Here the order and places of the
 messages still come from rosbags' index (``Reader.indexes``: every message's log time, chunk
 and offset), so the order is exactly the one of ``AnyReader.messages`` (by time, ties by
 connection then index order: a stable sort of the per-connection lists), but each run of
 messages that lies in one chunk is handled at once:
 
-* the order comes from :class:`~laser_corners.io.ros1_index.LeanPlan`;
+* the order comes from :class:`~laser_corners.io.ros1.index.LeanPlan`;
 * the chunk is decompressed once (bz2 and lz4 release the GIL, so a reader thread overlaps
   this with the detector) and kept while the run order comes back to it;
 * the MESSAGE_DATA record headers (https://wiki.ros.org/Bags/Format/2.0, op 0x02) of the run
@@ -36,7 +36,7 @@ from rosbags.rosbag1 import ReaderError
 from rosbags.rosbag1.reader import Header, RecordType, read_bytes, read_uint32
 
 from laser_corners.io.poses import yaw_from_quaternion
-from laser_corners.io.ros1_decode import (
+from laser_corners.io.ros1.decode import (
     decode_ros1_laserscan,
     decode_ros1_odometry,
     decode_ros1_tf,

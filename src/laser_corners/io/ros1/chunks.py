@@ -44,7 +44,7 @@ from rosbags.rosbag1.reader import (
 )
 from rosbags.typesys.msg import normalize_msgtype
 
-from laser_corners.io.ros1_legacy import modern_connection
+from laser_corners.io.ros1.legacy import modern_connection
 
 __all__ = ["ChunkOrderReader"]
 
