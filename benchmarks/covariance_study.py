@@ -5,7 +5,7 @@ Usage::
     PYTHONPATH=src python benchmarks/covariance_study.py [--trials 3000] [--seed 0]
 
 For the ``robust`` and ``paper`` presets: simulated concave corners (UST-10LX, noise uniform in
-[0, 0.03] m, ranges 0.5-8 m, see :mod:`laser_corners.eval.covariance`); prints, overall and
+[0, 0.03] m, ranges 0.5-8 m, see ``benchmarks/covariance_consistency.py``); prints, overall and
 per noise band and range band, the keypoints scored, the fraction of true corners inside the
 keypoint's 95 % ellipse (target 0.95; accepted 0.92-0.98) and the median NEES (1.39 for a
 consistent covariance; accepted 0.7-2), as a Markdown table.
@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-from laser_corners.eval.covariance import CHI2_2_95, covariance_consistency
+from covariance_consistency import CHI2_2_95, covariance_consistency
 from laser_corners.params import DetectorParams
 
 

@@ -1,5 +1,11 @@
-"""FROZEN copy of ``src/laser_corners/detector.py`` at main 91ca792, used only by
-``benchmarks/bench_detector.py`` to time today's kernel against it; do not edit the code.
+"""FROZEN copy of ``src/laser_corners/detector.py`` at main 91ca792; do not edit the code.
+
+Kept on purpose, as the "old" reference: ``benchmarks/bench_detector.py`` times today's
+kernel against it in the same process (its ``old ms`` and ``new/old`` columns, robust to the
+load of a shared machine), and ``tests/test_detector_reference.py`` checks today's kernel
+against it on 100,000-beam scans, too large for the pure-Python reference. Only the imports
+of the modules it shares with the package (``laser_corners.kernel.linefit``) follow the
+package's layout.
 
 The corner-like keypoint detector of Sousa et al. (ICARA 2024), section III.
 

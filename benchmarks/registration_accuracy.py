@@ -25,9 +25,9 @@ from pathlib import Path
 from laser_corners import CornerDetector
 from laser_corners.eval.poses import read_relations
 from laser_corners.eval.real import load_scans, pairs_from_relations
-from laser_corners.eval.registration import consecutive_pairs, registration_errors
 from laser_corners.matching import MatchOptions
 from laser_corners.presets import get_preset
+from registration_errors import consecutive_pairs, registration_errors
 
 LOCAL_GAP = 10
 """Relation pairs at most this many scans apart are 'local', the others 'revisits'."""

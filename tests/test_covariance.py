@@ -7,10 +7,13 @@ from dataclasses import replace
 
 import numpy as np
 
+from benchmark_modules import load
 from laser_corners import CornerDetector, DetectorParams
-from laser_corners.eval.covariance import CHI2_2_95, covariance_consistency
 from laser_corners.kernel.covariance import line_fit_covariance
 from laser_corners.sim import corner_scan
+
+_study = load("covariance_consistency")  # the Monte Carlo study, in benchmarks/
+CHI2_2_95, covariance_consistency = _study.CHI2_2_95, _study.covariance_consistency
 
 
 def test_line_fit_covariance_matches_ols_formula() -> None:

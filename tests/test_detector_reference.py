@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import reference_detector as ref
+from benchmark_modules import load
 from laser_corners import CornerDetector, DetectorParams, LaserScan
 from laser_corners.sim import UST_10LX, SensorProfile, World, corner_scan, rectangular_room
 
@@ -201,18 +202,7 @@ def test_grid_merge_equals_single_linkage_by_all_pairs(radius: float) -> None:
 def _frozen_detector_class() -> type:
     """``CornerDetector`` of the frozen kernel of 91ca792 (checked against the reference by
     this file's tests at that commit): an independent implementation for large scans."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    name = "frozen_kernel_91ca792"
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-        sys.modules[name] = module
-        spec.loader.exec_module(module)  # type: ignore[union-attr]
-    return sys.modules[name].CornerDetector
+    return load("frozen_kernel_91ca792").CornerDetector
 
 
 def test_kernel_matches_frozen_kernel_on_a_100k_beam_scan() -> None:

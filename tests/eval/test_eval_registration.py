@@ -6,9 +6,12 @@ import math
 
 import numpy as np
 
-from laser_corners.eval.registration import consecutive_pairs, registration_errors
+from benchmark_modules import load
 from laser_corners.scan import relative_pose
 from laser_corners.sim import World
+
+_study = load("registration_errors")  # the study, in benchmarks/
+consecutive_pairs, registration_errors = _study.consecutive_pairs, _study.registration_errors
 
 
 def _room() -> World:
