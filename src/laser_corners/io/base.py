@@ -23,11 +23,10 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
-from types import TracebackType
 from typing import Literal
 
 from laser_corners.errors import InputError
-from laser_corners.io.partial import PartialOutput, file_mode, refuse_input
+from laser_corners.io.partial import ClosesOnExit, PartialOutput, file_mode, refuse_input
 from laser_corners.keypoints import Keypoints
 from laser_corners.scan import LaserScan
 
@@ -195,7 +194,7 @@ class WriterSummary:
     complete: bool
 
 
-class KeypointWriter:
+class KeypointWriter(ClosesOnExit):
     """Writes nothing: the writer used when no output is asked for (and the base class).
 
     Every writer has the same calls, :meth:`write` (or :meth:`write_many`) and :meth:`close`,
@@ -242,14 +241,3 @@ class KeypointWriter:
         partial = self._partial
         path = self.path if self.closed or partial is None else partial.temporary
         return WriterSummary(path, self.n_scans, self.n_keypoints, self.closed)
-
-    def __enter__(self) -> KeypointWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

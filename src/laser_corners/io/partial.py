@@ -5,7 +5,9 @@
   run never leaves a half-written file under the final name; it gets the mode any new file
   gets (``0o666`` less the umask, :func:`file_mode`), not ``mkstemp``'s 0600;
 * :func:`refuse_input`: an output that is one of the inputs (same file by inode, also through
-  a link) is refused before anything is written.
+  a link) is refused before anything is written;
+* :class:`ClosesOnExit`: a writer used in a ``with`` block is closed on the way out (also on
+  errors).
 """
 
 from __future__ import annotations
@@ -16,10 +18,34 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from types import TracebackType
+from typing import TypeVar
 
 from laser_corners.errors import OutputError
 
-__all__ = ["PARTIAL_SUFFIX", "PartialOutput", "file_mode", "refuse_input"]
+__all__ = ["PARTIAL_SUFFIX", "ClosesOnExit", "PartialOutput", "file_mode", "refuse_input"]
+
+_W = TypeVar("_W", bound="ClosesOnExit")
+
+
+class ClosesOnExit:
+    """A writer as a context manager: ``with`` gives the writer and closes it on the way out."""
+
+    def close(self) -> None:
+        """Finish the output (subclasses)."""
+        raise NotImplementedError
+
+    def __enter__(self: _W) -> _W:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
 
 PARTIAL_SUFFIX = ".partial"
 """An output path ending in this is a caller's own temporary name (see :class:`PartialOutput`)."""

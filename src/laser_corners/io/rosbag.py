@@ -363,31 +363,15 @@ class BagSource(ScanSource):
         pose = track.pose(stamp, item.frame_id) if track is not None else None
         if track is not None and item.frame_id not in self.mounts:
             self.mounts[item.frame_id] = track.mount_of(item.frame_id)
+        geometry = (item.angle_min, item.angle_increment, item.range_min, item.range_max)
+        fields = (*geometry, stamp, item.frame_id, pose)
         if item.checked and finite_pose(pose):  # the lean path checked the geometry
             self.stamps_ns.append(item.stamp_ns)
             self.log_times_ns.append(item.log_time_ns)
-            yield LaserScan.from_checked(
-                item.ranges,
-                item.angle_min,
-                item.angle_increment,
-                item.range_min,
-                item.range_max,
-                stamp,
-                item.frame_id,
-                pose,
-            )
+            yield LaserScan.from_checked(item.ranges, *fields)
             return
         try:
-            scan = LaserScan(
-                item.ranges.astype(np.float64),
-                item.angle_min,
-                item.angle_increment,
-                item.range_min,
-                item.range_max,
-                stamp,
-                item.frame_id,
-                pose,
-            )
+            scan = LaserScan(item.ranges.astype(np.float64), *fields)
         except InvalidScanError as exc:
             self._skip("invalid LaserScan fields", item.where, str(exc))
             return

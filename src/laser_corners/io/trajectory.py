@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from types import TracebackType
 from typing import TextIO
 
 import numpy as np
@@ -22,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.errors import InputError, OutputError
 from laser_corners.io.base import PartialOutput
+from laser_corners.io.partial import ClosesOnExit
 
 __all__ = ["TumWriter", "read_numeric_table", "read_tum", "write_tum", "yaw_quaternion"]
 
@@ -38,7 +38,7 @@ def _line(stamp: float, x: float, y: float, yaw: float) -> str:
     return f"{stamp:.9f} {x:.9g} {y:.9g} 0 0 0 {math.sin(half):.9g} {math.cos(half):.9g}\n"
 
 
-class TumWriter:
+class TumWriter(ClosesOnExit):
     """Write planar poses to a TUM trajectory, one line per :meth:`write`.
 
     Parameters
@@ -108,17 +108,6 @@ class TumWriter:
             self._partial.discard()
             raise OutputError(f"{self.path}: cannot write ({exc.strerror})") from None
         self._partial.publish()
-
-    def __enter__(self) -> TumWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def write_tum(
