@@ -128,7 +128,7 @@ class MappingAdapter:
         self.map_pub = node.create_publisher(m.OccupancyGrid, "map", latched)
         self.marker_pub = node.create_publisher(m.MarkerArray, "landmarks", latched)
         self._subscribe(sensor, latched, depth)
-        node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
+        scan_sub = node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
         if self.config.mode == "localise":
             node.create_subscription(
                 m.PoseWithCovarianceStamped, "/initialpose", self.on_initial_pose, 10
@@ -137,7 +137,7 @@ class MappingAdapter:
         node.create_timer(1.0, self.on_timer)
         odometry = self.config.odom_topic or "/tf"
         node.get_logger().info(
-            f"mode {self.config.mode}: scans on {node.resolve_topic_name('scan')}, odometry "
+            f"mode {self.config.mode}: scans on {scan_sub.topic_name}, odometry "
             f"from {odometry}; publishing {self.pose_pub.topic_name}, {self.map_pub.topic_name}"
         )
 

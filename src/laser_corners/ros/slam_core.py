@@ -229,6 +229,17 @@ class OdometryBook:
         return self.track.mount_of(laser_frame) if self.base_frame else None
 
 
+def _read_landmarks(path: Path) -> NDArray[np.float64]:
+    """``x, y`` of a map folder's ``landmarks.csv`` (header line, then one row each)."""
+    if not path.is_file():
+        return np.zeros((0, 2))
+    try:
+        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    except ValueError as exc:
+        raise InputError(f"{path}: {exc}") from None
+    return table[:, :2].copy() if table.size else np.zeros((0, 2))
+
+
 @dataclass
 class Update:
     """What one scan produced: the base pose in the map frame and ``map -> odom``."""
@@ -279,8 +290,10 @@ class MappingCore:
         self._grid_at = -math.inf
         self._grid_keyframes = -1
         self.saved_grid: OccupancyGrid | None = None
+        self._saved_landmarks = np.zeros((0, 2))
         if config.mode == "localise":
             self.saved_grid = self._check_map(Path(config.map))
+            self._saved_landmarks = _read_landmarks(Path(config.map) / "landmarks.csv")
 
     @staticmethod
     def _check_map(folder: Path) -> OccupancyGrid:
@@ -418,9 +431,9 @@ class MappingCore:
         """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
         if self.config.mode == "slam" and self.estimator is not None:
             return np.asarray(self.estimator.kf.landmarks().xy, dtype=np.float64).reshape(-1, 2)
-        source = getattr(self.estimator, "landmarks", None)
-        xy = getattr(source, "xy", None)
-        return np.zeros((0, 2)) if xy is None else np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if self.config.mode == "localise":
+            return self._saved_landmarks
+        return np.zeros((0, 2))
 
     def summary(self) -> str:
         """Counts and timing, for the log line at shutdown."""
