@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.localise.mapmodel import MapModel, _distinct
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import Alignment, icp, match_share
+from laser_corners.slam.align import Alignment, icp
 from laser_corners.slam.geometry import between, compose, invert
 from laser_corners.slam.mapfile import SavedMap, load_map
 from laser_corners.slam.points import scan_points
@@ -344,7 +344,18 @@ class Localiser:
             or best.score() < opt.fix_agreement
         ):
             return None
-        rivals = [h.score() for h in self.hypotheses if h is not best]
-        if rivals and max(rivals) > best.score() - opt.fix_margin:
-            return None
+        for rival in self.hypotheses:
+            if rival is not best and _lead(best, rival) < opt.fix_margin:
+                return None
         return best
+
+
+def _lead(best: Hypothesis, rival: Hypothesis) -> float:
+    """Mean lead in agreement of ``best`` over ``rival`` on the scans both have scored (the
+    last ones); a rival scored on fewer than 3 scans is not beaten yet."""
+    k = min(len(best.recent), len(rival.recent))
+    if k < 3:
+        return -1.0
+    a = list(best.recent)[-k:]
+    b = list(rival.recent)[-k:]
+    return float(np.mean(np.subtract(a, b)))

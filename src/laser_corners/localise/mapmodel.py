@@ -87,7 +87,7 @@ class MapModel:
         keep = _voxel_thin(xy, options.map_spacing) if len(xy) else np.zeros(0, np.int64)
         xy, normals, line = xy[keep], normals[keep], line[keep]
         self.saved = saved
-        self.n_points = int(len(xy))
+        self.n_points = len(xy)
         self.lines = PointMap.build(xy[line], normals[line])
         self.every = PointMap.build(xy, np.zeros_like(xy))
         self.grid = ScoreGrid.build(xy, GLOBAL_GRID, GLOBAL_SIGMA, margin=1.0)

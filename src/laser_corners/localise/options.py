@@ -67,14 +67,14 @@ class LocaliseOptions(Options):
     """A hypothesis whose recent agreement falls below this is dropped."""
     fix_agreement: float = Field(0.7, ge=0.0, le=1.0)
     """Recent agreement a hypothesis needs to become the fix."""
-    fix_margin: float = Field(0.12, ge=0.0, le=1.0)
-    """Every other hypothesis (more than ``distinct_xy`` / ``distinct_yaw`` away) must agree
-    less than the winner by this much."""
+    fix_margin: float = Field(0.04, ge=0.0, le=1.0)
+    """Every other hypothesis must agree less than the winner by this much on average over
+    the recent scans both were scored on (at least 3): a share of the scan's points."""
     fix_travel: float = Field(1.0, ge=0.0, le=100.0)
     """Odometry travel (m, turns counted as 0.5 m per radian) the winner must have survived."""
     fix_scans: int = Field(10, ge=1, le=10000)
     """Scans the winner must have survived."""
-    recent_scans: int = Field(10, ge=1, le=1000)
+    recent_scans: int = Field(20, ge=3, le=1000)
     """Window (scans) of the recent agreement of a hypothesis."""
     distinct_xy: float = Field(0.5, ge=0.0, le=100.0)
     """Hypotheses closer than this (m) and ``distinct_yaw`` are one (the younger is merged)."""
