@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from laser_corners.errors import InputError, InvalidParamsError
-from laser_corners.localise import Localiser, LocaliseOptions
+from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import SlamOptions
 from laser_corners.slam.geometry import between_many, compose
@@ -87,7 +87,9 @@ def building_map(tmp_path_factory):
 
 def localise(folder, truth, scans, odometry, options=None):
     loc = Localiser(folder, options)
-    estimates = [loc.add(s, o, i / RATE) for i, (s, o) in enumerate(zip(scans, odometry))]
+    estimates = [
+        loc.add(s, o, i / RATE) for i, (s, o) in enumerate(zip(scans, odometry, strict=True))
+    ]
     return loc, estimates
 
 
@@ -127,7 +129,7 @@ def test_tracking_from_an_initial_pose_is_accurate_and_cheap(building_map) -> No
     odo = noisy_odometry(truth, 9)
     estimates = [
         loc.add(s, o, i / RATE)
-        for i, (s, o) in enumerate(zip(scans_along(building(), truth, 9), odo))
+        for i, (s, o) in enumerate(zip(scans_along(building(), truth, 9), odo, strict=True))
     ]
     d, yaw = errors(estimates, truth)
     assert len(d) >= 0.98 * len(truth)
@@ -152,7 +154,9 @@ def test_kidnap_is_detected_and_relocalised(building_map) -> None:
     loc.set_pose(drive[0])
     estimates = [
         loc.add(s, o, i / RATE)
-        for i, (s, o) in enumerate(zip(scans_along(building(), drive, 4), np.array(odo)))
+        for i, (s, o) in enumerate(
+            zip(scans_along(building(), drive, 4), np.array(odo), strict=True)
+        )
     ]
     assert loc.counts["lost"] == 1
     assert len(loc.fixes) == 1 and loc.fixes[0].scan_index > 200  # relocalised after the jump
