@@ -221,8 +221,54 @@ def test_invalid_parameters_give_one_line(values, message) -> None:
 
 def test_missing_map_folder_is_one_line(tmp_path) -> None:
     config = MappingConfig.from_mapping({"mode": "localise", "map": str(tmp_path / "nope")})
-    with pytest.raises(InputError, match="no such folder"):
+    with pytest.raises(InputError, match="nope: no such map folder"):
         MappingCore(config)
+    (tmp_path / "empty").mkdir()
+    config = MappingConfig.from_mapping({"mode": "localise", "map": str(tmp_path / "empty")})
+    with pytest.raises(InputError, match=r"keyframes\.npz missing"):
+        MappingCore(config)
+
+
+def _feed(core: MappingCore, truth: np.ndarray, scans: list, start: int = 0) -> list:
+    out = []
+    for i, scan in enumerate(scans[start:], start=start):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        out += core.add_scan(scan)
+    return out
+
+
+@pytest.fixture(scope="module")
+def saved_map(tmp_path_factory) -> tuple:
+    """A map of the simulated drive, written by the slam mode's writer."""
+    truth, scans = _drive(60)
+    core = _core(mount=list(MOUNT))
+    _feed(core, truth, scans)
+    folder = core.write_map(tmp_path_factory.mktemp("map") / "map", 3.0)
+    return folder, truth, scans
+
+
+def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) -> None:
+    """/initialpose before any scan: kept, applied when the localiser starts; the poses then
+    follow the map's trajectory and map -> odom absorbs the odometry's offset."""
+    folder, truth, scans = saved_map
+    core = MappingCore(MappingConfig.from_mapping({"mode": "localise", "map": str(folder)}))
+    assert core.grid() is not None and core.grid().shape[0] > 50  # the saved map.pgm
+    drift = np.array([1.0, -2.0, 0.3])  # this run's odometry frame differs from the map's
+    odom = compose_many(drift, truth)
+    assert core.set_pose(truth[10], np.diag([0.01, 0.01, 0.001]))
+    out = _feed(core, odom, scans, start=10)
+    assert len(out) >= 45, core.summary()
+    for update in out:
+        i = round(update.stamp * RATE)
+        np.testing.assert_allclose(update.pose[:2], truth[i][:2], atol=0.1)
+        np.testing.assert_allclose(compose(update.map_to_odom, odom[i]), update.pose, atol=1e-6)
+    assert core.set_pose(truth[0], None)  # once running, handed over at once
+    assert core.estimator.status == "tracking"
+
+
+def test_initial_pose_is_refused_in_slam_mode() -> None:
+    assert not _core().set_pose(np.zeros(3), None)
 
 
 def test_bad_slam_config_is_one_line(tmp_path) -> None:

@@ -211,7 +211,7 @@ class MappingAdapter:
         applied = self.core.set_pose(pose, cov)
         self.node.get_logger().info(
             f"initial pose {pose.round(3).tolist()} "
-            + ("applied" if applied else "ignored (no scan paired with odometry yet)")
+            + ("applied" if applied else "ignored (mode slam)")
         )
 
     def _skip(self, text: str) -> None:

@@ -30,20 +30,17 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from laser_corners.errors import InputError, InvalidParamsError, OutputError
-from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.errors import InvalidParamsError, OutputError
+from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.io.poses import StreamingTrack, frame_name
+from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.scan import LaserScan
 from laser_corners.slam.geometry import compose, invert
 from laser_corners.slam.grid import occupancy_grid
+from laser_corners.slam.mapfile import SavedMap, load_map
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.slam import Slam
 from laser_corners.viz.slam_report import SlamRunInfo, peak_rss_mb, write_slam_outputs
-
-try:  # the localiser comes with the `localise` package (issue 20); slam mode works without
-    from laser_corners.localise import LocaliseOptions, Localiser
-except ImportError:  # pragma: no cover - depends on the branch
-    Localiser = LocaliseOptions = None  # type: ignore[assignment,misc]
 
 __all__ = [
     "MAPPING_OPTIONS",
@@ -229,17 +226,6 @@ class OdometryBook:
         return self.track.mount_of(laser_frame) if self.base_frame else None
 
 
-def _read_landmarks(path: Path) -> NDArray[np.float64]:
-    """``x, y`` of a map folder's ``landmarks.csv`` (header line, then one row each)."""
-    if not path.is_file():
-        return np.zeros((0, 2))
-    try:
-        table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    except ValueError as exc:
-        raise InputError(f"{path}: {exc}") from None
-    return table[:, :2].copy() if table.size else np.zeros((0, 2))
-
-
 @dataclass
 class Update:
     """What one scan produced: the base pose in the map frame and ``map -> odom``."""
@@ -290,20 +276,11 @@ class MappingCore:
         self._grid_at = -math.inf
         self._grid_keyframes = -1
         self.saved_grid: OccupancyGrid | None = None
-        self._saved_landmarks = np.zeros((0, 2))
-        if config.mode == "localise":
-            self.saved_grid = self._check_map(Path(config.map))
-            self._saved_landmarks = _read_landmarks(Path(config.map) / "landmarks.csv")
-
-    @staticmethod
-    def _check_map(folder: Path) -> OccupancyGrid:
-        if not folder.is_dir():
-            raise InputError(f"map {folder}: no such folder (a `laser-corners slam` output)")
-        if Localiser is None:
-            raise InputError(
-                "mode localise: laser_corners.localise is not available in this installation"
-            )
-        return read_map(folder / "map.yaml")
+        self.saved: SavedMap | None = None
+        self._initial: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
+        if config.mode == "localise":  # read (and checked) at start: InputError, one line
+            self.saved = load_map(config.map)
+            self.saved_grid = self.saved.grid
 
     # ------------------------------------------------------------------ scans
     def add_scan(self, scan: LaserScan) -> list[Update]:
@@ -365,14 +342,16 @@ class MappingCore:
         """Create the estimator at the first paired scan (the mount is known then)."""
         if self.mount is None:
             found = self.book.mount(scan.frame_id)
+            if found is None and self.saved is not None:
+                found = tuple(self.saved.mount)  # localise: the map's own mount
             self.mount = np.asarray(found if found is not None else (0.0, 0.0, 0.0))
         if self.config.mode == "slam":
             self.estimator = Slam(self.options, self.mount)
-        else:
-            assert Localiser is not None and LocaliseOptions is not None
-            self.estimator = Localiser(
-                Path(self.config.map), options=LocaliseOptions(), mount=tuple(self.mount)
-            )
+            return
+        assert self.saved is not None
+        self.estimator = Localiser(self.saved, options=LocaliseOptions(), mount=self.mount)
+        if self._initial is not None:
+            self.estimator.set_pose(*self._initial)
 
     def write_map(self, folder: Path, wall_s: float) -> Path | None:
         """slam: write the map folder as ``laser-corners slam`` does (same writer); None when
@@ -397,11 +376,17 @@ class MappingCore:
         return folder
 
     def set_pose(self, pose: NDArray[np.float64], covariance: NDArray[np.float64] | None) -> bool:
-        """``/initialpose`` (localise): hand it to the localiser; False before the first scan
-        or in slam mode."""
-        if self.config.mode != "localise" or self.estimator is None:
+        """``/initialpose`` (localise): hand it to the localiser (kept until the first scan
+        when it comes earlier); False in slam mode."""
+        if self.config.mode != "localise":
             return False
-        self.estimator.set_pose(np.asarray(pose, dtype=np.float64), covariance=covariance)
+        pose = np.asarray(pose, dtype=np.float64).reshape(3)
+        if covariance is not None and not np.any(np.asarray(covariance)):
+            covariance = None  # an all-zero covariance (some tools send one): the default
+        if self.estimator is None:
+            self._initial = (pose, covariance)
+        else:
+            self.estimator.set_pose(pose, covariance=covariance)
         return True
 
     # ------------------------------------------------------------------ map
@@ -431,8 +416,8 @@ class MappingCore:
         """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
         if self.config.mode == "slam" and self.estimator is not None:
             return np.asarray(self.estimator.kf.landmarks().xy, dtype=np.float64).reshape(-1, 2)
-        if self.config.mode == "localise":
-            return self._saved_landmarks
+        if self.saved is not None and self.saved.landmarks is not None:
+            return np.asarray(self.saved.landmarks, dtype=np.float64).reshape(-1, 2)
         return np.zeros((0, 2))
 
     def summary(self) -> str:
