@@ -208,20 +208,10 @@ def _reference_poses(scans: list[Any], mount) -> np.ndarray:
     return np.array(out)
 
 
-def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
-    """fr079 scans + odometry in: a pose and map -> odom per scan, /map latched, the map
-    folder written at SIGINT."""
+def _subscribe(ros2: Ros2, name: str, got: Received) -> list[Any]:
+    """Our subscriptions to the node's pose and map -> odom."""
     from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
-    from nav_msgs.msg import OccupancyGrid
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    scans, odometry, mount = _fr079(N_SCANS)
-    msgs = [to_msg(s) for s in scans]
-    keys = [key_of(m.header.stamp) for m in msgs]
-    name = "lc_slam"
-    output = tmp_path / "map"
-    proc = _start_slam(ros2, name, mount, output)
-    got = Received()
     node = ros2.node
     subs = [
         node.create_subscription(
@@ -233,57 +223,121 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
 
         subs.append(node.create_subscription(TFMessage, "/tf", got.on_transform, 1000))
     else:
-        subs.append(
-            node.create_subscription(
-                TransformStamped, ros2.topic(name, "map_to_odom"), got.on_transform, 1000
-            )
-        )
-    replay = Replay(ros2, name, odometry, mount)
+        topic = ros2.topic(name, "map_to_odom")
+        subs.append(node.create_subscription(TransformStamped, topic, got.on_transform, 1000))
+    return subs
+
+
+def _latched_map(ros2: Ros2, name: str, got: Received, proc: Any) -> Any:
+    """Subscribe ``map`` now (a late subscriber, transient local) and wait for a grid."""
+    from nav_msgs.msg import OccupancyGrid
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    latched = QoSProfile(
+        depth=1,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        reliability=ReliabilityPolicy.RELIABLE,
+    )
+    topic = ros2.topic(name, "map")
+    sub = ros2.node.create_subscription(OccupancyGrid, topic, got.on_grid, latched)
+    wait_for(lambda: got.grids, 20.0, "the latched map", proc)
+    return sub
+
+
+def _wait_matched(ros2: Ros2, name: str, proc: Any) -> None:
+    wait_for(
+        lambda: (
+            ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1
+            and ros2.node.count_publishers(ros2.topic(name, "pose")) >= 1
+        ),
+        STARTUP_TIMEOUT,
+        "the node's scan subscription and pose publisher",
+        proc,
+    )
+
+
+def _probe_first(replay: Replay, scans, msgs, keys, got: Received, proc: Any, also=None) -> None:
+    """The first scan, repeated until answered: proves the whole path matched (discovery)."""
+    replay.odometry_until(scans[0].stamp + 0.5)
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while got.count(keys[:1]) == 0:
+        assert time.monotonic() < deadline, "no pose for the first scan"
+        assert proc.poll() is None, f"the node exited with code {proc.returncode}"
+        if also is not None:
+            also()
+        replay.scan_pub.publish(msgs[0])
+        time.sleep(0.3)
+
+
+def _play_rest(replay: Replay, scans, msgs, keys) -> dict[Key, float]:
+    """Scans 1.. at RATE_HZ with the odometry 0.5 s ahead; the publish times."""
     published_at: dict[Key, float] = {}
+    start = time.perf_counter()
+    for i, msg in enumerate(msgs[1:], start=1):
+        delay = start + i / RATE_HZ - time.perf_counter()
+        if delay > 0:
+            time.sleep(delay)
+        replay.odometry_until(scans[i].stamp + 0.5)
+        published_at[keys[i]] = time.perf_counter()
+        replay.scan_pub.publish(msg)
+    replay.odometry_until(np.inf)
+    return published_at
+
+
+def _odometry_at(odometry: list[tuple[float, Any]], stamp: float) -> np.ndarray:
+    stamps = np.array([o[0] for o in odometry])
+    raw = np.array([_planar(o[1].pose.pose) for o in odometry])
+    yaw = np.unwrap(raw[:, 2])
+    return np.array([np.interp(stamp, stamps, column) for column in (raw[:, 0], raw[:, 1], yaw)])
+
+
+def _check_pose_messages(got: Received, keys, scans, odometry) -> np.ndarray:
+    """map -> odom ∘ odometry(stamp) = the published pose; frames; covariance. The poses."""
+    poses = []
+    for key, scan in zip(keys, scans, strict=True):
+        pose = _planar(got.poses[key].pose.pose)
+        base = _odometry_at(odometry, scan.stamp)
+        transform = _transform(got.map_to_odom[key])
+        np.testing.assert_allclose(compose(transform, base)[:2], pose[:2], atol=1e-4)
+        assert got.poses[key].header.frame_id == "map"
+        cov = np.asarray(got.poses[key].pose.covariance).reshape(6, 6)
+        assert cov[0, 0] > 0 and cov[1, 1] > 0 and cov[5, 5] > 0
+        poses.append(pose)
+    return np.array(poses).reshape(-1, 3)
+
+
+def _latency(got: Received, published_at: dict[Key, float]) -> str:
+    ms = np.array([got.received_at[k] - t for k, t in published_at.items() if k in got.poses])
+    ms *= 1e3
+    return (
+        f"publish scan -> pose received over {ms.size} scans at {RATE_HZ:g} Hz: median "
+        f"{np.median(ms):.2f} ms, p95 {np.percentile(ms, 95):.2f} ms, max {ms.max():.2f} ms"
+    )
+
+
+def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
+    """fr079 scans + odometry in: a pose and map -> odom per scan, /map latched, the map
+    folder written at SIGINT."""
+    scans, odometry, mount = _fr079(N_SCANS)
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name, output = "lc_slam", tmp_path / "map"
+    proc = _start_slam(ros2, name, mount, output)
+    got = Received()
+    subs = _subscribe(ros2, name, got)
+    replay = Replay(ros2, name, odometry, mount)
     try:
-        wait_for(
-            lambda: (
-                node.count_subscribers(ros2.topic(name, "scan")) >= 1
-                and node.count_publishers(ros2.topic(name, "pose")) >= 1
-            ),
-            STARTUP_TIMEOUT,
-            "the slam node's scan subscription and pose publisher",
-            proc,
-        )
-        # the first scan, repeated until answered: proves the whole path matched (discovery)
-        replay.odometry_until(scans[0].stamp + 0.5)
-        deadline = time.monotonic() + STARTUP_TIMEOUT
-        while got.count(keys[:1]) == 0:
-            assert time.monotonic() < deadline, "no pose for the first scan"
-            assert proc.poll() is None, ros2.log(name)
-            replay.scan_pub.publish(msgs[0])
-            time.sleep(0.3)
-        start = time.perf_counter()
-        for i, msg in enumerate(msgs[1:], start=1):
-            delay = start + i / RATE_HZ - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
-            replay.odometry_until(scans[i].stamp + 0.5)
-            published_at[keys[i]] = time.perf_counter()
-            replay.scan_pub.publish(msg)
-        replay.odometry_until(np.inf)
+        _wait_matched(ros2, name, proc)
+        _probe_first(replay, scans, msgs, keys, got, proc)
+        published_at = _play_rest(replay, scans, msgs, keys)
         wait_for(lambda: got.count(keys) == N_SCANS, 60.0, "a pose for every scan", proc)
-        # a late subscriber (transient local) still gets the map
-        time.sleep(1.5)  # one map_period after the last keyframe
-        latched = QoSProfile(
-            depth=1,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-            reliability=ReliabilityPolicy.RELIABLE,
-        )
-        subs.append(
-            node.create_subscription(OccupancyGrid, ros2.topic(name, "map"), got.on_grid, latched)
-        )
-        wait_for(lambda: got.grids, 20.0, "the latched map", proc)
+        time.sleep(1.5)  # one map_period after the last keyframe: the final grid
+        subs.append(_latched_map(ros2, name, got, proc))  # a late subscriber gets it
         os.kill(proc.pid, signal.SIGINT)
         returncode = wait_exit(proc, "SIGINT")
     finally:
         for sub in subs:
-            node.destroy_subscription(sub)
+            ros2.node.destroy_subscription(sub)
         replay.destroy()
         stop(proc, name)
 
@@ -294,25 +348,10 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     assert summary, log
     assert int(summary.group(2)) >= N_SCANS and int(summary.group(3)) == 0, log
     assert f"map written to {output}" in log, log
-    # map -> odom ∘ odometry(stamp) = the published pose, for every scan
-    stamps = np.array([o[0] for o in odometry])
-    raw = np.array([_planar(o[1].pose.pose) for o in odometry])
-    yaw = np.unwrap(raw[:, 2])
-    node_poses = []
-    for key, scan in zip(keys, scans, strict=True):
-        pose = _planar(got.poses[key].pose.pose)
-        at = scan.stamp
-        base = np.array([np.interp(at, stamps, column) for column in (raw[:, 0], raw[:, 1], yaw)])
-        np.testing.assert_allclose(
-            compose(_transform(got.map_to_odom[key]), base)[:2], pose[:2], atol=1e-4
-        )
-        assert got.poses[key].header.frame_id == "map"
-        cov = np.asarray(got.poses[key].pose.covariance).reshape(6, 6)
-        assert cov[0, 0] > 0 and cov[1, 1] > 0 and cov[5, 5] > 0
-        node_poses.append(pose)
+    node_poses = _check_pose_messages(got, keys, scans, odometry)
     # the node's SLAM is the library's: same poses as an offline run on the same inputs
     reference = _reference_poses(scans, mount)
-    err = np.hypot(*(np.array(node_poses)[:, :2] - reference[:, :2]).T)
+    err = np.hypot(*(node_poses[:, :2] - reference[:, :2]).T)
     assert np.percentile(err, 95) < 0.05, f"node vs offline SLAM: p95 {np.percentile(err, 95)}"
     # the latched map: frame, size of the first 64 s of fr079, walls and free space
     grid = got.grids[-1]
@@ -323,16 +362,87 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     data = np.asarray(grid.data, dtype=np.int8)
     assert data.size == grid.info.width * grid.info.height
     assert (data >= 65).sum() > 500 and ((data >= 0) & (data <= 25)).sum() > 5000
-    # the map folder of `laser-corners slam`
-    for file in ("map.yaml", "map.pgm", "trajectory.tum", "summary.json", "graph.g2o"):
-        assert (output / file).is_file(), file
-    lat_ms = np.array([got.received_at[k] - published_at[k] for k in keys[1:]]) * 1e3
+    for file in ("map.yaml", "map.pgm", "trajectory.tum", "summary.json", "keyframes.npz"):
+        assert (output / file).is_file(), file  # the folder of `laser-corners slam`
     print(
-        f"\nROS 2 slam node over {lat_ms.size} fr079 scans at {RATE_HZ:g} Hz (publish scan -> "
-        f"pose received): median {np.median(lat_ms):.2f} ms, p95 {np.percentile(lat_ms, 95):.2f}"
-        f" ms, max {lat_ms.max():.2f} ms; node vs offline SLAM median "
-        f"{np.median(err) * 1e3:.2f} mm; grid {grid.info.width} x {grid.info.height}; "
+        f"\nROS 2 slam node, fr079: {_latency(got, published_at)}; node vs offline SLAM "
+        f"median {np.median(err) * 1e3:.2f} mm; grid {grid.info.width} x {grid.info.height}; "
         f"node log: {summary.group(0)}"
+    )
+
+
+def _offline_map(scans, folder: Path) -> np.ndarray:
+    """The map of these scans, written by `laser-corners slam`'s writer; its scan poses."""
+    from laser_corners.slam.run import run_slam
+    from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+
+    result = run_slam(FR079, stop_scan=len(scans))
+    assert len(result.poses) == len(scans)
+    folder.mkdir()
+    write_slam_outputs(result, folder, SlamRunInfo(str(FR079), 1.0, 0.0))
+    return np.asarray(result.poses)
+
+
+def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
+    """The same fr079 scans localised in their map: /initialpose starts tracking, the poses
+    stay on the map's trajectory, the saved map is latched on /map."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    from laser_corners.ros.nav_convert import fill_pose_with_covariance
+
+    scans, odometry, mount = _fr079(N_SCANS)
+    truth = _offline_map(scans, tmp_path / "map")
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name = "lc_localise"
+    args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'map'}"]
+    args += ["-p", f"queue_size:={N_SCANS}"]
+    if not HAS_TF:
+        args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
+    proc = ros2.start(name, *args)
+    got = Received()
+    subs = _subscribe(ros2, name, got)
+    replay = Replay(ros2, name, odometry, mount)
+    initial = fill_pose_with_covariance(
+        PoseWithCovarianceStamped(), truth[0], np.diag([0.01, 0.01, 0.003])
+    )
+    initial.header.frame_id = "map"
+    initial_pub = ros2.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", 10)
+    try:
+        subs.append(_latched_map(ros2, name, got, proc))  # at start: the saved map.pgm
+        _wait_matched(ros2, name, proc)
+        # no fix without it on the first scan: an answer proves /initialpose arrived
+        _probe_first(replay, scans, msgs, keys, got, proc, lambda: initial_pub.publish(initial))
+        published_at = _play_rest(replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys[-1:]) == 1, 60.0, "a pose for the last scan", proc)
+        os.kill(proc.pid, signal.SIGTERM)
+        returncode = wait_exit(proc, "SIGTERM")
+    finally:
+        for sub in subs:
+            ros2.node.destroy_subscription(sub)
+        ros2.node.destroy_publisher(initial_pub)
+        replay.destroy()
+        stop(proc, name)
+
+    log = ros2.log(name)
+    assert returncode == 0, log
+    assert "Traceback" not in log, log
+    assert re.search(r"initial pose \[.*\] applied", log), log
+    answered = [i for i, k in enumerate(keys) if k in got.poses and k in got.map_to_odom]
+    assert len(answered) >= 0.95 * N_SCANS, f"{len(answered)} of {N_SCANS} scans got a pose"
+    poses = _check_pose_messages(
+        got, [keys[i] for i in answered], [scans[i] for i in answered], odometry
+    )
+    err = np.hypot(*(poses[:, :2] - truth[answered, :2]).T)
+    dyaw = np.degrees(np.abs(np.angle(np.exp(1j * (poses[:, 2] - truth[answered, 2])))))
+    assert err.max() < 0.3 and dyaw.max() < 3.0, (err.max(), dyaw.max())
+    grid = got.grids[0]
+    saved = (tmp_path / "map" / "map.pgm").read_bytes()
+    assert grid.info.width * grid.info.height == len(grid.data) and len(grid.data) < len(saved)
+    print(
+        f"\nROS 2 localise node, fr079 in its own map: {_latency(got, published_at)}; "
+        f"{len(answered)} of {N_SCANS} scans localised, max error {err.max() * 100:.1f} cm / "
+        f"{dyaw.max():.2f} deg"
     )
 
 
