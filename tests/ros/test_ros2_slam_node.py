@@ -258,11 +258,12 @@ def _wait_matched(ros2: Ros2, name: str, proc: Any) -> None:
 
 def _probe_first(replay: Replay, scans, msgs, keys, got: Received, proc: Any, also=None) -> None:
     """The first scan, repeated until answered: proves the whole path matched (discovery)."""
-    replay.odometry_until(scans[0].stamp + 0.5)
     deadline = time.monotonic() + STARTUP_TIMEOUT
     while got.count(keys[:1]) == 0:
         assert time.monotonic() < deadline, "no pose for the first scan"
         assert proc.poll() is None, f"the node exited with code {proc.returncode}"
+        replay.next_odom = 0  # again: the first ones may have gone before discovery matched
+        replay.odometry_until(scans[0].stamp + 0.5)
         if also is not None:
             also()
         replay.scan_pub.publish(msgs[0])

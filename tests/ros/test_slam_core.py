@@ -91,6 +91,8 @@ def test_odometry_book_interpolates_tf_and_chains_the_static_mount() -> None:
     np.testing.assert_allclose(book.mount("laser"), MOUNT, atol=1e-12)
     assert (book.odom_frame, book.base_frame) == ("odom", "base_link")
     book.add_odometry("other_odom", "base_link", 3.0, (9, 9, 0))  # another odometry: ignored
+    book.add_odometry("odom", "base_link", 1.0, (5, 5, 0))  # a repeated stamp: ignored
+    np.testing.assert_allclose(book.base_pose(1.0), [1.0, 0.0, 0.0])
     np.testing.assert_allclose(book.base_pose(2.0), [2.0, 1.0, 0.4])
 
 
@@ -145,12 +147,17 @@ def test_map_to_odom_absorbs_odometry_drift() -> None:
 
 
 def test_scans_without_odometry_are_dropped_and_counted() -> None:
+    """A scan waits ``tf_wait`` seconds (wall clock) after it arrived, then is dropped."""
     _, scans = _drive(30)
-    core = _core(mount=list(MOUNT), tf_wait=0.5)
+    clock = Clock()
+    core = _core(clock, mount=list(MOUNT), tf_wait=0.5)
     for scan in scans:
+        clock.now += 0.1
         assert core.add_scan(scan) == []
-    assert core.counts.no_odometry == len(scans) - 6  # kept: those within 0.5 s of the newest
-    assert len(core.pending) == 6
+    assert core.counts.no_odometry == len(scans) - 5  # kept: those that arrived < 0.5 s ago
+    assert len(core.pending) == 5
+    clock.now += 10.0
+    assert core.release() == [] and core.counts.no_odometry == len(scans)
 
 
 def test_a_full_queue_drops_its_oldest_scans() -> None:
@@ -252,7 +259,8 @@ def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) ->
     """/initialpose before any scan: kept, applied when the localiser starts; the poses then
     follow the map's trajectory and map -> odom absorbs the odometry's offset."""
     folder, truth, scans = saved_map
-    core = MappingCore(MappingConfig.from_mapping({"mode": "localise", "map": str(folder)}))
+    config = {"mode": "localise", "map": str(folder), "mount": list(MOUNT)}
+    core = MappingCore(MappingConfig.from_mapping(config))
     assert core.grid() is not None and core.grid().shape[0] > 50  # the saved map.pgm
     drift = np.array([1.0, -2.0, 0.3])  # this run's odometry frame differs from the map's
     odom = compose_many(drift, truth)
@@ -374,3 +382,17 @@ def test_landmark_markers() -> None:
 def test_inverse_helpers_agree() -> None:
     pose = np.array([1.0, 2.0, 0.5])
     np.testing.assert_allclose(compose(pose, invert(pose)), [0, 0, 0], atol=1e-12)
+
+
+def test_without_a_mount_the_first_scan_waits_tf_wait_then_uses_identity() -> None:
+    truth, scans = _drive(10)
+    clock = Clock()
+    core = _core(clock, tf_wait=1.0)
+    for i, scan in enumerate(scans):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        assert core.add_scan(scan) == []  # waiting for /tf_static
+    clock.now = 1.5
+    out = core.release()
+    assert len(out) == len(scans) and core.counts.no_odometry == 0
+    np.testing.assert_allclose(core.estimator.mount, [0.0, 0.0, 0.0])

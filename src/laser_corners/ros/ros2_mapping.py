@@ -271,7 +271,8 @@ class MappingAdapter:
             self.marker_pub.publish(out)
 
     def on_timer(self) -> None:
-        """Republish the SLAM grid when it is due."""
+        """Drop the scans that waited too long for odometry; republish the grid when due."""
+        self._run(self.core.release)
         if self.core.grid_due():
             try:
                 self.publish_map()

@@ -158,11 +158,8 @@ def _declare(node: Any, defaults: dict[str, Any]) -> dict[str, Any]:
     from rclpy.parameter import Parameter  # type: ignore[import-not-found]
 
     dynamic = ParameterDescriptor(dynamic_typing=True)
-    for name, default in defaults.items():
-        if isinstance(default, list) and not default:
-            node.declare_parameter(name, Parameter.Type.DOUBLE_ARRAY, dynamic)
-        else:
-            node.declare_parameter(name, default, dynamic)
+    for name, default in defaults.items():  # an empty list (mount) stays unset until given
+        node.declare_parameter(name, None if default == [] else default, dynamic)
     values = parameter_values(node.get_parameters(list(defaults)), Parameter.Type.NOT_SET)
     # rclpy keeps the start-up overrides in a private dict (no public accessor)
     overrides = getattr(node, "_parameter_overrides", {})

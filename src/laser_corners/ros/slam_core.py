@@ -9,7 +9,7 @@ without ROS:
   the static transforms, kept per stamp (:class:`~laser_corners.io.poses.StreamingTrack`:
   linear interpolation at the scan stamp, the laser mount from the static tree);
 * :class:`MappingCore`: pairs each scan with the odometry at its stamp (a scan waits until
-  odometry after its stamp is in, at most ``tf_wait`` seconds of newer scans), runs
+  odometry after its stamp is in, at most ``tf_wait`` seconds after it arrived), runs
   :class:`~laser_corners.slam.Slam` or the ``Localiser`` on it and computes ``map -> odom``
   (``pose ∘ odom⁻¹``); it says when the occupancy grid is due for republishing and builds it.
 
@@ -94,7 +94,9 @@ class MappingConfig(BaseModel):
     queue_size : int
         Subscriber depth; also the most scans kept waiting for odometry.
     tf_wait : float
-        Seconds (of scan stamps) a scan may wait for odometry after its stamp.
+        Seconds (wall clock) a scan may wait for odometry after its stamp once it arrived:
+        a lagging odometry callback (several odometry messages per scan) is not a missing
+        odometry.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -169,6 +171,7 @@ class OdometryBook:
         self.base_frame = frame_name(base_frame)
         self._dynamic: list[tuple[str, str, float, tuple[float, float, float]]] = []
         self.n_odometry = 0
+        self._stamps: set[float] = set()
 
     def add_odometry(
         self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
@@ -177,8 +180,9 @@ class OdometryBook:
         odom, base = frame_name(odom_frame), frame_name(base_frame)
         self.odom_frame = self.odom_frame or odom
         self.base_frame = self.base_frame or base
-        if (odom, base) != (self.odom_frame, self.base_frame):
-            return
+        if (odom, base) != (self.odom_frame, self.base_frame) or stamp in self._stamps:
+            return  # another odometry, or a sample we have (a republished one)
+        self._stamps.add(stamp)
         self.track.add_odometry(odom, base, (float(stamp), *map(float, pose)))
         self.n_odometry += 1
 
@@ -270,7 +274,7 @@ class MappingCore:
         self.mount: NDArray[np.float64] | None = (
             np.asarray(config.mount, dtype=np.float64) if config.mount else None
         )
-        self.pending: deque[LaserScan] = deque()
+        self.pending: deque[tuple[LaserScan, float]] = deque()  # with the arrival time
         self.counts = Counts()
         self.last: Update | None = None
         self._grid_at = -math.inf
@@ -286,18 +290,18 @@ class MappingCore:
     def add_scan(self, scan: LaserScan) -> list[Update]:
         """Queue a scan; process every queued scan whose odometry is in, in stamp order."""
         self.counts.scans += 1
-        self.pending.append(scan)
+        self.pending.append((scan, self.clock()))
         return self.release()
 
     def release(self) -> list[Update]:
         """Process the queued scans that can be (call after new odometry too)."""
         out: list[Update] = []
-        newest = self.pending[-1].stamp if self.pending else None
+        now = self.clock()
         while self.pending:
-            scan = self.pending[0]
-            assert scan.stamp is not None and newest is not None
+            scan, arrived = self.pending[0]
+            assert scan.stamp is not None
             ready = self.book.ready(scan.stamp, scan.frame_id, self.mount is None)
-            too_old = newest - scan.stamp > self.config.tf_wait
+            too_old = now - arrived > self.config.tf_wait
             if not ready and not too_old and len(self.pending) <= self.config.queue_size:
                 break
             self.pending.popleft()
