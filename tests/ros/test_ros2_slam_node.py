@@ -453,7 +453,8 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
         (["-p", "mode:=mapping"], "ROS 2 parameter mode: unknown mode 'mapping'"),
         (["-p", "mode:=slam", "-p", "mape:=x"], "unknown ROS 2 parameter mape"),
         (["-p", "mode:=localise"], "map: mode localise needs -p map:=DIR"),
-        (["-p", "mode:=localise", "-p", "map:=/nonexistent/map"], "/nonexistent/map"),
+        (["-p", "mode:=localise", "-p", "map:=/nonexistent/map"], "/nonexistent/map: no such"),
+        (["-p", "mode:=slam", "-p", "map_period:=-1.0"], "ROS 2 parameter map_period"),
     ],
 )
 def test_mapping_modes_refuse_bad_parameters(ros2: Ros2, args: list[str], message: str) -> None:
@@ -465,3 +466,15 @@ def test_mapping_modes_refuse_bad_parameters(ros2: Ros2, args: list[str], messag
     assert "Traceback" not in log, log
     errors = [line for line in log.splitlines() if "error:" in line]
     assert len(errors) == 1 and message in errors[0], log
+
+
+@pytest.mark.skipif(HAS_TF, reason="tf2_msgs is importable here: the node uses /tf")
+def test_without_tf2_msgs_slam_mode_needs_an_odometry_topic(ros2: Ros2) -> None:
+    """The PyPI wheels have no tf2_msgs: one line saying what to do, exit code 2."""
+    name = "lc_no_tf"
+    proc = ros2.start(name, "-p", "mode:=slam")
+    returncode = wait_exit(proc, "mode slam without tf2_msgs")
+    log = ros2.log(name)
+    assert returncode == 2, log
+    errors = [line for line in log.splitlines() if "error:" in line]
+    assert len(errors) == 1 and "-p odom_topic:=/odom" in errors[0], log

@@ -107,9 +107,9 @@ class MappingAdapter:
         self.node = node
         self.m = m = messages()
         self.config = MappingConfig.from_mapping(values)
+        self.core = MappingCore(self.config)  # reads and checks the map first
         if m.tf is None and not self.config.odom_topic:
             raise MissingDependencyError(TF_HINT)
-        self.core = MappingCore(self.config)
         self.started = time.monotonic()
         self.n_skipped = 0
         depth = self.config.queue_size
