@@ -368,7 +368,7 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     print(
         f"\nROS 2 slam node, fr079: {_latency(got, published_at)}; node vs offline SLAM "
         f"median {np.median(err) * 1e3:.2f} mm; grid {grid.info.width} x {grid.info.height}; "
-        f"node log: {summary.group(0)}"
+        f"node log: {re.search(r'stopped by SIGINT: .*', log).group(0)}"
     )
 
 
@@ -443,7 +443,7 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     print(
         f"\nROS 2 localise node, fr079 in its own map: {_latency(got, published_at)}; "
         f"{len(answered)} of {N_SCANS} scans localised, max error {err.max() * 100:.1f} cm / "
-        f"{dyaw.max():.2f} deg"
+        f"{dyaw.max():.2f} deg; node log: {re.search(r'stopped by SIGTERM: .*', log).group(0)}"
     )
 
 
