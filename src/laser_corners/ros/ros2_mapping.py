@@ -21,11 +21,13 @@ turns messages into its calls and its results into messages.
 from __future__ import annotations
 
 import time
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
 from laser_corners.errors import InvalidParamsError, LaserCornersError, MissingDependencyError
+from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.ros.convert import fill_marker_array, scan_from_msg, seconds_to_sec_nanosec
 from laser_corners.ros.nav_convert import (
     fill_occupancy_grid,
@@ -108,6 +110,8 @@ class MappingAdapter:
         self.m = m = messages()
         self.config = MappingConfig.from_mapping(values)
         self.core = MappingCore(self.config)  # reads and checks the map first
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="grid")
+        self.building: Future[OccupancyGrid] | None = None
         if m.tf is None and not self.config.odom_topic:
             raise MissingDependencyError(TF_HINT)
         self.started = time.monotonic()
@@ -248,9 +252,9 @@ class MappingAdapter:
         self.tf_pub.publish(m.tf(transforms=[ts]) if m.tf is not None else ts)
         self.node.get_logger().debug(f"{update.status}: {update.ms:.2f} ms")
 
-    def publish_map(self) -> None:
-        """The grid (and landmarks) on the latched topics."""
-        grid = self.core.grid()
+    def publish_map(self, grid: OccupancyGrid | None = None) -> None:
+        """The grid (default: the core's) and landmarks on the latched topics."""
+        grid = self.core.grid() if grid is None else grid
         if grid is None:
             return
         msg = fill_occupancy_grid(self.m.OccupancyGrid(), grid)
@@ -271,13 +275,19 @@ class MappingAdapter:
             self.marker_pub.publish(out)
 
     def on_timer(self) -> None:
-        """Drop the scans that waited too long for odometry; republish the grid when due."""
+        """Drop the scans that waited too long for odometry; publish a grid the worker
+        finished; start the next one when due."""
         self._run(self.core.release)
-        if self.core.grid_due():
+        if self.building is not None and self.building.done():
+            future, self.building = self.building, None
             try:
-                self.publish_map()
+                self.publish_map(future.result())
             except LaserCornersError as exc:
                 self._skip(f"map not published: {exc}")
+        if self.building is None and self.core.grid_due():
+            job = self.core.grid_job()
+            if job is not None:
+                self.building = self.pool.submit(job)
 
     # ------------------------------------------------------------------ lifecycle
     def set_parameters(self, parameters: list[Any]) -> tuple[bool, str]:
@@ -293,6 +303,7 @@ class MappingAdapter:
 
     def shutdown(self) -> str | None:
         """slam with ``output``: write the map folder; a line saying where (or None)."""
+        self.pool.shutdown(wait=False, cancel_futures=True)
         if not self.config.output:
             return None
         folder = self.core.write_map(Path(self.config.output), time.monotonic() - self.started)

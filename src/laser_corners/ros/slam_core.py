@@ -22,7 +22,9 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
@@ -410,11 +412,25 @@ class MappingCore:
         map."""
         if self.config.mode == "localise":
             return self.saved_grid
-        if self.estimator is None or not len(self.estimator.kf):
+        job = self.grid_job()
+        return None if job is None else job()
+
+    def grid_job(self) -> Callable[[], OccupancyGrid] | None:
+        """slam: a snapshot of the keyframes (estimates copied) and the function that builds
+        their grid, for a worker thread (the numba kernel releases the GIL, so scans go on
+        meanwhile); the grid counts as built from now. None before the first keyframe."""
+        if self.config.mode != "slam" or self.estimator is None or not len(self.estimator.kf):
             return None
         kf = self.estimator.kf
+        n = min(len(kf.estimate), len(kf.scans))
         self._grid_at, self._grid_keyframes = self.clock(), len(kf)
-        return occupancy_grid(kf.estimate, kf.scans, self.estimator.mount, self.config.resolution)
+        return partial(
+            occupancy_grid,
+            np.array(kf.estimate[:n], copy=True),
+            list(kf.scans[:n]),
+            self.estimator.mount.copy(),
+            self.config.resolution,
+        )
 
     def landmarks(self) -> NDArray[np.float64]:
         """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
