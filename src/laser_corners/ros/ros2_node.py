@@ -19,8 +19,12 @@ PyPI: ``pip install 'laser-corners[ros2]'``) or, in a ROS 2 workspace, with the 
 in ``ros2/`` (``ros2 run laser_corners_ros laser_corners_node``); both call :func:`main`.
 SIGINT and SIGTERM end the node with a summary line and exit code 0.
 
-This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core` and
-:mod:`laser_corners.ros.convert`.
+The ``mode`` parameter (read at start) picks what the node does: ``detector`` (the default,
+above), ``slam`` or ``localise`` (:mod:`laser_corners.ros.ros2_mapping`: mapping and
+localisation with odometry from ``/tf``, ``map -> odom`` out; docs/ros.md).
+
+This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core`,
+:mod:`laser_corners.ros.slam_core` and :mod:`laser_corners.ros.convert`.
 """
 
 from __future__ import annotations
