@@ -246,13 +246,13 @@ class Update:
 
 @dataclass
 class Counts:
-    """Scans seen, processed, and dropped (no odometry in time, or rejected)."""
+    """Scans seen, processed, dropped (no odometry in time), and without an estimate
+    (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms)."""
 
     scans: int = 0
     processed: int = 0
     no_odometry: int = 0
     no_fix: int = 0
-    failed: int = 0
     ms: list[float] = field(default_factory=list)
 
 
