@@ -92,9 +92,11 @@ def drive(loc, scans, odo, stamps, order, ref) -> dict:
             d = between(odo[order[n - 1]], odo[i])
             travel += math.hypot(d[0], d[1])
         status = loc.status
+        cpu = time.process_time()
         e = loc.add(scans[i], odo[i], stamps[i])
+        cpu = (time.process_time() - cpu) * 1e3
         err = pose_error(e.pose, ref[i]) if e is not None else (math.inf, math.inf)
-        rows.append((i, travel, e is not None, *err, status, loc.ms_per_scan[-1]))
+        rows.append((i, travel, e is not None, *err, status, loc.ms_per_scan[-1], cpu))
     return {"rows": rows}
 
 
@@ -109,6 +111,7 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
         after = rows[first:] if first is not None else []
         good = sum(r[2] and r[3] <= 0.3 and r[4] <= 3.0 for r in after)
         tracked = [r[6] for r in rows if r[5] == "tracking"]
+        cpu = [r[7] for r in rows if r[5] == "tracking"]
         out.append(
             {
                 "start": int(s),
@@ -121,6 +124,8 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
                 "lost": loc.counts["lost"],
                 "ms_tracking_mean": float(np.mean(tracked)) if tracked else None,
                 "ms_tracking_p95": float(np.percentile(tracked, 95)) if tracked else None,
+                "ms_tracking_median": float(np.median(tracked)) if tracked else None,
+                "cpu_ms_tracking_mean": float(np.mean(cpu)) if cpu else None,
                 "ms_all_mean": float(np.mean([r[6] for r in rows])),
             }
         )
@@ -238,7 +243,8 @@ def main() -> None:
 def table(results: list[dict]) -> list[str]:
     lines = [
         "| log | fix travel m (5 starts) | correct fixes | share ≤0.3 m/3° | wrong | lost "
-        "| tracking ms mean / p95 | kidnaps relocalised (travel m) | kidnap wrong |",
+        "| tracking ms wall mean / median / p95, CPU mean "
+        "| kidnaps relocalised (travel m) | kidnap wrong |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
@@ -247,12 +253,14 @@ def table(results: list[dict]) -> list[str]:
         travel = ", ".join("-" if x["fix_travel"] is None else f"{x['fix_travel']:.1f}" for x in s)
         ms = [x["ms_tracking_mean"] for x in s if x["ms_tracking_mean"] is not None]
         p95 = [x["ms_tracking_p95"] for x in s if x["ms_tracking_p95"] is not None]
+        med = [x["ms_tracking_median"] for x in s if x["ms_tracking_median"] is not None]
+        cpu = [x["cpu_ms_tracking_mean"] for x in s if x["cpu_ms_tracking_mean"] is not None]
         kt = ", ".join("-" if x["reloc_travel"] is None else f"{x['reloc_travel']:.1f}" for x in k)
         lines.append(
             f"| {r['log']} | {travel} | {sum(x['fix_correct'] for x in s)}/{len(s)} "
             f"| {share} "
             f"| {sum(x['wrong'] for x in s)} | {sum(x['lost'] for x in s)} "
-            f"| {np.mean(ms):.2f} / {np.mean(p95):.2f} "
+            f"| {np.mean(ms):.2f} / {np.mean(med):.2f} / {np.mean(p95):.2f}, {np.mean(cpu):.2f} "
             f"| {sum(x['relocalised'] for x in k)}/{len(k)} ({kt}) | {sum(x['wrong'] for x in k)} |"
         )
     lines += [

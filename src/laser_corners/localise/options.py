@@ -46,7 +46,7 @@ class LocaliseOptions(Options):
     """Odometry noise (rad per radian turned plus per metre travelled)."""
     match_sigma: float = Field(0.03, ge=1e-3, le=1.0)
     """Noise (m) of one point-to-line residual, scaling the ICP information (covariance)."""
-    track_agreement: float = Field(0.35, ge=0.0, le=1.0)
+    track_agreement: float = Field(0.6, ge=0.0, le=1.0)
     """While tracking, a scan agreeing less than this with the map gives no estimate and
     counts towards lost."""
     lost_scans: int = Field(5, ge=1, le=1000)
