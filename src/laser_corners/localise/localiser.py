@@ -242,7 +242,7 @@ class Localiser:
         usual = float(np.mean(self._recent)) if self._recent else 1.0
         if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
             aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
-        if agreement < opt.track_agreement:
+        if agreement < max(opt.track_agreement, usual - opt.track_drop):
             self.pose = pred
             self._bad += 1
             self.counts["no_agreement"] += 1
