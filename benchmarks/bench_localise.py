@@ -204,7 +204,8 @@ def run_log(name: str, args, options) -> dict:
     saved = load_map(folder)
     scans, odo, stamps = read_log(path)
     traj = read_tum(folder / "trajectory.tum")
-    idx = np.clip(np.searchsorted(traj[0], stamps), 0, len(traj[0]) - 1)
+    # the same scans: stamps equal up to the TUM file's rounding (never the next scan's)
+    idx = np.clip(np.searchsorted(traj[0], stamps - 1e-4), 0, len(traj[0]) - 1)
     ref = traj[1][idx]
     starts = np.linspace(0, len(scans) - args.scans - 1, args.starts).astype(int)
     k_starts = np.linspace(0, len(scans) - 900 - args.kidnap - 1, args.starts).astype(int)
