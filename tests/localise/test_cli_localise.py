@@ -88,6 +88,11 @@ def test_initial_pose_and_start_scan(mapped, tmp_path: Path) -> None:
     got_t, got_p = read_tum(out / "trajectory.tum")
     assert got_t[0] == pytest.approx(stamps[start])  # tracking from the first scan used
     assert np.hypot(*(got_p[-1, :2] - map_p[-1, :2])) < 0.1
+    # no initial pose: the fix's scan index is the recording's
+    result = _invoke("localise", map_dir, bag, "-o", tmp_path / "g", "--start-scan", start)
+    assert result.exit_code == 0, result.output
+    fix = json.loads((tmp_path / "g" / "summary.json").read_text())["first_fix"]
+    assert fix["scan_index"] > start and fix["stamp"] == pytest.approx(stamps[fix["scan_index"]])
 
 
 def test_bad_inputs_are_one_line(mapped, tmp_path: Path) -> None:
