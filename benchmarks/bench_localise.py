@@ -3,7 +3,7 @@
 Usage::
 
     PYTHONPATH=src python benchmarks/bench_localise.py [LOG ...] [--cache DIR] [--starts 5]
-        [--scans 1200] [--kidnap 300] [--json FILE]
+        [--scans 1200] [--kidnap 300] [--json FILE] [--protocols same later]
 
 LOG defaults to ``fr079``, ``aces`` and ``intel`` (``../shared/data/real/LOG.bag`` with
 ``LOG.relations``). Maps are made with :func:`laser_corners.slam.run_slam` (default options)
@@ -23,7 +23,8 @@ it); reported: lost detected, relocalised, travel to the relocalisation, wrong e
 **Later visit**: the first half of the scans is mapped (``stop_scan``), the second half is
 localised in it with no initial pose; the map's trajectory (first half) and the localiser's
 estimates (second half) are joined and scored with the relation metric on every relation
-with a stamp in the second half, beside the full-log SLAM's trajectory on the same relations.
+with a stamp in the second half, beside the full-log SLAM's trajectory on the same relations;
+*wrong* = second-half estimates more than 0.5 m from the full-log SLAM's trajectory.
 
 Timings are of this machine under whatever else runs on it (2 cores shared).
 """
@@ -92,9 +93,11 @@ def drive(loc, scans, odo, stamps, order, ref) -> dict:
             d = between(odo[order[n - 1]], odo[i])
             travel += math.hypot(d[0], d[1])
         status = loc.status
+        cpu = time.process_time()
         e = loc.add(scans[i], odo[i], stamps[i])
+        cpu = (time.process_time() - cpu) * 1e3
         err = pose_error(e.pose, ref[i]) if e is not None else (math.inf, math.inf)
-        rows.append((i, travel, e is not None, *err, status, loc.ms_per_scan[-1]))
+        rows.append((i, travel, e is not None, *err, status, loc.ms_per_scan[-1], cpu))
     return {"rows": rows}
 
 
@@ -109,6 +112,7 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
         after = rows[first:] if first is not None else []
         good = sum(r[2] and r[3] <= 0.3 and r[4] <= 3.0 for r in after)
         tracked = [r[6] for r in rows if r[5] == "tracking"]
+        cpu = [r[7] for r in rows if r[5] == "tracking"]
         out.append(
             {
                 "start": int(s),
@@ -121,6 +125,8 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
                 "lost": loc.counts["lost"],
                 "ms_tracking_mean": float(np.mean(tracked)) if tracked else None,
                 "ms_tracking_p95": float(np.percentile(tracked, 95)) if tracked else None,
+                "ms_tracking_median": float(np.median(tracked)) if tracked else None,
+                "cpu_ms_tracking_mean": float(np.mean(cpu)) if cpu else None,
                 "ms_all_mean": float(np.mean([r[6] for r in rows])),
             }
         )
@@ -164,11 +170,15 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
     est_t, est_p = [], []
+    ref_t, ref_p = full_traj
+    wrong = 0
     for i in range(half, len(scans)):
         e = loc.add(scans[i], odo[i], stamps[i])
         if e is not None:
             est_t.append(stamps[i])
             est_p.append(e.pose)
+            k = min(int(np.searchsorted(ref_t, stamps[i] - 1e-4)), len(ref_t) - 1)
+            wrong += pose_error(e.pose, ref_p[k])[0] > 0.5
     t_half = stamps[half]
     joined_t = np.r_[map_t[map_t < t_half], np.array(est_t)]
     joined_p = np.vstack([map_p[map_t < t_half], np.array(est_p).reshape(-1, 3)])
@@ -189,6 +199,7 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "estimates": len(est_t),
         "scans": len(scans) - half,
         "lost": loc.counts["lost"],
+        "wrong": int(wrong),
     }
 
 
@@ -199,13 +210,17 @@ def run_log(name: str, args, options) -> dict:
     saved = load_map(folder)
     scans, odo, stamps = read_log(path)
     traj = read_tum(folder / "trajectory.tum")
-    idx = np.clip(np.searchsorted(traj[0], stamps), 0, len(traj[0]) - 1)
+    # the same scans: stamps equal up to the TUM file's rounding (never the next scan's)
+    idx = np.clip(np.searchsorted(traj[0], stamps - 1e-4), 0, len(traj[0]) - 1)
     ref = traj[1][idx]
     starts = np.linspace(0, len(scans) - args.scans - 1, args.starts).astype(int)
     k_starts = np.linspace(0, len(scans) - 900 - args.kidnap - 1, args.starts).astype(int)
     result = {"log": name, "scans": len(scans)}
-    result["same_log"] = same_log(saved, scans, odo, stamps, ref, starts, args.scans, options)
-    result["kidnap"] = kidnap(saved, scans, odo, stamps, ref, k_starts, args.kidnap, options)
+    if "same" in args.protocols:
+        result["same_log"] = same_log(saved, scans, odo, stamps, ref, starts, args.scans, options)
+        result["kidnap"] = kidnap(saved, scans, odo, stamps, ref, k_starts, args.kidnap, options)
+    if "later" not in args.protocols:
+        return result
     result["later"] = later_visit(
         path, args.cache, name, scans, odo, stamps, relations, traj, options
     )
@@ -222,6 +237,7 @@ def main() -> None:
     parser.add_argument("--kidnap", type=int, default=300)
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", action="append", default=[])
+    parser.add_argument("--protocols", nargs="+", default=["same", "later"])
     args = parser.parse_args()
     options = LocaliseOptions().with_overrides(args.set) if args.set else LocaliseOptions()
     results = []
@@ -238,30 +254,37 @@ def main() -> None:
 def table(results: list[dict]) -> list[str]:
     lines = [
         "| log | fix travel m (5 starts) | correct fixes | share ≤0.3 m/3° | wrong | lost "
-        "| tracking ms mean / p95 | kidnaps relocalised (travel m) | kidnap wrong |",
+        "| tracking ms wall mean / median / p95, CPU mean "
+        "| kidnaps relocalised (travel m) | kidnap wrong |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
+        if "same_log" not in r:
+            continue
         s, k = r["same_log"], r["kidnap"]
         share = ", ".join(f"{x['share_within']:.3f}" for x in s)
         travel = ", ".join("-" if x["fix_travel"] is None else f"{x['fix_travel']:.1f}" for x in s)
         ms = [x["ms_tracking_mean"] for x in s if x["ms_tracking_mean"] is not None]
         p95 = [x["ms_tracking_p95"] for x in s if x["ms_tracking_p95"] is not None]
+        med = [x["ms_tracking_median"] for x in s if x["ms_tracking_median"] is not None]
+        cpu = [x["cpu_ms_tracking_mean"] for x in s if x["cpu_ms_tracking_mean"] is not None]
         kt = ", ".join("-" if x["reloc_travel"] is None else f"{x['reloc_travel']:.1f}" for x in k)
         lines.append(
             f"| {r['log']} | {travel} | {sum(x['fix_correct'] for x in s)}/{len(s)} "
             f"| {share} "
             f"| {sum(x['wrong'] for x in s)} | {sum(x['lost'] for x in s)} "
-            f"| {np.mean(ms):.2f} / {np.mean(p95):.2f} "
+            f"| {np.mean(ms):.2f} / {np.mean(med):.2f} / {np.mean(p95):.2f}, {np.mean(cpu):.2f} "
             f"| {sum(x['relocalised'] for x in k)}/{len(k)} ({kt}) | {sum(x['wrong'] for x in k)} |"
         )
     lines += [
         "",
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
-        "| ratio | spanning m | first fix travel m | estimates / scans | lost |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| ratio | spanning m | first fix travel m | estimates / scans | lost | wrong |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
+        if "later" not in r:
+            continue
         v = r["later"]
         ratio = v["joined_trans"] / v["full_trans"] if v["full_trans"] else math.nan
         fix = "-" if v["first_fix_travel"] is None else f"{v['first_fix_travel']:.1f}"
@@ -269,7 +292,8 @@ def table(results: list[dict]) -> list[str]:
             f"| {r['log']} | {v['relations']} ({v['spanning']}) | {v['covered']} "
             f"| {v['joined_trans']:.4f} / {v['joined_rot']:.3f} "
             f"| {v['full_trans']:.4f} / {v['full_rot']:.3f} | {ratio:.2f} "
-            f"| {v['spanning_trans']:.4f} | {fix} | {v['estimates']} / {v['scans']} | {v['lost']} |"
+            f"| {v['spanning_trans']:.4f} | {fix} | {v['estimates']} / {v['scans']} | {v['lost']} "
+            f"| {v['wrong']} |"
         )
     return lines
 

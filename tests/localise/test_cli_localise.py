@@ -88,6 +88,11 @@ def test_initial_pose_and_start_scan(mapped, tmp_path: Path) -> None:
     got_t, got_p = read_tum(out / "trajectory.tum")
     assert got_t[0] == pytest.approx(stamps[start])  # tracking from the first scan used
     assert np.hypot(*(got_p[-1, :2] - map_p[-1, :2])) < 0.1
+    # no initial pose: the fix's scan index is the recording's
+    result = _invoke("localise", map_dir, bag, "-o", tmp_path / "g", "--start-scan", start)
+    assert result.exit_code == 0, result.output
+    fix = json.loads((tmp_path / "g" / "summary.json").read_text())["first_fix"]
+    assert fix["scan_index"] > start and fix["stamp"] == pytest.approx(stamps[fix["scan_index"]])
 
 
 def test_bad_inputs_are_one_line(mapped, tmp_path: Path) -> None:
@@ -115,3 +120,26 @@ def test_bad_inputs_are_one_line(mapped, tmp_path: Path) -> None:
     log = tmp_path / "no_odom.clf"
     log.write_text("\n".join(lines) + "\n")
     _one_line_error(_invoke("localise", map_dir, log, "-o", tmp_path / "e"), "no_odom.clf")
+
+
+def test_ctrl_c_keeps_the_poses_written_and_exits_130(mapped, tmp_path: Path, monkeypatch) -> None:
+    import laser_corners.localise
+    from laser_corners.localise import LocaliserEstimate, LocaliseRun
+
+    def interrupted(map_data, path, options=None, *, on_estimate=None, **kwargs):
+        estimate = LocaliserEstimate(
+            np.array([1.0, 2.0, 0.5]), np.eye(3) * 1e-4, "relocalised", np.zeros(3), 0, 100.0
+        )
+        on_estimate(estimate)
+        return LocaliseRun(
+            [estimate], [], {"scans": 1, "estimates": 1}, np.ones(1), interrupted=True
+        )
+
+    monkeypatch.setattr(laser_corners.localise, "run_localise", interrupted)
+    bag, map_dir, _, _ = mapped
+    out = tmp_path / "out"
+    result = _invoke("localise", map_dir, bag, "-o", out)
+    assert result.exit_code == 130, result.output
+    stamps, poses = read_tum(out / "trajectory.tum")
+    assert stamps.tolist() == [100.0] and np.allclose(poses, [[1.0, 2.0, 0.5]])
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True

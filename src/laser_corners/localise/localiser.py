@@ -46,6 +46,14 @@ __all__ = ["Hypothesis", "Localiser", "LocaliserEstimate"]
 
 COVARIANCE_FLOOR = np.diag([0.02, 0.02, 0.01]) ** 2
 """Added to every covariance: the map's own error (m, m, rad), which ICP does not see."""
+RECOVER_DROP = 0.1
+"""A tracked scan agreeing this much less than the recent ones (or less than
+:data:`RECOVER_BELOW`) triggers a correlative search around the prediction."""
+RECOVER_BELOW = 0.6
+RECOVER_XY = 0.3
+"""Half-width (m) of the recovery search window."""
+RECOVER_YAW = 0.3
+"""Half-width (rad) of the recovery search window."""
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
 
@@ -138,6 +146,8 @@ class Localiser:
         self.hypotheses: list[Hypothesis] = []
         self.fixes: list[Fix] = []
         self.counts = {"scans": 0, "estimates": 0, "lost": 0, "searches": 0, "no_agreement": 0}
+        self.counts["recoveries"] = 0
+        self._recent: deque = deque(maxlen=self.options.recent_scans)
         self.ms_per_scan: list[float] = []
         self.pose: NDArray[np.float64] | None = None
         self._cov = np.diag([1.0, 1.0, 0.5])
@@ -160,6 +170,7 @@ class Localiser:
             self._cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
         self.hypotheses = []
         self._bad = 0
+        self._recent.clear()
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -224,16 +235,22 @@ class Localiser:
         self, pts, delta: NDArray, jump: bool, odo: NDArray, index: int, stamp: float
     ) -> LocaliserEstimate | None:
         assert self.pose is not None
+        opt = self.options
         prior = self._prior(delta, jump)
-        aligned, agreement = self._align(pts.xy, compose(self.pose, delta), prior)
-        if agreement < self.options.track_agreement:
-            self.pose = compose(self.pose, delta)
+        pred = compose(self.pose, delta)
+        aligned, agreement = self._align(pts.xy, pred, prior)
+        usual = float(np.mean(self._recent)) if self._recent else 1.0
+        if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
+            aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
+        if agreement < max(opt.track_agreement, usual - opt.track_drop):
+            self.pose = pred
             self._bad += 1
             self.counts["no_agreement"] += 1
-            if self._bad >= self.options.lost_scans:
+            if self._bad >= opt.lost_scans:
                 self._lose()
             return None
         self._bad = 0
+        self._recent.append(agreement)
         self.pose = aligned.pose
         try:
             cov = np.linalg.inv(aligned.information + prior)
@@ -241,6 +258,19 @@ class Localiser:
             cov = np.linalg.inv(prior)
         self._cov = cov + COVARIANCE_FLOOR
         return self._estimate(odo, index, stamp, "tracking", agreement)
+
+    def _recover(
+        self, xy: NDArray, pred: NDArray, aligned: Alignment, agreement: float
+    ) -> tuple[Alignment, float]:
+        """A correlative search around the prediction (wheel slip, a missed turn), then ICP
+        from its best pose under a weak prior; the better-agreeing of the two alignments."""
+        self.counts["recoveries"] += 1
+        guess = self.map.local_search(xy, pred, RECOVER_XY, RECOVER_YAW)
+        weak = np.diag(1.0 / np.array([RECOVER_XY, RECOVER_XY, RECOVER_YAW]) ** 2)
+        again, agreement2 = self._align(xy, guess, weak)
+        if agreement2 > agreement:
+            return again, agreement2
+        return aligned, agreement
 
     def _estimate(
         self, odo: NDArray, index: int, stamp: float, status: str, agreement: float

@@ -38,6 +38,11 @@ GLOBAL_SIGMA = 0.2
 """Width (m) of the likelihood of the global search (tolerates its coarse lattice)."""
 GLOBAL_POINTS = 120
 """Scan points used by the global search at most (evenly subsampled)."""
+LOCAL_POINTS = 80
+"""Scan points used by the local (recovery) search at most."""
+LOCAL_YAW_STEP = 0.02
+"""Heading step (rad) of the local (recovery) search: 0.2 m at 10 m, within the likelihood's
+width."""
 WALL_CLEARANCE = 0.15
 """Candidate positions closer than this (m) to a map point are not searched."""
 
@@ -112,6 +117,39 @@ class MapModel:
         clear = self.grid.score[ix[:, 1], ix[:, 0]] < wall
         return np.ascontiguousarray(xy[clear], dtype=np.float64)
 
+    def local_search(
+        self, points: NDArray[np.float64], centre: NDArray[np.float64], xy: float, yaw: float
+    ) -> NDArray[np.float64]:
+        """The best pose of ``points`` (base frame) within ``xy`` (m) and ``yaw`` (rad) of
+        ``centre`` on the likelihood grid: a lattice of :data:`GLOBAL_GRID` and
+        :data:`LOCAL_YAW_STEP` steps, scored exhaustively by the global search's kernel."""
+        n = math.ceil(xy / GLOBAL_GRID)
+        off = GLOBAL_GRID * np.arange(-n, n + 1)
+        ox, oy = np.meshgrid(off, off)
+        positions = np.column_stack([ox.ravel() + centre[0], oy.ravel() + centre[1]])
+        yaws = centre[2] + LOCAL_YAW_STEP * np.arange(
+            -math.ceil(yaw / LOCAL_YAW_STEP), math.ceil(yaw / LOCAL_YAW_STEP) + 1
+        )
+        best, arg = self._score(_subsample(points, LOCAL_POINTS), positions, yaws)
+        p = int(np.argmax(best))
+        return np.array([*positions[p], yaws[arg[p]]])
+
+    def _score(
+        self, points: NDArray, positions: NDArray, yaws: NDArray
+    ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+        """Best mean likelihood and heading index per position."""
+        c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
+        rotated = np.stack(
+            [c * points[:, 0] - s * points[:, 1], s * points[:, 0] + c * points[:, 1]], axis=-1
+        )
+        return _search(
+            self.grid.score,
+            self.grid.origin,
+            self.grid.resolution,
+            np.ascontiguousarray(rotated),
+            np.ascontiguousarray(positions, dtype=np.float64),
+        )
+
     def global_search(
         self, points: NDArray[np.float64], yaw_step: float, count: int
     ) -> list[tuple[NDArray[np.float64], float]]:
@@ -119,20 +157,9 @@ class MapModel:
         1 m or 0.3 rad apart, with their mean likelihood."""
         if len(points) == 0 or len(self.positions) == 0:
             return []
-        if len(points) > GLOBAL_POINTS:
-            points = points[np.linspace(0, len(points) - 1, GLOBAL_POINTS).astype(int)]
+        points = _subsample(points)
         yaws = np.arange(-math.pi, math.pi, yaw_step)
-        c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
-        rotated = np.stack(
-            [c * points[:, 0] - s * points[:, 1], s * points[:, 0] + c * points[:, 1]], axis=-1
-        )
-        best, arg = _search(
-            self.grid.score,
-            self.grid.origin,
-            self.grid.resolution,
-            np.ascontiguousarray(rotated),
-            self.positions,
-        )
+        best, arg = self._score(points, self.positions, yaws)
         chosen: list[tuple[NDArray[np.float64], float]] = []
         for p in np.argsort(-best):
             pose = np.array([*self.positions[p], yaws[arg[p]]])
@@ -141,6 +168,13 @@ class MapModel:
                 if len(chosen) == count:
                     break
         return chosen
+
+
+def _subsample(points: NDArray[np.float64], most: int = GLOBAL_POINTS) -> NDArray[np.float64]:
+    """At most ``most`` of ``points``, evenly spread over the scan."""
+    if len(points) <= most:
+        return np.ascontiguousarray(points)
+    return np.ascontiguousarray(points[np.linspace(0, len(points) - 1, most).astype(int)])
 
 
 def _distinct(a: NDArray, b: NDArray, xy: float, yaw: float) -> bool:

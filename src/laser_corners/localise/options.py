@@ -46,14 +46,18 @@ class LocaliseOptions(Options):
     """Odometry noise (rad per radian turned plus per metre travelled)."""
     match_sigma: float = Field(0.03, ge=1e-3, le=1.0)
     """Noise (m) of one point-to-line residual, scaling the ICP information (covariance)."""
-    track_agreement: float = Field(0.35, ge=0.0, le=1.0)
+    track_agreement: float = Field(0.6, ge=0.0, le=1.0)
     """While tracking, a scan agreeing less than this with the map gives no estimate and
     counts towards lost."""
+    track_drop: float = Field(0.25, ge=0.0, le=1.0)
+    """A tracked scan agreeing this much less than the recent tracked scans (mean) gives no
+    estimate either and counts towards lost: a kidnapped robot's scans rarely fit as well as
+    before, even where a local search finds them a place."""
     lost_scans: int = Field(5, ge=1, le=1000)
     """This many scans in a row below ``track_agreement``: lost, back to global search."""
     global_every: int = Field(10, ge=1, le=1000)
     """While searching, a global search over the whole map runs every n-th scan."""
-    global_candidates: int = Field(8, ge=1, le=100)
+    global_candidates: int = Field(16, ge=1, le=100)
     """Poses kept from one global search (best first, at least 1 m or 0.3 rad apart)."""
     global_resolution: float = Field(0.25, ge=0.05, le=2.0)
     """Position step (m) of the global search lattice (around the keyframe positions)."""
@@ -70,9 +74,9 @@ class LocaliseOptions(Options):
     fix_margin: float = Field(0.04, ge=0.0, le=1.0)
     """Every other hypothesis must agree less than the winner by this much on average over
     the recent scans both were scored on (at least 3): a share of the scan's points."""
-    fix_travel: float = Field(1.0, ge=0.0, le=100.0)
+    fix_travel: float = Field(2.0, ge=0.0, le=100.0)
     """Odometry travel (m, turns counted as 0.5 m per radian) the winner must have survived."""
-    fix_scans: int = Field(10, ge=1, le=10000)
+    fix_scans: int = Field(20, ge=1, le=10000)
     """Scans the winner must have survived."""
     recent_scans: int = Field(20, ge=3, le=1000)
     """Window (scans) of the recent agreement of a hypothesis."""

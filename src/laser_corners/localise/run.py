@@ -9,7 +9,7 @@ recording without any odometry is one :class:`~laser_corners.errors.InputError` 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,9 +33,9 @@ class LocaliseRun:
     Attributes
     ----------
     estimates : list of LocaliserEstimate
-        One per scan that got a pose (scan indices count the scans given to the localiser).
+        One per scan that got a pose (``scan_index``: the scan's index in the recording).
     fixes : list of Fix
-        The first fix and every relocalisation.
+        The first fix and every relocalisation (``scan_index`` in the recording too).
     counts : dict of str to int
         ``scans, estimates, lost, searches, no_agreement, skipped_no_odometry``.
     ms_per_scan : ndarray
@@ -121,6 +121,7 @@ def _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress) -> Loc
     undo: dict[str, NDArray] = {}
     estimates: list[LocaliserEstimate] = []
     stamps: list[float] = []
+    index: list[int] = []
     odometry: list[NDArray] = []
     skipped = 0
     interrupted = False
@@ -142,9 +143,11 @@ def _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress) -> Loc
                     undo[scan.frame_id] = invert_many(mounts.get(scan.frame_id) or (0.0, 0.0, 0.0))
                 base = compose_many(np.asarray(scan.pose), undo[scan.frame_id])
                 estimate = loc.add(scan, base, float(scan.stamp))
+                index.append(i)
                 stamps.append(float(scan.stamp))
                 odometry.append(base)
                 if estimate is not None:
+                    estimate.scan_index = i  # the recording's index, not the localiser's
                     estimates.append(estimate)
                     if on_estimate is not None:
                         on_estimate(estimate)
@@ -155,7 +158,7 @@ def _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress) -> Loc
     counts = dict(loc.counts, skipped_no_odometry=skipped)
     return LocaliseRun(
         estimates,
-        list(loc.fixes),
+        [replace(f, scan_index=index[f.scan_index]) for f in loc.fixes],
         counts,
         np.asarray(loc.ms_per_scan, dtype=np.float64),
         np.asarray(stamps, dtype=np.float64),
