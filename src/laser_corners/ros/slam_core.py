@@ -445,7 +445,9 @@ class MappingCore:
         c = self.counts
         ms = np.asarray(c.ms)
         timing = (
-            f", {ms.mean():.2f} ms/scan mean, p95 {np.percentile(ms, 95):.2f}" if ms.size else ""
+            f", {ms.mean():.2f} ms/scan mean, p95 {np.percentile(ms, 95):.2f}, max {ms.max():.1f}"
+            if ms.size
+            else ""
         )
         return (
             f"{c.scans} scans, {c.processed} processed, {c.no_odometry} without odometry, "
