@@ -28,6 +28,9 @@ class FakeOptions(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
     keyframe_distance: float = 0.3
+    min_range: float = 0.1
+    max_range: float = 30.0
+    point_spacing: float = 0.05
 
     def to_yaml(self) -> str:
         return yaml.safe_dump({"slam": self.model_dump()}, sort_keys=False)

@@ -9,7 +9,7 @@ Layers, lowest first (a module may import its own layer and the layers below):
 1. ``io``
 2. ``pipeline``
 3. ``sim``, ``matching``
-4. ``slam``
+4. ``slam``, ``localise``
 5. ``eval``
 6. ``viz``
 7. ``ros``, ``batch``, ``cli``, ``demo``
@@ -31,6 +31,7 @@ ROOM_LAYERS = {
     "sim": 3,
     "matching": 3,
     "slam": 4,
+    "localise": 4,
     "eval": 5,
     "viz": 6,
     "ros": 7,

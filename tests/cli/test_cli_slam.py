@@ -30,6 +30,7 @@ runner = CliRunner()
 CLI = [str(Path(sys.executable).with_name("laser-corners"))]
 FILES = [
     "graph.g2o",
+    "keyframes.npz",
     "landmarks.csv",
     "map.pgm",
     "map.png",

@@ -77,11 +77,14 @@ def _command(what: str, tmp: Path) -> tuple[list[str], dict[str, str], str]:
     """Command, environment, and a word the processes it starts must show before the kill."""
     env = dict(os.environ, ROS_HOME=str(tmp), ROS_LOG_DIR=str(tmp / "log"), PYTHONUNBUFFERED="1")
     env["PYTHONPATH"] = os.pathsep.join([str(REPO_ROOT / "src"), env.get("PYTHONPATH", "")])
-    if what == "ros2 node":
+    if what.startswith("ros2"):
         if importlib.util.find_spec("rclpy") is None:  # not imported here: the node imports it
             skip_or_fail("rclpy not installed; install with: pip install -e '.[ros2]'")
         domain = 1 + (os.getpid() + 50) % 101  # not the domain of test_ros2_node.py
         env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        if what == "ros2 slam node":  # the mapping mode (gtsam, a timer, more subscriptions)
+            mode = ["--ros-args", "-p", "mode:=slam", "-p", "odom_topic:=odom"]
+            return cli_command("ros2", *mode), env, ""
         return cli_command("ros2"), env, ""
     if shutil.which("roscore") is None:
         skip_or_fail("ROS 1 not installed (no roscore on PATH): `make test` installs it")
@@ -93,7 +96,7 @@ def _command(what: str, tmp: Path) -> tuple[list[str], dict[str, str], str]:
     return ["roscore", "-p", str(port)], env, "rosmaster"
 
 
-@pytest.mark.parametrize("what", ["ros2 node", "ros1 node", "roscore"])
+@pytest.mark.parametrize("what", ["ros2 node", "ros2 slam node", "ros1 node", "roscore"])
 def test_started_processes_die_with_their_sigkilled_parent(tmp_path: Path, what: str) -> None:
     command, env, wait_for_child = _command(what, tmp_path)
     parent = subprocess.Popen(

@@ -54,6 +54,7 @@ def test_folder_holds_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
         [
             "trajectory.tum",
             "graph.g2o",
+            "keyframes.npz",
             "landmarks.csv",
             "map.pgm",
             "map.yaml",
@@ -75,7 +76,7 @@ def test_folder_holds_every_file_with_one_pose_per_scan(tmp_path: Path) -> None:
     _, odometry = read_tum(tmp_path / "odometry.tum")
     np.testing.assert_allclose(odometry[:, :2], result.odometry[:, :2], atol=1e-6)
     assert yaml.safe_load((tmp_path / "options.yaml").read_text()) == {
-        "slam": {"keyframe_distance": 0.3}
+        "slam": result.options.model_dump()
     }
     assert "VERTEX_SE2" in (tmp_path / "graph.g2o").read_text()
     grid = read_map(tmp_path / "map.yaml")
@@ -106,7 +107,7 @@ def test_summary_and_report_hold_the_numbers(tmp_path: Path) -> None:
     assert abs(timings["real_time_factor"] - 11.9 / 2.0) < 1e-9
     assert abs(timings["ms_per_scan_mean"] - result.ms_per_scan.mean()) < 1e-12
     assert timings["peak_rss_mb"] == 321.0
-    assert summary["options"] == {"keyframe_distance": 0.3}
+    assert summary["options"] == result.options.model_dump()
     assert summary["mount"] == [0.1, 0.0, 0.0]
     assert summary["relations"]["trajectory"]["trans_mean"] == 0.05
     report = (tmp_path / "report.md").read_text()

@@ -6,7 +6,8 @@
 * :mod:`~laser_corners.cli.detect` (``detect``, ``info``, ``plot``, ``params``),
   :mod:`~laser_corners.cli.evaluate` (``evaluate sim|real``),
   :mod:`~laser_corners.cli.loops` (``evaluate loops``), :mod:`~laser_corners.cli.slam`
-  (``slam``, ``evaluate slam``), :mod:`~laser_corners.cli.batch`,
+  (``slam``, ``evaluate slam``), :mod:`~laser_corners.cli.localise`,
+  :mod:`~laser_corners.cli.batch`,
   :mod:`~laser_corners.cli.view`,
   :mod:`~laser_corners.cli.sim` (``simulate``, ``demo``, ``warmup``),
   :mod:`~laser_corners.cli.ros` (``ros1``, ``ros2``),
@@ -19,7 +20,18 @@ inside the commands, so ``--help`` stays instant. Known errors
 in one place: :class:`~laser_corners.cli.app.ErrorLineGroup`.
 """
 
-from laser_corners.cli import batch, detect, evaluate, kernels, loops, ros, sim, slam, view
+from laser_corners.cli import (
+    batch,
+    detect,
+    evaluate,
+    kernels,
+    localise,
+    loops,
+    ros,
+    sim,
+    slam,
+    view,
+)
 from laser_corners.cli.app import app, evaluate_app, fail, main
 
 __all__ = [
@@ -30,6 +42,7 @@ __all__ = [
     "evaluate_app",
     "fail",
     "kernels",
+    "localise",
     "loops",
     "main",
     "ros",

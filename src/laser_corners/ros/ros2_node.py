@@ -19,8 +19,12 @@ PyPI: ``pip install 'laser-corners[ros2]'``) or, in a ROS 2 workspace, with the 
 in ``ros2/`` (``ros2 run laser_corners_ros laser_corners_node``); both call :func:`main`.
 SIGINT and SIGTERM end the node with a summary line and exit code 0.
 
-This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core` and
-:mod:`laser_corners.ros.convert`.
+The ``mode`` parameter (read at start) picks what the node does: ``detector`` (the default,
+above), ``slam`` or ``localise`` (:mod:`laser_corners.ros.ros2_mapping`: mapping and
+localisation with odometry from ``/tf``, ``map -> odom`` out; docs/ros.md).
+
+This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core`,
+:mod:`laser_corners.ros.slam_core` and :mod:`laser_corners.ros.convert`.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
-from types import FrameType, ModuleType
+from types import FrameType, ModuleType, SimpleNamespace
 from typing import Any
 
 from laser_corners.errors import (
@@ -44,6 +48,8 @@ from laser_corners.keypoints import Keypoints
 from laser_corners.params import DetectorParams
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array, seconds_to_sec_nanosec
 from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
+from laser_corners.ros.ros2_mapping import MappingAdapter, check_mode
+from laser_corners.ros.slam_core import MAPPING_OPTIONS
 
 __all__ = ["NODE_NAME", "import_rclpy", "main", "parameter_values"]
 
@@ -105,105 +111,155 @@ def parameter_values(parameters: Sequence[Any], unset_type: Any) -> dict[str, An
 
 def _make_node_class() -> type:
     import rclpy.node  # type: ignore[import-not-found]
-    from builtin_interfaces.msg import Duration  # type: ignore[import-not-found]
-    from geometry_msgs.msg import Point, Pose, PoseArray  # type: ignore[import-not-found]
     from rcl_interfaces.msg import (  # type: ignore[import-not-found]
         ParameterDescriptor,
         SetParametersResult,
     )
-    from rclpy.parameter import Parameter  # type: ignore[import-not-found]
-    from rclpy.qos import (  # type: ignore[import-not-found]
-        DurabilityPolicy,
-        HistoryPolicy,
-        QoSProfile,
-        ReliabilityPolicy,
-    )
-    from sensor_msgs.msg import LaserScan as LaserScanMsg  # type: ignore[import-not-found]
-    from visualization_msgs.msg import Marker, MarkerArray  # type: ignore[import-not-found]
 
-    def duration(seconds: float) -> Any:
-        sec, nanosec = seconds_to_sec_nanosec(seconds)
-        return Duration(sec=sec, nanosec=nanosec)
-
-    class CornerNode2(rclpy.node.Node):  # type: ignore[misc]
-        """The ROS 2 adapter around :class:`CornerNodeCore`."""
+    class LaserCornersNode(rclpy.node.Node):  # type: ignore[misc]
+        """The ROS 2 node: ``mode`` (read at start) picks the adapter that does the work."""
 
         def __init__(self, context: Any = None) -> None:
             super().__init__(NODE_NAME, context=context)
-            self.n_scans = self.n_skipped = self.n_markers = 0
-            config = NodeConfig.from_mapping(self._declare(), source="ROS 2 parameter", prefix="")
-            self.core = CornerNodeCore(config)
-            depth = int(config.options["queue_size"])
-            scan_qos = QoSProfile(  # rclpy's sensor-data profile, with our depth
-                history=HistoryPolicy.KEEP_LAST,
-                depth=depth,
-                reliability=ReliabilityPolicy.BEST_EFFORT,
-                durability=DurabilityPolicy.VOLATILE,
-            )
-            self.corners_pub = self.create_publisher(PoseArray, "corners", depth)
-            self.markers_pub = self.create_publisher(MarkerArray, "corner_markers", depth)
-            self.scan_sub = self.create_subscription(LaserScanMsg, "scan", self.on_scan, scan_qos)
-            self.add_on_set_parameters_callback(self.on_set_parameters)
-            self.get_logger().info(
-                f"{self.scan_sub.topic_name} -> {self.corners_pub.topic_name}, "
-                f"{self.markers_pub.topic_name} (preset {config.preset}, "
-                f"overrides {config.overrides or 'none'})"
-            )
-
-        def _declare(self) -> dict[str, Any]:
-            """Declare our parameters (dynamic typing); return the values given at start.
-
-            Overrides (``-p``, ``--params-file``) for names the node does not know are
-            returned too, so that :meth:`NodeConfig.from_mapping` rejects them as ROS 1 does;
-            rclpy itself would ignore them silently.
-            """
             dynamic = ParameterDescriptor(dynamic_typing=True)
-            defaults = {
-                "preset": "paper",
-                **dict.fromkeys(DetectorParams.model_fields),
-                **NODE_OPTIONS,
-            }
-            for name, default in defaults.items():
-                self.declare_parameter(name, default, dynamic)
-            values = parameter_values(self.get_parameters(list(defaults)), Parameter.Type.NOT_SET)
-            # rclpy keeps the start-up overrides in a private dict (no public accessor)
-            overrides = getattr(self, "_parameter_overrides", {})
-            for name, override in overrides.items():
-                if not self.has_parameter(name) and "." not in name:  # not ours, not rclpy's
-                    values[name] = override.value
-            return values
+            self.declare_parameter("mode", "detector", dynamic)
+            self.mode = check_mode(self.get_parameter("mode").value)
+            if self.mode == "detector":
+                defaults = {
+                    "preset": "paper",
+                    **dict.fromkeys(DetectorParams.model_fields),
+                    **NODE_OPTIONS,
+                }
+                self.adapter: Any = _DetectorAdapter(self, _declare(self, defaults))
+            else:
+                defaults = {k: v for k, v in MAPPING_OPTIONS.items() if k != "mode"}
+                values = _declare(self, defaults)
+                self.adapter = MappingAdapter(self, {**values, "mode": self.mode})
+            self.add_on_set_parameters_callback(self.on_set_parameters)
 
         def on_set_parameters(self, parameters: list[Any]) -> Any:
             """Check a change against all current values; apply it only when valid."""
-            ok, reason = _set_parameters(self, parameters, Parameter.Type.NOT_SET)
+            if any(p.name == "mode" for p in parameters):
+                return SetParametersResult(successful=False, reason="mode: read at start only")
+            ok, reason = self.adapter.set_parameters(parameters)
             return SetParametersResult(successful=ok, reason=reason)
-
-        def on_scan(self, msg: Any) -> None:
-            """Detect and publish; a malformed message is logged and skipped."""
-            keypoints = _process_scan(self, msg)
-            if keypoints is None:
-                return
-            out = fill_pose_array(PoseArray(), Pose, keypoints)
-            out.header = msg.header
-            self.corners_pub.publish(out)
-            if self.markers_pub.get_subscription_count() > 0:
-                options = self.core.config.options
-                markers = keypoints_to_marker_fields(
-                    keypoints, ns=options["marker_ns"], lifetime=options["marker_lifetime"]
-                )
-                self.markers_pub.publish(
-                    fill_marker_array(MarkerArray(), Marker, Point, duration, msg.header, markers)
-                )
-                self.n_markers += 1
 
         def summary(self) -> str:
             """Counts for the log line at shutdown."""
-            return (
-                f"{self.n_scans} scans processed, {self.n_skipped} skipped, "
-                f"markers published for {self.n_markers}"
-            )
+            return str(self.adapter.summary())
 
-    return CornerNode2
+    return LaserCornersNode
+
+
+def _declare(node: Any, defaults: dict[str, Any]) -> dict[str, Any]:
+    """Declare ``defaults`` (dynamic typing) on ``node``; return the values given at start.
+
+    Overrides (``-p``, ``--params-file``) for names the node does not know are returned too,
+    so that the mode's config rejects them as ROS 1 does; rclpy itself would ignore them
+    silently.
+    """
+    from rcl_interfaces.msg import ParameterDescriptor  # type: ignore[import-not-found]
+    from rclpy.parameter import Parameter  # type: ignore[import-not-found]
+
+    dynamic = ParameterDescriptor(dynamic_typing=True)
+    for name, default in defaults.items():  # an empty list (mount) stays unset until given
+        node.declare_parameter(name, None if default == [] else default, dynamic)
+    values = parameter_values(node.get_parameters(list(defaults)), Parameter.Type.NOT_SET)
+    # rclpy keeps the start-up overrides in a private dict (no public accessor)
+    overrides = getattr(node, "_parameter_overrides", {})
+    for name, override in overrides.items():
+        if not node.has_parameter(name) and "." not in name:  # not ours, not rclpy's
+            values[name] = override.value
+    return values
+
+
+class _DetectorAdapter:
+    """The detector mode: ``scan`` -> ``corners`` and ``corner_markers`` (the default)."""
+
+    def __init__(self, node: Any, values: dict[str, Any]) -> None:
+        from builtin_interfaces.msg import Duration  # type: ignore[import-not-found]
+        from geometry_msgs.msg import Point, Pose, PoseArray  # type: ignore[import-not-found]
+        from rclpy.qos import (  # type: ignore[import-not-found]
+            DurabilityPolicy,
+            HistoryPolicy,
+            QoSProfile,
+            ReliabilityPolicy,
+        )
+        from sensor_msgs.msg import LaserScan as LaserScanMsg  # type: ignore[import-not-found]
+        from visualization_msgs.msg import Marker, MarkerArray  # type: ignore[import-not-found]
+
+        self.m = SimpleNamespace(
+            Duration=Duration,
+            Point=Point,
+            Pose=Pose,
+            PoseArray=PoseArray,
+            Marker=Marker,
+            MarkerArray=MarkerArray,
+        )
+        self.node = node
+        self.n_scans = self.n_skipped = self.n_markers = 0
+        config = NodeConfig.from_mapping(values, source="ROS 2 parameter", prefix="")
+        self.core = CornerNodeCore(config)
+        depth = int(config.options["queue_size"])
+        scan_qos = QoSProfile(  # rclpy's sensor-data profile, with our depth
+            history=HistoryPolicy.KEEP_LAST,
+            depth=depth,
+            reliability=ReliabilityPolicy.BEST_EFFORT,
+            durability=DurabilityPolicy.VOLATILE,
+        )
+        self.corners_pub = node.create_publisher(PoseArray, "corners", depth)
+        self.markers_pub = node.create_publisher(MarkerArray, "corner_markers", depth)
+        self.scan_sub = node.create_subscription(LaserScanMsg, "scan", self.on_scan, scan_qos)
+        node.get_logger().info(
+            f"{self.scan_sub.topic_name} -> {self.corners_pub.topic_name}, "
+            f"{self.markers_pub.topic_name} (preset {config.preset}, "
+            f"overrides {config.overrides or 'none'})"
+        )
+
+    def get_logger(self) -> Any:
+        return self.node.get_logger()
+
+    def get_parameters(self, names: list[str]) -> Any:
+        return self.node.get_parameters(names)
+
+    def set_parameters(self, parameters: list[Any]) -> tuple[bool, str]:
+        from rclpy.parameter import Parameter  # type: ignore[import-not-found]
+
+        return _set_parameters(self, parameters, Parameter.Type.NOT_SET)
+
+    def on_scan(self, msg: Any) -> None:
+        """Detect and publish; a malformed message is logged and skipped."""
+        m = self.m
+
+        def duration(seconds: float) -> Any:
+            sec, nanosec = seconds_to_sec_nanosec(seconds)
+            return m.Duration(sec=sec, nanosec=nanosec)
+
+        keypoints = _process_scan(self, msg)
+        if keypoints is None:
+            return
+        out = fill_pose_array(m.PoseArray(), m.Pose, keypoints)
+        out.header = msg.header
+        self.corners_pub.publish(out)
+        if self.markers_pub.get_subscription_count() > 0:
+            options = self.core.config.options
+            markers = keypoints_to_marker_fields(
+                keypoints, ns=options["marker_ns"], lifetime=options["marker_lifetime"]
+            )
+            self.markers_pub.publish(
+                fill_marker_array(m.MarkerArray(), m.Marker, m.Point, duration, msg.header, markers)
+            )
+            self.n_markers += 1
+
+    def summary(self) -> str:
+        """Counts for the log line at shutdown."""
+        return (
+            f"{self.n_scans} scans processed, {self.n_skipped} skipped, "
+            f"markers published for {self.n_markers}"
+        )
+
+    def shutdown(self) -> str | None:
+        return None
 
 
 def _set_parameters(node: Any, parameters: list[Any], not_set: Any) -> tuple[bool, str]:
@@ -313,6 +369,9 @@ def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
             executor.spin_once(timeout_sec=SPIN_PERIOD)
         reason = f"stopped by {stop.received}" if stop.received else "ROS 2 context shut down"
         node.get_logger().info(f"{reason}: {node.summary()}")
+        written = node.adapter.shutdown()
+        if written:
+            node.get_logger().info(written)
         executor.shutdown(timeout_sec=1.0)
     finally:
         if node is not None:

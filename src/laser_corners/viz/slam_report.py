@@ -6,6 +6,8 @@
 ``odometry.tum``   the odometry at the same stamps, same format (``evaluate slam --odometry``)
 ``graph.g2o``      the pose graph (``SlamResult.write_g2o``)
 ``landmarks.csv``  ``x, y, cov_xx, cov_xy, cov_yy, observations, first_stamp, last_stamp``
+``keyframes.npz`` keyframe poses and scan points, what ``localise`` reads
+                   (:mod:`laser_corners.slam.mapfile`)
 ``map.pgm``        occupancy grid, ROS map_server format (see :mod:`laser_corners.io.occupancy`)
 ``map.yaml``       its map_server metadata
 ``map.png``        grid, trajectory, landmarks, loop closures
@@ -40,6 +42,7 @@ from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import write_map
 from laser_corners.io.trajectory import write_tum
 from laser_corners.slam.grid import result_grid
+from laser_corners.slam.mapfile import save_map_data
 from laser_corners.viz.slam import save_slam_map
 
 __all__ = [
@@ -328,7 +331,8 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     Returns
     -------
     dict of str to Path
-        ``trajectory``, ``odometry``, ``graph``, ``landmarks``, ``map_yaml``, ``map_pgm``,
+        ``trajectory``, ``odometry``, ``graph``, ``landmarks``, ``keyframes``, ``map_yaml``,
+        ``map_pgm``,
         ``map_png``, ``options``, ``summary``, ``report``.
 
     Raises
@@ -350,6 +354,7 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     paths["odometry"] = folder / "odometry.tum"
     _write_graph(result, folder / "graph.g2o", paths, info)
     paths["landmarks"] = write_landmarks(folder / "landmarks.csv", result.landmarks)
+    paths["keyframes"] = save_map_data(result, folder)  # what `localise` reads
     grid = result_grid(result, info.resolution) if len(result.scans) else None
     if grid is not None:
         paths["map_yaml"], paths["map_pgm"] = write_map(grid, folder / "map.yaml")

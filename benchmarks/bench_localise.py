@@ -1,0 +1,302 @@
+"""Localisation on the Freiburg logs, in the two protocols of issue 20.
+
+Usage::
+
+    PYTHONPATH=src python benchmarks/bench_localise.py [LOG ...] [--cache DIR] [--starts 5]
+        [--scans 1200] [--kidnap 300] [--json FILE] [--protocols same later]
+
+LOG defaults to ``fr079``, ``aces`` and ``intel`` (``../shared/data/real/LOG.bag`` with
+``LOG.relations``). Maps are made with :func:`laser_corners.slam.run_slam` (default options)
+and cached as ``slam`` output folders under ``--cache`` (default
+``$TMPDIR/laser-corners-localise``), never in the repository.
+
+**Same log**: the whole log is mapped; the localiser (no initial pose) starts at ``--starts``
+scans spread over the log and runs ``--scans`` scans from each. Reported: travel (odometry,
+m) to the first fix and whether it was within 0.5 m / 5° of the map's own trajectory
+(``trajectory.tum``); the share of the scans after the first fix with an estimate within
+0.3 m / 3° of it; *wrong* = estimates more than 0.5 m off (any, not only fixes); tracking ms
+per scan (scans tracked, mean and p95) and ms per scan over all scans. **Kidnap**: from each
+start the localiser runs 300 scans, then the input jumps ``--kidnap`` scans ahead with the
+odometry made continuous across the jump (a robot carried away: the odometry does not see
+it); reported: lost detected, relocalised, travel to the relocalisation, wrong estimates.
+
+**Later visit**: the first half of the scans is mapped (``stop_scan``), the second half is
+localised in it with no initial pose; the map's trajectory (first half) and the localiser's
+estimates (second half) are joined and scored with the relation metric on every relation
+with a stamp in the second half, beside the full-log SLAM's trajectory on the same relations;
+*wrong* = second-half estimates more than 0.5 m from the full-log SLAM's trajectory.
+
+Timings are of this machine under whatever else runs on it (2 cores shared).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from laser_corners.eval.relations import read_relations, relation_metrics
+from laser_corners.io.trajectory import read_tum
+from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.pipeline.recording import open_recording
+from laser_corners.slam import run_slam
+from laser_corners.slam.geometry import between, compose, compose_many, invert_many
+from laser_corners.slam.mapfile import load_map
+from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
+
+
+def read_log(path: Path) -> tuple[list, np.ndarray, np.ndarray]:
+    """Every scan with odometry: scans, base odometry (N, 3), stamps (N,)."""
+    scans, odo, stamps = [], [], []
+    with open_recording(path, None) as rec:
+        mounts = getattr(rec.source, "mounts", {})
+        for scan in rec.scans():
+            if scan.pose is None or scan.stamp is None:
+                continue
+            undo = invert_many(mounts.get(scan.frame_id) or (0.0, 0.0, 0.0))
+            scans.append(scan)
+            odo.append(compose_many(np.asarray(scan.pose), undo))
+            stamps.append(float(scan.stamp))
+    return scans, np.array(odo), np.array(stamps)
+
+
+def cached_map(path: Path, folder: Path, stop_scan: int | None) -> Path:
+    """A ``slam`` output folder for ``path`` (made once)."""
+    if not (folder / "keyframes.npz").is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        start = time.perf_counter()
+        result = run_slam(path, stop_scan=stop_scan)
+        info = SlamRunInfo(str(path), time.perf_counter() - start, 0.0)
+        write_slam_outputs(result, folder, info)
+    return folder
+
+
+def pose_error(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    d = between(b, a)
+    return math.hypot(d[0], d[1]), abs(math.degrees(d[2]))
+
+
+def drive(loc, scans, odo, stamps, order, ref) -> dict:
+    """Feed the scans ``order``; score against ``ref`` (N, 3) poses by scan index."""
+    rows = []
+    travel = 0.0
+    for n, i in enumerate(order):
+        if n:
+            d = between(odo[order[n - 1]], odo[i])
+            travel += math.hypot(d[0], d[1])
+        status = loc.status
+        cpu = time.process_time()
+        e = loc.add(scans[i], odo[i], stamps[i])
+        cpu = (time.process_time() - cpu) * 1e3
+        err = pose_error(e.pose, ref[i]) if e is not None else (math.inf, math.inf)
+        rows.append((i, travel, e is not None, *err, status, loc.ms_per_scan[-1], cpu))
+    return {"rows": rows}
+
+
+def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[dict]:
+    out = []
+    for s in starts:
+        loc = Localiser(saved, options)
+        order = np.arange(s, min(s + n_scans, len(scans)))
+        rows = drive(loc, scans, odo, stamps, order, ref)["rows"]
+        got = [k for k, r in enumerate(rows) if r[2]]
+        first = got[0] if got else None
+        after = rows[first:] if first is not None else []
+        good = sum(r[2] and r[3] <= 0.3 and r[4] <= 3.0 for r in after)
+        tracked = [r[6] for r in rows if r[5] == "tracking"]
+        cpu = [r[7] for r in rows if r[5] == "tracking"]
+        out.append(
+            {
+                "start": int(s),
+                "fix_travel": rows[first][1] if first is not None else None,
+                "fix_correct": bool(
+                    first is not None and rows[first][3] <= 0.5 and rows[first][4] <= 5
+                ),
+                "share_within": good / len(after) if after else 0.0,
+                "wrong": sum(r[2] and r[3] > 0.5 for r in rows),
+                "lost": loc.counts["lost"],
+                "ms_tracking_mean": float(np.mean(tracked)) if tracked else None,
+                "ms_tracking_p95": float(np.percentile(tracked, 95)) if tracked else None,
+                "ms_tracking_median": float(np.median(tracked)) if tracked else None,
+                "cpu_ms_tracking_mean": float(np.mean(cpu)) if cpu else None,
+                "ms_all_mean": float(np.mean([r[6] for r in rows])),
+            }
+        )
+    return out
+
+
+def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
+    """300 scans, then a jump of ``skip`` scans the odometry does not see, then 600 scans."""
+    out = []
+    for s in starts:
+        before = np.arange(s, s + 300)
+        after = np.arange(s + 300 + skip, s + 900 + skip)
+        if after[-1] >= len(scans):
+            continue
+        # continuous odometry: the scans after the jump keep their motion, not their place
+        shift = compose(odo[before[-1]], invert_many(odo[after[0]]))
+        odo2 = odo.copy()
+        odo2[after] = compose_many(shift, odo[after])
+        loc = Localiser(saved, options)
+        rows = drive(loc, scans, odo2, stamps, np.r_[before, after], ref)["rows"]
+        later = rows[300:]
+        lost_at = next((k for k, r in enumerate(later) if r[5] != "tracking"), None)
+        fixes = [f for f in loc.fixes if f.scan_index >= 300]
+        out.append(
+            {
+                "start": int(s),
+                "tracking_before": rows[299][5] == "tracking" or rows[299][2],
+                "lost_after_scans": lost_at,
+                "relocalised": bool(fixes),
+                "reloc_travel": fixes[0].travel if fixes else None,
+                "wrong": sum(r[2] and r[3] > 0.5 for r in rows),
+            }
+        )
+    return out
+
+
+def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, options) -> dict:
+    half = len(scans) // 2
+    folder = cached_map(path, cache / f"{name}-half", stop_scan=half)
+    saved = load_map(folder)
+    map_t, map_p = read_tum(folder / "trajectory.tum")
+    loc = Localiser(saved, options)
+    est_t, est_p = [], []
+    ref_t, ref_p = full_traj
+    wrong = 0
+    for i in range(half, len(scans)):
+        e = loc.add(scans[i], odo[i], stamps[i])
+        if e is not None:
+            est_t.append(stamps[i])
+            est_p.append(e.pose)
+            k = min(int(np.searchsorted(ref_t, stamps[i] - 1e-4)), len(ref_t) - 1)
+            wrong += pose_error(e.pose, ref_p[k])[0] > 0.5
+    t_half = stamps[half]
+    joined_t = np.r_[map_t[map_t < t_half], np.array(est_t)]
+    joined_p = np.vstack([map_p[map_t < t_half], np.array(est_p).reshape(-1, 3)])
+    rel = relations[(relations[:, 0] >= t_half) | (relations[:, 1] >= t_half)]
+    spanning = rel[(rel[:, 0] < t_half) | (rel[:, 1] < t_half)]
+    ours = relation_metrics(joined_t, joined_p, rel)
+    full = relation_metrics(full_traj[0], full_traj[1], rel)
+    return {
+        "relations": len(rel),
+        "spanning": len(spanning),
+        "covered": ours.n_covered,
+        "joined_trans": ours.trans_mean,
+        "joined_rot": ours.rot_deg_mean,
+        "full_trans": full.trans_mean,
+        "full_rot": full.rot_deg_mean,
+        "spanning_trans": relation_metrics(joined_t, joined_p, spanning).trans_mean,
+        "first_fix_travel": loc.fixes[0].travel if loc.fixes else None,
+        "estimates": len(est_t),
+        "scans": len(scans) - half,
+        "lost": loc.counts["lost"],
+        "wrong": int(wrong),
+    }
+
+
+def run_log(name: str, args, options) -> dict:
+    path = REAL / f"{name}.bag"
+    relations = read_relations(REAL / f"{name}.relations")
+    folder = cached_map(path, args.cache / f"{name}-full", None)
+    saved = load_map(folder)
+    scans, odo, stamps = read_log(path)
+    traj = read_tum(folder / "trajectory.tum")
+    # the same scans: stamps equal up to the TUM file's rounding (never the next scan's)
+    idx = np.clip(np.searchsorted(traj[0], stamps - 1e-4), 0, len(traj[0]) - 1)
+    ref = traj[1][idx]
+    starts = np.linspace(0, len(scans) - args.scans - 1, args.starts).astype(int)
+    k_starts = np.linspace(0, len(scans) - 900 - args.kidnap - 1, args.starts).astype(int)
+    result = {"log": name, "scans": len(scans)}
+    if "same" in args.protocols:
+        result["same_log"] = same_log(saved, scans, odo, stamps, ref, starts, args.scans, options)
+        result["kidnap"] = kidnap(saved, scans, odo, stamps, ref, k_starts, args.kidnap, options)
+    if "later" not in args.protocols:
+        return result
+    result["later"] = later_visit(
+        path, args.cache, name, scans, odo, stamps, relations, traj, options
+    )
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("logs", nargs="*", default=["fr079", "aces", "intel"])
+    default_cache = Path(tempfile.gettempdir()) / "laser-corners-localise"
+    parser.add_argument("--cache", type=Path, default=default_cache)
+    parser.add_argument("--starts", type=int, default=5)
+    parser.add_argument("--scans", type=int, default=1200)
+    parser.add_argument("--kidnap", type=int, default=300)
+    parser.add_argument("--json", type=Path, default=None)
+    parser.add_argument("--set", action="append", default=[])
+    parser.add_argument("--protocols", nargs="+", default=["same", "later"])
+    args = parser.parse_args()
+    options = LocaliseOptions().with_overrides(args.set) if args.set else LocaliseOptions()
+    results = []
+    for name in args.logs:
+        start = time.perf_counter()
+        results.append(run_log(name, args, options))
+        results[-1]["wall_s"] = time.perf_counter() - start
+        print(json.dumps(results[-1], default=float), flush=True)
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1, default=float))
+    print(os.linesep.join(table(results)))
+
+
+def table(results: list[dict]) -> list[str]:
+    lines = [
+        "| log | fix travel m (5 starts) | correct fixes | share ≤0.3 m/3° | wrong | lost "
+        "| tracking ms wall mean / median / p95, CPU mean "
+        "| kidnaps relocalised (travel m) | kidnap wrong |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        if "same_log" not in r:
+            continue
+        s, k = r["same_log"], r["kidnap"]
+        share = ", ".join(f"{x['share_within']:.3f}" for x in s)
+        travel = ", ".join("-" if x["fix_travel"] is None else f"{x['fix_travel']:.1f}" for x in s)
+        ms = [x["ms_tracking_mean"] for x in s if x["ms_tracking_mean"] is not None]
+        p95 = [x["ms_tracking_p95"] for x in s if x["ms_tracking_p95"] is not None]
+        med = [x["ms_tracking_median"] for x in s if x["ms_tracking_median"] is not None]
+        cpu = [x["cpu_ms_tracking_mean"] for x in s if x["cpu_ms_tracking_mean"] is not None]
+        kt = ", ".join("-" if x["reloc_travel"] is None else f"{x['reloc_travel']:.1f}" for x in k)
+        lines.append(
+            f"| {r['log']} | {travel} | {sum(x['fix_correct'] for x in s)}/{len(s)} "
+            f"| {share} "
+            f"| {sum(x['wrong'] for x in s)} | {sum(x['lost'] for x in s)} "
+            f"| {np.mean(ms):.2f} / {np.mean(med):.2f} / {np.mean(p95):.2f}, {np.mean(cpu):.2f} "
+            f"| {sum(x['relocalised'] for x in k)}/{len(k)} ({kt}) | {sum(x['wrong'] for x in k)} |"
+        )
+    lines += [
+        "",
+        "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
+        "| ratio | spanning m | first fix travel m | estimates / scans | lost | wrong |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        if "later" not in r:
+            continue
+        v = r["later"]
+        ratio = v["joined_trans"] / v["full_trans"] if v["full_trans"] else math.nan
+        fix = "-" if v["first_fix_travel"] is None else f"{v['first_fix_travel']:.1f}"
+        lines.append(
+            f"| {r['log']} | {v['relations']} ({v['spanning']}) | {v['covered']} "
+            f"| {v['joined_trans']:.4f} / {v['joined_rot']:.3f} "
+            f"| {v['full_trans']:.4f} / {v['full_rot']:.3f} | {ratio:.2f} "
+            f"| {v['spanning_trans']:.4f} | {fix} | {v['estimates']} / {v['scans']} | {v['lost']} "
+            f"| {v['wrong']} |"
+        )
+    return lines
+
+
+if __name__ == "__main__":
+    main()

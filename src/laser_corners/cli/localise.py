@@ -1,0 +1,156 @@
+"""``localise MAP INPUT -o DIR``: the pose of a recording's robot in a map ``slam`` wrote.
+
+See docs/localise.md. Parses the options, makes one call (``localise.run_localise``) that
+writes ``trajectory.tum`` as the estimates come, then writes ``summary.json`` and
+``trajectory.png`` (:mod:`laser_corners.viz.localise`). Ctrl-C stops between two scans and
+keeps what was written (exit 130).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from laser_corners.cli.app import app, fail
+from laser_corners.cli.common import InputArg, TopicOption, new_folder
+
+if TYPE_CHECKING:
+    from laser_corners.localise import LocaliseOptions
+
+__all__ = ["localise_command", "localise_options", "parse_pose"]
+
+_MapArg = Annotated[
+    Path,
+    typer.Argument(
+        metavar="MAP", help="Map folder written by `laser-corners slam -o`.", show_default=False
+    ),
+]
+_Set = Annotated[
+    list[str] | None,
+    typer.Option("--set", help="Override a localisation option: key=value (repeatable)."),
+]
+_Config = Annotated[
+    Path | None, typer.Option("--config", help="YAML file of localisation options (before --set).")
+]
+_Pose = Annotated[
+    str | None,
+    typer.Option(
+        "--initial-pose", help="Base pose x,y,θ (m, m, rad) in the map at the first scan."
+    ),
+]
+_Mount = Annotated[
+    str | None,
+    typer.Option("--mount", help="Base -> laser transform x,y,yaw (overrides the recording's)."),
+]
+
+
+def parse_pose(text: str, option: str) -> tuple[float, float, float]:
+    """``"x,y,yaw"`` as three floats, or a one-line failure naming ``option``."""
+    try:
+        values = tuple(float(v) for v in text.strip("[]() ").split(","))
+    except ValueError:
+        raise fail(f"{option}: expected x,y,yaw numbers, got {text!r}") from None
+    if len(values) != 3:
+        raise fail(f"{option}: expected x,y,yaw (3 numbers), got {len(values)}")
+    return values  # type: ignore[return-value]
+
+
+def localise_options(
+    config: Path | None, overrides: list[str] | None, mount: str | None
+) -> LocaliseOptions:
+    """``LocaliseOptions`` from a YAML file (or the defaults), ``--set`` and ``--mount``."""
+    from laser_corners.localise import LocaliseOptions
+
+    options = LocaliseOptions.from_file(config) if config is not None else LocaliseOptions()
+    if overrides:
+        options = options.with_overrides(overrides)
+    if mount is not None:
+        options = options.with_overrides({"mount": parse_pose(mount, "--mount")})
+    return options
+
+
+@app.command("localise")
+def localise_command(
+    map_folder: _MapArg,
+    input_path: InputArg,
+    output: Annotated[
+        Path, typer.Option("--output", "-o", help="Output folder (created).", show_default=False)
+    ],
+    initial_pose: _Pose = None,
+    start_scan: Annotated[
+        int, typer.Option("--start-scan", min=0, help="Start at this scan index.")
+    ] = 0,
+    stop_scan: Annotated[
+        int | None, typer.Option("--stop-scan", min=1, help="Stop before this scan index.")
+    ] = None,
+    set_: _Set = None,
+    config: _Config = None,
+    topic: TopicOption = None,
+    mount: _Mount = None,
+) -> None:
+    """Localise a recording with odometry in a map: global localisation with no initial pose,
+    tracking, relocalisation when lost.
+
+    Writes trajectory.tum (base pose in the map, from the first fix on), summary.json (first
+    fix, relocalisations, lost count, ms per scan) and trajectory.png into the output folder.
+    """
+    if not input_path.exists():
+        raise fail(f"{input_path}: no such file or folder")
+    from rich.console import Console
+
+    from laser_corners.io.trajectory import TumWriter
+    from laser_corners.localise import run_localise
+    from laser_corners.slam.mapfile import load_map
+    from laser_corners.viz.localise import localise_summary, write_localise_outputs
+
+    options = localise_options(config, set_, mount)
+    pose = parse_pose(initial_pose, "--initial-pose") if initial_pose is not None else None
+    saved = load_map(map_folder)
+    folder = new_folder(output)
+    header = f"laser-corners localise {input_path} in {map_folder}: base pose in the map frame"
+    start = time.perf_counter()
+    with TumWriter(folder / "trajectory.tum", header=header) as writer:
+        run = run_localise(
+            saved,
+            input_path,
+            options,
+            topic=topic,
+            start_scan=start_scan,
+            stop_scan=stop_scan,
+            initial_pose=pose,
+            on_estimate=lambda e: writer.write(e.stamp, e.pose),
+        )
+    summary = localise_summary(run, str(input_path), str(map_folder), time.perf_counter() - start)
+    write_localise_outputs(run, folder, saved.grid, summary)
+    _report(Console(), summary, folder)
+    if run.interrupted:
+        typer.echo(f"interrupted; {folder} holds the poses up to there", err=True)
+        raise typer.Exit(130)
+
+
+def _report(console, summary: dict, folder: Path) -> None:
+    from rich.table import Table
+
+    table = Table(title=summary["input"], show_header=False)
+    fix = summary["first_fix"]
+    table.add_row(
+        "first fix",
+        "none"
+        if fix is None
+        else f"scan {fix['scan_index']}, t = {fix['stamp']:.3f} s, after {fix['travel_m']:.2f} m",
+    )
+    table.add_row(
+        "relocalisations / lost", f"{len(summary['relocalisations'])} / {summary['lost']}"
+    )
+    counts = summary["counts"]
+    table.add_row("scans / estimates", f"{counts['scans']} / {counts['estimates']}")
+    if summary["ms_per_scan_mean"] is not None:
+        table.add_row(
+            "ms per scan",
+            f"{summary['ms_per_scan_mean']:.2f} mean, {summary['ms_per_scan_p95']:.2f} p95",
+        )
+    table.add_row("output", str(folder))
+    console.print(table)

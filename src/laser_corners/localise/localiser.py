@@ -1,0 +1,391 @@
+"""The incremental localiser: :class:`Localiser` (``add(scan, odometry, stamp) -> estimate``).
+
+Three states (:attr:`Localiser.status`):
+
+``global``
+    No fix yet. Every ``global_every`` scans a global search over the whole map
+    (:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) proposes poses; each
+    becomes a hypothesis, refined by ICP against the map's points. Every scan, every
+    hypothesis is moved by the odometry step, aligned again (point-to-line ICP,
+    :func:`~laser_corners.slam.align.icp`) and scored by its *agreement*: the share of the
+    scan's points within ``inlier_distance`` of a map point. Hypotheses whose recent agreement
+    falls below ``hypothesis_agreement`` are dropped; two that meet are merged. The fix is
+    declared only when one hypothesis has survived ``fix_travel`` metres and ``fix_scans``
+    scans, agrees at least ``fix_agreement`` and every other surviving hypothesis agrees less
+    by ``fix_margin``: in a symmetric or ambiguous map several hypotheses keep agreeing and no
+    fix is given (no estimate is better than a confident wrong one).
+``tracking``
+    Odometry predicts, ICP against the map corrects (the odometry noise is the prior), the
+    covariance is the inverse of the ICP information plus the prior's (with a floor for the
+    map's own error). A scan agreeing less than ``track_agreement`` gives no estimate.
+``lost``
+    ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
+    (a kidnapped robot); the next fix is reported as ``relocalised``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from laser_corners.localise.mapmodel import MapModel, _distinct
+from laser_corners.localise.options import LocaliseOptions
+from laser_corners.scan import LaserScan
+from laser_corners.slam.align import Alignment, icp
+from laser_corners.slam.geometry import between, compose, invert
+from laser_corners.slam.mapfile import SavedMap, load_map
+from laser_corners.slam.points import scan_points
+
+__all__ = ["Hypothesis", "Localiser", "LocaliserEstimate"]
+
+COVARIANCE_FLOOR = np.diag([0.02, 0.02, 0.01]) ** 2
+"""Added to every covariance: the map's own error (m, m, rad), which ICP does not see."""
+RECOVER_DROP = 0.1
+"""A tracked scan agreeing this much less than the recent ones (or less than
+:data:`RECOVER_BELOW`) triggers a correlative search around the prediction."""
+RECOVER_BELOW = 0.6
+RECOVER_XY = 0.3
+"""Half-width (m) of the recovery search window."""
+RECOVER_YAW = 0.3
+"""Half-width (rad) of the recovery search window."""
+GLOBAL_SPACING = 0.2
+"""Spacing (m) of the scan points given to the global search."""
+
+
+@dataclass
+class LocaliserEstimate:
+    """One pose estimate of :meth:`Localiser.add`.
+
+    Attributes
+    ----------
+    pose : ndarray, shape (3,)
+        Base pose ``(x, y, yaw)`` in the map frame.
+    covariance : ndarray, shape (3, 3)
+        Its covariance (map frame).
+    status : str
+        ``"relocalised"`` on the scan of a (first or new) fix, else ``"tracking"``.
+    map_to_odom : ndarray, shape (3,)
+        ``pose ∘ odometry⁻¹``: the map -> odom transform a ROS node publishes.
+    scan_index : int
+        Index of the scan among those given to :meth:`Localiser.add`.
+    stamp : float
+    agreement : float
+        Share of the scan's points within ``inlier_distance`` of the map.
+    """
+
+    pose: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    status: str
+    map_to_odom: NDArray[np.float64]
+    scan_index: int
+    stamp: float
+    agreement: float = 0.0
+
+
+@dataclass
+class Hypothesis:
+    """A candidate pose chained by odometry, with its recent agreements."""
+
+    pose: NDArray[np.float64]
+    born: int
+    recent: deque = field(default_factory=deque)
+    travel: float = 0.0
+    scans: int = 0
+
+    def score(self) -> float:
+        """Mean recent agreement."""
+        return float(np.mean(self.recent)) if self.recent else 0.0
+
+
+@dataclass
+class Fix:
+    """A fix (first or after lost): where, when and after how much travel."""
+
+    scan_index: int
+    stamp: float
+    travel: float
+    """Odometry travel (m) since the search started."""
+    pose: tuple[float, float, float]
+
+
+class Localiser:
+    """Localisation in a saved map with odometry (see the module notes).
+
+    Parameters
+    ----------
+    map_data : str, Path or SavedMap
+        A map folder written by ``laser-corners slam`` (or one already loaded).
+    options : LocaliseOptions, optional
+    mount : tuple of float, optional
+        Base -> laser transform ``(x, y, yaw)``; default the map's (``options.mount``
+        overrides both).
+
+    Raises
+    ------
+    InputError
+        The map folder is missing, incomplete or of another format version.
+    """
+
+    def __init__(
+        self,
+        map_data: str | Path | SavedMap,
+        options: LocaliseOptions | None = None,
+        mount: ArrayLike | None = None,
+    ) -> None:
+        self.options = options or LocaliseOptions()
+        saved = map_data if isinstance(map_data, SavedMap) else load_map(map_data)
+        chosen = self.options.mount if self.options.mount is not None else mount
+        self.mount = np.asarray(saved.mount if chosen is None else chosen, float).reshape(3)
+        self.map = MapModel(saved, self.options)
+        self.hypotheses: list[Hypothesis] = []
+        self.fixes: list[Fix] = []
+        self.counts = {"scans": 0, "estimates": 0, "lost": 0, "searches": 0, "no_agreement": 0}
+        self.counts["recoveries"] = 0
+        self._recent: deque = deque(maxlen=self.options.recent_scans)
+        self.ms_per_scan: list[float] = []
+        self.pose: NDArray[np.float64] | None = None
+        self._cov = np.diag([1.0, 1.0, 0.5])
+        self._searching = "global"
+        self._bad = 0
+        self._last_odom: NDArray | None = None
+        self._last_stamp = -math.inf
+        self._since_search = 0
+        self._search_travel = 0.0
+
+    @property
+    def status(self) -> str:
+        """``"global"`` (no fix yet), ``"tracking"`` or ``"lost"`` (searching again)."""
+        return "tracking" if self.pose is not None else self._searching
+
+    def set_pose(self, pose: ArrayLike, covariance: ArrayLike | None = None) -> None:
+        """Start tracking from ``pose`` (base in the map frame), e.g. an initial pose."""
+        self.pose = np.asarray(pose, dtype=np.float64).reshape(3).copy()
+        if covariance is not None:
+            self._cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
+        self.hypotheses = []
+        self._bad = 0
+        self._recent.clear()
+
+    # ------------------------------------------------------------------ per scan
+    def add(
+        self, scan: LaserScan, odometry_pose: ArrayLike, stamp: float
+    ) -> LocaliserEstimate | None:
+        """Add one scan with the base's odometry pose at its stamp.
+
+        Returns
+        -------
+        LocaliserEstimate or None
+            None while there is no fix, or when this scan does not agree with the map.
+        """
+        start = time.perf_counter()
+        opt = self.options
+        odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
+        delta = np.zeros(3) if self._last_odom is None else between(self._last_odom, odo)
+        jump = (
+            math.hypot(delta[0], delta[1]) > opt.odometry_jump
+            or abs(delta[2]) > opt.odometry_jump
+            or abs(stamp - self._last_stamp) > opt.time_jump
+        ) and self._last_odom is not None
+        self._last_odom, self._last_stamp = odo, float(stamp)
+        pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
+        index = self.counts["scans"]
+        self.counts["scans"] += 1
+        if self.pose is not None:
+            estimate = self._track(pts, delta, jump, odo, index, float(stamp))
+        else:
+            estimate = self._search(scan, pts, delta, jump, odo, index, float(stamp))
+        self.ms_per_scan.append((time.perf_counter() - start) * 1e3)
+        if estimate is not None:
+            self.counts["estimates"] += 1
+        return estimate
+
+    def _prior(self, delta: NDArray, jump: bool) -> NDArray:
+        """Information of the odometry prediction (a weak one across a jump)."""
+        opt = self.options
+        if jump:
+            return np.diag(1.0 / np.array([1.0, 1.0, 0.5]) ** 2)
+        dist = math.hypot(delta[0], delta[1])
+        sxy = opt.odometry_sigma_xy * (dist + 0.1)
+        syaw = opt.odometry_sigma_yaw * (abs(delta[2]) + dist + 0.1)
+        return np.diag(1.0 / np.array([sxy, sxy, syaw]) ** 2)
+
+    def _align(self, xy: NDArray, guess: NDArray, prior: NDArray) -> tuple[Alignment, float]:
+        """ICP of ``xy`` against the map from ``guess``, and the agreement of its result."""
+        opt = self.options
+        aligned = icp(
+            xy,
+            self.map.lines,
+            guess,
+            prior,
+            max_distance=opt.icp_max_distance,
+            inlier_distance=opt.inlier_distance,
+            iterations=opt.icp_iterations,
+            sigma=opt.match_sigma,
+            overlap_map=self.map.every,
+        )
+        return aligned, aligned.overlap
+
+    def _track(
+        self, pts, delta: NDArray, jump: bool, odo: NDArray, index: int, stamp: float
+    ) -> LocaliserEstimate | None:
+        assert self.pose is not None
+        opt = self.options
+        prior = self._prior(delta, jump)
+        pred = compose(self.pose, delta)
+        aligned, agreement = self._align(pts.xy, pred, prior)
+        usual = float(np.mean(self._recent)) if self._recent else 1.0
+        if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
+            aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
+        if agreement < max(opt.track_agreement, usual - opt.track_drop):
+            self.pose = pred
+            self._bad += 1
+            self.counts["no_agreement"] += 1
+            if self._bad >= opt.lost_scans:
+                self._lose()
+            return None
+        self._bad = 0
+        self._recent.append(agreement)
+        self.pose = aligned.pose
+        try:
+            cov = np.linalg.inv(aligned.information + prior)
+        except np.linalg.LinAlgError:  # pragma: no cover - singular information
+            cov = np.linalg.inv(prior)
+        self._cov = cov + COVARIANCE_FLOOR
+        return self._estimate(odo, index, stamp, "tracking", agreement)
+
+    def _recover(
+        self, xy: NDArray, pred: NDArray, aligned: Alignment, agreement: float
+    ) -> tuple[Alignment, float]:
+        """A correlative search around the prediction (wheel slip, a missed turn), then ICP
+        from its best pose under a weak prior; the better-agreeing of the two alignments."""
+        self.counts["recoveries"] += 1
+        guess = self.map.local_search(xy, pred, RECOVER_XY, RECOVER_YAW)
+        weak = np.diag(1.0 / np.array([RECOVER_XY, RECOVER_XY, RECOVER_YAW]) ** 2)
+        again, agreement2 = self._align(xy, guess, weak)
+        if agreement2 > agreement:
+            return again, agreement2
+        return aligned, agreement
+
+    def _estimate(
+        self, odo: NDArray, index: int, stamp: float, status: str, agreement: float
+    ) -> LocaliserEstimate:
+        assert self.pose is not None
+        c, s = math.cos(self.pose[2]), math.sin(self.pose[2])
+        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        return LocaliserEstimate(
+            pose=self.pose.copy(),
+            covariance=rot @ self._cov @ rot.T,
+            status=status,
+            map_to_odom=compose(self.pose, invert(odo)),
+            scan_index=index,
+            stamp=stamp,
+            agreement=float(agreement),
+        )
+
+    def _lose(self) -> None:
+        """Drop the fix: back to the global search."""
+        self.pose = None
+        self._searching = "lost"
+        self._bad = 0
+        self.hypotheses = []
+        self._since_search = 0
+        self._search_travel = 0.0
+        self.counts["lost"] += 1
+
+    # ------------------------------------------------------------------ global search
+    def _search(
+        self, scan, pts, delta: NDArray, jump: bool, odo: NDArray, index: int, stamp: float
+    ) -> LocaliserEstimate | None:
+        opt = self.options
+        if jump:
+            self.hypotheses = []
+            self._since_search = 0
+        step = math.hypot(delta[0], delta[1]) + 0.5 * abs(delta[2])
+        self._search_travel += step
+        self._follow(pts.xy, delta, step)
+        if self._since_search % opt.global_every == 0:
+            self._propose(scan, pts.xy, index)
+        self._since_search += 1
+        winner = self._winner()
+        if winner is None:
+            return None
+        self.pose = winner.pose.copy()
+        self.hypotheses = []
+        self.fixes.append(Fix(index, stamp, self._search_travel, tuple(winner.pose.tolist())))
+        self._cov = np.diag([0.05, 0.05, 0.02]) ** 2
+        agreement = winner.recent[-1]
+        return self._estimate(odo, index, stamp, "relocalised", agreement)
+
+    def _follow(self, xy: NDArray, delta: NDArray, step: float) -> None:
+        """Move every hypothesis by the odometry step, align it, score it, prune, merge."""
+        opt = self.options
+        prior = self._prior(delta, False)
+        for h in self.hypotheses:
+            aligned, agreement = self._align(xy, compose(h.pose, delta), prior)
+            h.pose = aligned.pose
+            h.recent.append(agreement)
+            while len(h.recent) > opt.recent_scans:
+                h.recent.popleft()
+            h.travel += step
+            h.scans += 1
+        alive = [h for h in self.hypotheses if h.score() >= opt.hypothesis_agreement]
+        self.hypotheses = self._merged(alive)
+
+    def _merged(self, hypotheses: list[Hypothesis]) -> list[Hypothesis]:
+        """Oldest first; a hypothesis meeting an older one is dropped; at most
+        ``max_hypotheses`` (best recent agreement) are kept."""
+        opt = self.options
+        kept: list[Hypothesis] = []
+        for h in sorted(hypotheses, key=lambda h: h.born):
+            if all(_distinct(h.pose, k.pose, opt.distinct_xy, opt.distinct_yaw) for k in kept):
+                kept.append(h)
+        kept.sort(key=lambda h: -h.score())
+        return kept[: opt.max_hypotheses]
+
+    def _propose(self, scan: LaserScan, xy: NDArray, index: int) -> None:
+        """Global search: new hypotheses from its best poses, refined by ICP."""
+        opt = self.options
+        self.counts["searches"] += 1
+        coarse = scan_points(scan, self.mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
+        found = self.map.global_search(coarse.xy, opt.global_yaw_step, opt.global_candidates)
+        prior = np.diag(1.0 / np.array([1.0, 1.0, 0.3]) ** 2)
+        fresh = []
+        for guess, _ in found:
+            aligned, agreement = self._align(xy, guess, prior)
+            if agreement >= opt.hypothesis_agreement:
+                fresh.append(Hypothesis(aligned.pose, index, deque([agreement])))
+        self.hypotheses = self._merged(self.hypotheses + fresh)
+
+    def _winner(self) -> Hypothesis | None:
+        """The hypothesis that wins clearly, or None (see the module notes)."""
+        opt = self.options
+        if not self.hypotheses:
+            return None
+        best = max(self.hypotheses, key=lambda h: h.score())
+        if (
+            best.travel < opt.fix_travel
+            or best.scans < opt.fix_scans
+            or best.score() < opt.fix_agreement
+        ):
+            return None
+        for rival in self.hypotheses:
+            if rival is not best and _lead(best, rival) < opt.fix_margin:
+                return None
+        return best
+
+
+def _lead(best: Hypothesis, rival: Hypothesis) -> float:
+    """Mean lead in agreement of ``best`` over ``rival`` on the scans both have scored (the
+    last ones); a rival scored on fewer than 3 scans is not beaten yet."""
+    k = min(len(best.recent), len(rival.recent))
+    if k < 3:
+        return -1.0
+    a = list(best.recent)[-k:]
+    b = list(rival.recent)[-k:]
+    return float(np.mean(np.subtract(a, b)))

@@ -1,0 +1,91 @@
+"""Options of :mod:`laser_corners.localise`: one validated, frozen object, one set of defaults.
+
+The field names are the vocabulary of the Python API, of YAML files (a ``localise:`` table)
+and of the CLI's ``--set key=value``. Defaults come from the sensors and robots (range noise
+of centimetres, walking speed, rooms of a few metres), not from the scores of any log.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from pydantic import Field
+
+from laser_corners.options import Options
+
+__all__ = ["LocaliseOptions"]
+
+
+class LocaliseOptions(Options):
+    """Options of :class:`~laser_corners.localise.Localiser` (see ``docs/localise.md``)."""
+
+    title: ClassVar[str] = "LocaliseOptions"
+    what: ClassVar[str] = "option"
+    section: ClassVar[str] = "localise"
+    tuple_hints: ClassVar[dict[str, str]] = {"mount": "x,y,yaw"}
+
+    mount: tuple[float, float, float] | None = None
+    """Base -> laser transform ``(x, y, yaw)``, overriding the recording's and the map's."""
+    min_range: float = Field(0.1, ge=0.0, le=10.0)
+    """Beams shorter than this (m) are not used."""
+    max_range: float = Field(30.0, ge=0.5, le=1000.0)
+    """Beams longer than this (m) are not used."""
+    point_spacing: float = Field(0.1, ge=0.01, le=1.0)
+    """Spacing (m) of the scan points kept for tracking (fewer points: cheaper ICP)."""
+    map_spacing: float = Field(0.05, ge=0.01, le=1.0)
+    """Voxel (m) to which the map's points are thinned (one point per voxel)."""
+    icp_max_distance: float = Field(0.3, ge=0.01, le=5.0)
+    """Largest point-to-map distance (m) of an ICP correspondence while tracking."""
+    icp_iterations: int = Field(15, ge=1, le=200)
+    """Maximum point-to-line ICP iterations per scan."""
+    inlier_distance: float = Field(0.1, ge=0.01, le=1.0)
+    """A scan point within this distance (m) of a map point agrees with the map."""
+    odometry_sigma_xy: float = Field(0.05, ge=1e-4, le=10.0)
+    """Odometry noise (m per metre travelled, on 0.1 m more): the ICP prior's weight."""
+    odometry_sigma_yaw: float = Field(0.05, ge=1e-4, le=10.0)
+    """Odometry noise (rad per radian turned plus per metre travelled)."""
+    match_sigma: float = Field(0.03, ge=1e-3, le=1.0)
+    """Noise (m) of one point-to-line residual, scaling the ICP information (covariance)."""
+    track_agreement: float = Field(0.6, ge=0.0, le=1.0)
+    """While tracking, a scan agreeing less than this with the map gives no estimate and
+    counts towards lost."""
+    track_drop: float = Field(0.25, ge=0.0, le=1.0)
+    """A tracked scan agreeing this much less than the recent tracked scans (mean) gives no
+    estimate either and counts towards lost: a kidnapped robot's scans rarely fit as well as
+    before, even where a local search finds them a place."""
+    lost_scans: int = Field(5, ge=1, le=1000)
+    """This many scans in a row below ``track_agreement``: lost, back to global search."""
+    global_every: int = Field(10, ge=1, le=1000)
+    """While searching, a global search over the whole map runs every n-th scan."""
+    global_candidates: int = Field(16, ge=1, le=100)
+    """Poses kept from one global search (best first, at least 1 m or 0.3 rad apart)."""
+    global_resolution: float = Field(0.25, ge=0.05, le=2.0)
+    """Position step (m) of the global search lattice (around the keyframe positions)."""
+    global_yaw_step: float = Field(0.035, ge=0.005, le=0.5)
+    """Heading step (rad) of the global search."""
+    global_reach: float = Field(0.75, ge=0.0, le=10.0)
+    """The global search looks at positions within this distance (m) of a keyframe."""
+    max_hypotheses: int = Field(24, ge=1, le=500)
+    """Hypotheses followed at most (the worst are dropped)."""
+    hypothesis_agreement: float = Field(0.5, ge=0.0, le=1.0)
+    """A hypothesis whose recent agreement falls below this is dropped."""
+    fix_agreement: float = Field(0.7, ge=0.0, le=1.0)
+    """Recent agreement a hypothesis needs to become the fix."""
+    fix_margin: float = Field(0.04, ge=0.0, le=1.0)
+    """Every other hypothesis must agree less than the winner by this much on average over
+    the recent scans both were scored on (at least 3): a share of the scan's points."""
+    fix_travel: float = Field(2.0, ge=0.0, le=100.0)
+    """Odometry travel (m, turns counted as 0.5 m per radian) the winner must have survived."""
+    fix_scans: int = Field(20, ge=1, le=10000)
+    """Scans the winner must have survived."""
+    recent_scans: int = Field(20, ge=3, le=1000)
+    """Window (scans) of the recent agreement of a hypothesis."""
+    distinct_xy: float = Field(0.5, ge=0.0, le=100.0)
+    """Hypotheses closer than this (m) and ``distinct_yaw`` are one (the younger is merged)."""
+    distinct_yaw: float = Field(0.2, ge=0.0, le=3.2)
+    """See ``distinct_xy`` (rad)."""
+    odometry_jump: float = Field(1.0, ge=0.01, le=1000.0)
+    """An odometry step (m, or rad) larger than this between two scans: the prediction is not
+    trusted and the scan is searched for around the last pose with a wide prior."""
+    time_jump: float = Field(5.0, ge=0.1, le=1e6)
+    """A gap (s) between scan stamps larger than this is treated like an odometry jump."""

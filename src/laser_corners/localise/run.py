@@ -1,0 +1,167 @@
+"""Localisation over a recording: :func:`run_localise`.
+
+The odometry is read as :func:`~laser_corners.slam.run_slam` reads it (bags: odometry at the
+scan stamp composed with the mount from ``/tf_static``, undone to the base; CARMEN logs: the
+FLASER/ROBOTLASER1 pose with a zero mount). Scans without a pose are counted and skipped; a
+recording without any odometry is one :class:`~laser_corners.errors.InputError` line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from laser_corners.errors import InputError
+from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
+from laser_corners.localise.options import LocaliseOptions
+from laser_corners.pipeline.interrupt import stop_requests
+from laser_corners.pipeline.recording import open_recording
+from laser_corners.slam.geometry import compose_many, invert_many
+from laser_corners.slam.mapfile import SavedMap
+
+__all__ = ["LocaliseRun", "run_localise"]
+
+
+@dataclass
+class LocaliseRun:
+    """What :func:`run_localise` gives.
+
+    Attributes
+    ----------
+    estimates : list of LocaliserEstimate
+        One per scan that got a pose (``scan_index``: the scan's index in the recording).
+    fixes : list of Fix
+        The first fix and every relocalisation (``scan_index`` in the recording too).
+    counts : dict of str to int
+        ``scans, estimates, lost, searches, no_agreement, skipped_no_odometry``.
+    ms_per_scan : ndarray
+    odometry_stamps, odometry : ndarray
+        Stamp and base odometry of every scan given.
+    interrupted : bool
+    """
+
+    estimates: list[LocaliserEstimate]
+    fixes: list[Fix]
+    counts: dict[str, int]
+    ms_per_scan: NDArray[np.float64]
+    odometry_stamps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    odometry: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    interrupted: bool = False
+
+    @property
+    def stamps(self) -> NDArray[np.float64]:
+        """Stamps of the estimates."""
+        return np.array([e.stamp for e in self.estimates], dtype=np.float64)
+
+    @property
+    def poses(self) -> NDArray[np.float64]:
+        """Base poses in the map frame of the estimates, shape (E, 3)."""
+        return np.array([e.pose for e in self.estimates], dtype=np.float64).reshape(-1, 3)
+
+
+def run_localise(
+    map_data: str | Path | SavedMap,
+    path: str | Path,
+    options: LocaliseOptions | None = None,
+    *,
+    topic: str | None = None,
+    start_scan: int = 0,
+    stop_scan: int | None = None,
+    initial_pose: ArrayLike | None = None,
+    on_estimate: Callable[[LocaliserEstimate], None] | None = None,
+    progress: Callable[[int, int | None, float], None] | None = None,
+) -> LocaliseRun:
+    """Localise a recording with odometry in a saved map.
+
+    Parameters
+    ----------
+    map_data : str, Path or SavedMap
+        Map folder of ``laser-corners slam``.
+    path : str or Path
+        Recording with LaserScan and odometry.
+    options : LocaliseOptions, optional
+    topic : str, optional
+        LaserScan topic of a bag (default: the only one).
+    start_scan, stop_scan : int
+        Use the scans ``start_scan <= i < stop_scan`` of the recording.
+    initial_pose : array of 3, optional
+        Base pose in the map at the first scan used (skips the global search).
+    on_estimate : callable, optional
+        Called with every estimate as it comes (incremental output).
+    progress : callable, optional
+        Called after every scan with ``(scan index, scans total or None, stamp)``.
+
+    Raises
+    ------
+    InputError
+        The map folder is bad, or the recording has no odometry.
+    """
+    options = options or LocaliseOptions()
+    with open_recording(path, topic) as rec:
+        mounts = getattr(rec.source, "mounts", {})
+        if rec.first.pose is None and getattr(rec.source, "odom_topic", "") is None:
+            raise InputError(f"{path}: no odometry (no nav_msgs/Odometry topic, no scan poses)")
+        recorded = mounts.get(rec.first.frame_id)
+        loc = Localiser(map_data, options, mount=recorded)
+        if initial_pose is not None:
+            loc.set_pose(initial_pose)
+        run = _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress)
+    if loc.counts["scans"] == 0 and not run.interrupted:
+        skipped = run.counts["skipped_no_odometry"]
+        raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
+    return run
+
+
+def _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress) -> LocaliseRun:
+    """Feed the scans; Ctrl-C stops between two scans."""
+    undo: dict[str, NDArray] = {}
+    estimates: list[LocaliserEstimate] = []
+    stamps: list[float] = []
+    index: list[int] = []
+    odometry: list[NDArray] = []
+    skipped = 0
+    interrupted = False
+    total = rec.source.n_scans
+    try:
+        with stop_requests() as stop:
+            for i, scan in enumerate(rec.scans()):
+                if stop.is_set():
+                    interrupted = True
+                    break
+                if stop_scan is not None and i >= stop_scan:
+                    break
+                if i < start_scan:
+                    continue
+                if scan.pose is None or scan.stamp is None:
+                    skipped += 1
+                    continue
+                if scan.frame_id not in undo:
+                    undo[scan.frame_id] = invert_many(mounts.get(scan.frame_id) or (0.0, 0.0, 0.0))
+                base = compose_many(np.asarray(scan.pose), undo[scan.frame_id])
+                estimate = loc.add(scan, base, float(scan.stamp))
+                index.append(i)
+                stamps.append(float(scan.stamp))
+                odometry.append(base)
+                if estimate is not None:
+                    estimate.scan_index = i  # the recording's index, not the localiser's
+                    estimates.append(estimate)
+                    if on_estimate is not None:
+                        on_estimate(estimate)
+                if progress is not None:
+                    progress(i + 1, total, float(scan.stamp))
+    except KeyboardInterrupt:
+        interrupted = True
+    counts = dict(loc.counts, skipped_no_odometry=skipped)
+    return LocaliseRun(
+        estimates,
+        [replace(f, scan_index=index[f.scan_index]) for f in loc.fixes],
+        counts,
+        np.asarray(loc.ms_per_scan, dtype=np.float64),
+        np.asarray(stamps, dtype=np.float64),
+        np.asarray(odometry, dtype=np.float64).reshape(-1, 3),
+        interrupted,
+    )

@@ -1,0 +1,321 @@
+"""The rclpy adapter of the ROS 2 node's ``slam`` and ``localise`` modes.
+
+``laser-corners ros2 --ros-args -p mode:=slam`` (or ``-p mode:=localise -p map:=DIR``):
+
+* subscribes ``scan`` (sensor-data QoS) and odometry: ``/tf`` (the ``odom -> base``
+  transform) and ``/tf_static`` (the base -> laser mount) when ``tf2_msgs`` is importable,
+  or a ``nav_msgs/Odometry`` topic (``-p odom_topic:=/odom``, with ``-p mount:=[x, y, yaw]``);
+* publishes ``map -> odom`` on ``/tf`` (without ``tf2_msgs``: as a
+  ``geometry_msgs/TransformStamped`` on ``map_to_odom``), the base pose as
+  ``geometry_msgs/PoseWithCovarianceStamped`` on ``pose``, the occupancy grid on ``map``
+  (``nav_msgs/OccupancyGrid``, transient local: a late subscriber gets the last one; slam: every
+  ``map_period`` s while keyframes are added; localise: the saved ``map.pgm`` once) and
+  landmarks on ``landmarks`` (``visualization_msgs/MarkerArray``) when there are any;
+* localise: ``/initialpose`` (RViz's 2D Pose Estimate) sets the localiser's pose;
+* slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``.
+
+All decisions are in :mod:`laser_corners.ros.slam_core` (ROS-free, unit-tested); this module
+turns messages into its calls and its results into messages.
+"""
+
+from __future__ import annotations
+
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+from laser_corners.errors import InvalidParamsError, LaserCornersError, MissingDependencyError
+from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.ros.convert import fill_marker_array, scan_from_msg, seconds_to_sec_nanosec
+from laser_corners.ros.nav_convert import (
+    fill_occupancy_grid,
+    fill_pose_with_covariance,
+    fill_transform,
+    landmark_marker_fields,
+    odometry_of,
+    pose_with_covariance_of,
+    transform_of,
+)
+from laser_corners.ros.slam_core import MappingConfig, MappingCore, Update
+
+__all__ = ["MappingAdapter", "messages"]
+
+TF_HINT = (
+    "tf2_msgs is not importable (ROS 2's PyPI wheels do not include it): source a ROS 2 "
+    "installation for /tf, or take odometry from a topic with -p odom_topic:=/odom "
+    "(and the laser mount with -p mount:=[x,y,yaw])"
+)
+
+
+def messages() -> SimpleNamespace:
+    """The message and QoS classes of these modes (``tf`` is None without ``tf2_msgs``).
+
+    Raises
+    ------
+    MissingDependencyError
+        When ``nav_msgs`` is missing.
+    """
+    import builtin_interfaces.msg as builtin  # type: ignore[import-not-found]
+    import geometry_msgs.msg as geometry  # type: ignore[import-not-found]
+    import sensor_msgs.msg as sensor  # type: ignore[import-not-found]
+    import visualization_msgs.msg as visualization  # type: ignore[import-not-found]
+    from rclpy import qos  # type: ignore[import-not-found]
+
+    try:
+        import nav_msgs.msg as nav  # type: ignore[import-not-found]
+    except ImportError as exc:
+        raise MissingDependencyError(
+            f"nav_msgs is not importable ({exc}): pip install 'laser-corners[ros2]'"
+        ) from None
+    try:
+        import tf2_msgs.msg as tf2  # type: ignore[import-not-found]
+    except ImportError:
+        tf2 = None
+    return SimpleNamespace(
+        Duration=builtin.Duration,
+        Time=builtin.Time,
+        Point=geometry.Point,
+        PoseWithCovarianceStamped=geometry.PoseWithCovarianceStamped,
+        TransformStamped=geometry.TransformStamped,
+        LaserScan=sensor.LaserScan,
+        Marker=visualization.Marker,
+        MarkerArray=visualization.MarkerArray,
+        OccupancyGrid=nav.OccupancyGrid,
+        Odometry=nav.Odometry,
+        tf=None if tf2 is None else tf2.TFMessage,
+        qos=qos,
+    )
+
+
+def _stamp(m: SimpleNamespace, seconds: float) -> Any:
+    sec, nanosec = seconds_to_sec_nanosec(max(seconds, 0.0))
+    return m.Time(sec=sec, nanosec=nanosec)
+
+
+class MappingAdapter:
+    """Publishers, subscriptions and callbacks of the mapping modes on ``node``.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node (parameters already declared).
+    values : dict
+        The parameter values given at start (``mode`` included).
+    """
+
+    def __init__(self, node: Any, values: dict[str, Any]) -> None:
+        self.node = node
+        self.m = m = messages()
+        self.config = MappingConfig.from_mapping(values)
+        self.core = MappingCore(self.config)  # reads and checks the map first
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="grid")
+        self.building: Future[OccupancyGrid] | None = None
+        if m.tf is None and not self.config.odom_topic:
+            raise MissingDependencyError(TF_HINT)
+        self.started = time.monotonic()
+        self.n_skipped = 0
+        depth = self.config.queue_size
+        sensor = m.qos.QoSProfile(
+            history=m.qos.HistoryPolicy.KEEP_LAST,
+            depth=depth,
+            reliability=m.qos.ReliabilityPolicy.BEST_EFFORT,
+        )
+        latched = m.qos.QoSProfile(
+            history=m.qos.HistoryPolicy.KEEP_LAST,
+            depth=1,
+            reliability=m.qos.ReliabilityPolicy.RELIABLE,
+            durability=m.qos.DurabilityPolicy.TRANSIENT_LOCAL,
+        )
+        self.pose_pub = node.create_publisher(m.PoseWithCovarianceStamped, "pose", depth)
+        self.map_pub = node.create_publisher(m.OccupancyGrid, "map", latched)
+        self.marker_pub = node.create_publisher(m.MarkerArray, "landmarks", latched)
+        self._subscribe(sensor, latched, depth)
+        scan_sub = node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
+        if self.config.mode == "localise":
+            node.create_subscription(
+                m.PoseWithCovarianceStamped, "/initialpose", self.on_initial_pose, 10
+            )
+            self.publish_map()
+        node.create_timer(1.0, self.on_timer)
+        odometry = self.config.odom_topic or "/tf"
+        node.get_logger().info(
+            f"mode {self.config.mode}: scans on {scan_sub.topic_name}, odometry "
+            f"from {odometry}; publishing {self.pose_pub.topic_name}, {self.map_pub.topic_name}"
+        )
+
+    def _subscribe(self, sensor: Any, latched: Any, depth: int) -> None:
+        """Odometry (topic or /tf) and /tf_static subscriptions; the map -> odom publisher."""
+        m, node = self.m, self.node
+        if self.config.odom_topic:
+            node.create_subscription(m.Odometry, self.config.odom_topic, self.on_odometry, sensor)
+        if m.tf is not None:
+            tf_qos = m.qos.QoSProfile(
+                history=m.qos.HistoryPolicy.KEEP_LAST,
+                depth=max(depth, 100),
+                reliability=m.qos.ReliabilityPolicy.BEST_EFFORT,
+            )
+            static_qos = m.qos.QoSProfile(
+                history=m.qos.HistoryPolicy.KEEP_LAST,
+                depth=100,
+                reliability=m.qos.ReliabilityPolicy.RELIABLE,
+                durability=m.qos.DurabilityPolicy.TRANSIENT_LOCAL,
+            )
+            if not self.config.odom_topic:
+                node.create_subscription(m.tf, "/tf", self.on_tf, tf_qos)
+            node.create_subscription(m.tf, "/tf_static", self.on_tf_static, static_qos)
+            self.tf_pub = node.create_publisher(m.tf, "/tf", 100)
+        else:
+            self.tf_pub = node.create_publisher(m.TransformStamped, "map_to_odom", depth)
+
+    # ------------------------------------------------------------------ inputs
+    def on_scan(self, msg: Any) -> None:
+        """Queue the scan; publish what the core released."""
+        try:
+            scan = scan_from_msg(msg)
+        except LaserCornersError as exc:
+            self._skip(f"skipped a malformed scan: {exc}")
+            return
+        self._run(lambda: self.core.add_scan(scan))
+
+    def on_odometry(self, msg: Any) -> None:
+        """A ``nav_msgs/Odometry`` sample."""
+        try:
+            self.core.book.add_odometry(*odometry_of(msg))
+        except LaserCornersError as exc:
+            self._skip(f"skipped an odometry message: {exc}")
+            return
+        self._run(self.core.release)
+
+    def on_tf(self, msg: Any, static: bool = False) -> None:
+        """A ``tf2_msgs/TFMessage`` on ``/tf`` (or ``/tf_static``)."""
+        try:
+            transforms = [transform_of(ts) for ts in msg.transforms]
+        except LaserCornersError as exc:
+            self._skip(f"skipped a tf message: {exc}")
+            return
+        self.core.book.add_transforms(transforms, static)
+        self._run(self.core.release)
+
+    def on_tf_static(self, msg: Any) -> None:
+        """A ``/tf_static`` message."""
+        self.on_tf(msg, static=True)
+
+    def on_initial_pose(self, msg: Any) -> None:
+        """RViz's 2D Pose Estimate: the localiser starts tracking from it."""
+        try:
+            frame, pose, cov = pose_with_covariance_of(msg)
+        except LaserCornersError as exc:
+            self._skip(f"skipped an initial pose: {exc}")
+            return
+        if frame.lstrip("/") != self.config.map_frame:
+            self._skip(f"skipped an initial pose in frame {frame!r}, not {self.config.map_frame}")
+            return
+        applied = self.core.set_pose(pose, cov)
+        self.node.get_logger().info(
+            f"initial pose {pose.round(3).tolist()} "
+            + ("applied" if applied else "ignored (mode slam)")
+        )
+
+    def _skip(self, text: str) -> None:
+        self.n_skipped += 1
+        self.node.get_logger().warning(text, throttle_duration_sec=5.0)
+
+    def _run(self, step: Any) -> None:
+        try:
+            updates = step()
+        except LaserCornersError as exc:
+            self._skip(f"scan skipped: {exc}")
+            return
+        except Exception as exc:  # a bug: keep the node alive, show the error
+            self.n_skipped += 1
+            self.node.get_logger().error(f"scan processing failed: {exc!r}")
+            return
+        for update in updates:
+            self.publish(update)
+
+    # ------------------------------------------------------------------ outputs
+    def publish(self, update: Update) -> None:
+        """Pose and ``map -> odom`` of one processed scan."""
+        m, config = self.m, self.config
+        stamp = _stamp(m, update.stamp)
+        pose = fill_pose_with_covariance(
+            m.PoseWithCovarianceStamped(), update.pose, update.covariance
+        )
+        pose.header.stamp, pose.header.frame_id = stamp, config.map_frame
+        self.pose_pub.publish(pose)
+        ts = fill_transform(
+            m.TransformStamped(), config.map_frame, self.core.book.odom_frame, update.map_to_odom
+        )
+        ts.header.stamp = stamp
+        self.tf_pub.publish(m.tf(transforms=[ts]) if m.tf is not None else ts)
+        self.node.get_logger().debug(f"{update.status}: {update.ms:.2f} ms")
+
+    def publish_map(self, grid: OccupancyGrid | None = None) -> None:
+        """The grid (default: the core's) and landmarks on the latched topics."""
+        grid = self.core.grid() if grid is None else grid
+        if grid is None:
+            return
+        msg = fill_occupancy_grid(self.m.OccupancyGrid(), grid)
+        msg.header.frame_id = self.config.map_frame
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.info.map_load_time = msg.header.stamp
+        self.map_pub.publish(msg)
+        markers = landmark_marker_fields(self.core.landmarks())
+        if markers:
+            m = self.m
+            header = msg.header
+
+            def duration(seconds: float) -> Any:
+                sec, nanosec = seconds_to_sec_nanosec(seconds)
+                return m.Duration(sec=sec, nanosec=nanosec)
+
+            out = fill_marker_array(m.MarkerArray(), m.Marker, m.Point, duration, header, markers)
+            self.marker_pub.publish(out)
+
+    def on_timer(self) -> None:
+        """Drop the scans that waited too long for odometry; publish a grid the worker
+        finished; start the next one when due."""
+        self._run(self.core.release)
+        if self.building is not None and self.building.done():
+            future, self.building = self.building, None
+            try:
+                self.publish_map(future.result())
+            except LaserCornersError as exc:
+                self._skip(f"map not published: {exc}")
+        if self.building is None and self.core.grid_due():
+            job = self.core.grid_job()
+            if job is not None:
+                self.building = self.pool.submit(job)
+
+    # ------------------------------------------------------------------ lifecycle
+    def set_parameters(self, parameters: list[Any]) -> tuple[bool, str]:
+        """Parameters of these modes are read at start only."""
+        ours = [p.name for p in parameters if p.name in MappingConfig.model_fields]
+        if ours:
+            return False, f"{', '.join(ours)}: read at start only in mode {self.config.mode}"
+        return True, ""
+
+    def summary(self) -> str:
+        """The counts for the log line at shutdown."""
+        return f"{self.core.summary()}, {self.n_skipped} messages skipped"
+
+    def shutdown(self) -> str | None:
+        """slam with ``output``: write the map folder; a line saying where (or None)."""
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        if not self.config.output:
+            return None
+        folder = self.core.write_map(Path(self.config.output), time.monotonic() - self.started)
+        if folder is None:
+            return f"nothing mapped: {self.config.output} not written"
+        return f"map written to {folder}"
+
+
+def check_mode(value: Any) -> str:
+    """The ``mode`` parameter, checked."""
+    if value not in ("detector", "slam", "localise"):
+        raise InvalidParamsError(
+            f"ROS 2 parameter mode: unknown mode {value!r}; choose detector, slam or localise"
+        )
+    return str(value)

@@ -1,0 +1,455 @@
+"""The ROS-free core of the ROS 2 node's ``slam`` and ``localise`` modes.
+
+Everything the node decides without touching a message class lives here, so it is tested
+without ROS:
+
+* :class:`MappingConfig`: the node's parameters in these modes, checked (one line naming the
+  parameter when invalid);
+* :class:`OdometryBook`: odometry (``odom -> base`` from ``/tf`` or ``nav_msgs/Odometry``) and
+  the static transforms, kept per stamp (:class:`~laser_corners.io.poses.StreamingTrack`:
+  linear interpolation at the scan stamp, the laser mount from the static tree);
+* :class:`MappingCore`: pairs each scan with the odometry at its stamp (a scan waits until
+  odometry after its stamp is in, at most ``tf_wait`` seconds after it arrived), runs
+  :class:`~laser_corners.slam.Slam` or the ``Localiser`` on it and computes ``map -> odom``
+  (``pose ∘ odom⁻¹``); it says when the occupancy grid is due for republishing and builds it.
+
+The rclpy adapter (:mod:`laser_corners.ros.ros2_mapping`) only turns messages into calls of
+this module and its results into messages.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from laser_corners.errors import InvalidParamsError, OutputError
+from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.io.poses import StreamingTrack, frame_name
+from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.scan import LaserScan
+from laser_corners.slam.geometry import compose, invert
+from laser_corners.slam.grid import occupancy_grid
+from laser_corners.slam.mapfile import SavedMap, load_map
+from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.slam import Slam
+from laser_corners.viz.slam_report import SlamRunInfo, peak_rss_mb, write_slam_outputs
+
+__all__ = [
+    "MAPPING_OPTIONS",
+    "MappingConfig",
+    "MappingCore",
+    "OdometryBook",
+    "Update",
+    "map_to_odom",
+]
+
+MAPPING_OPTIONS: dict[str, Any] = {
+    "mode": "slam",
+    "map": "",
+    "output": "",
+    "mount": [],
+    "odom_topic": "",
+    "map_frame": "map",
+    "odom_frame": "",
+    "base_frame": "",
+    "map_period": 5.0,
+    "resolution": 0.05,
+    "slam_config": "",
+    "queue_size": 50,
+    "tf_wait": 1.0,
+}
+"""Parameters of the ``slam`` and ``localise`` modes, with their defaults (see docs/ros.md)."""
+
+
+class MappingConfig(BaseModel):
+    """Validated parameters of the ``slam`` / ``localise`` node modes.
+
+    Attributes
+    ----------
+    mode : {"slam", "localise"}
+    map : str
+        ``localise``: the map folder ``laser-corners slam`` wrote (required).
+    output : str
+        ``slam``: folder to write the map into at shutdown ("" = none).
+    mount : list of float
+        Base -> laser ``[x, y, yaw]``; empty: from ``/tf_static`` (identity without it).
+    odom_topic : str
+        A ``nav_msgs/Odometry`` topic to take odometry from; empty: ``/tf``.
+    map_frame, odom_frame, base_frame : str
+        Frame names; ``odom_frame`` / ``base_frame`` empty: taken from the first odometry.
+    map_period : float
+        Seconds between republications of the SLAM grid on ``map``.
+    resolution : float
+        Grid cell size, metres (slam mode).
+    slam_config : str
+        A YAML file of :class:`~laser_corners.slam.SlamOptions` ("" = defaults).
+    queue_size : int
+        Subscriber depth; also the most scans kept waiting for odometry.
+    tf_wait : float
+        Seconds (wall clock) a scan may wait for odometry after its stamp once it arrived:
+        a lagging odometry callback (several odometry messages per scan) is not a missing
+        odometry.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    mode: Literal["slam", "localise"] = "slam"
+    map: str = ""
+    output: str = ""
+    mount: list[float] = Field(default_factory=list)
+    odom_topic: str = ""
+    map_frame: str = Field("map", min_length=1)
+    odom_frame: str = ""
+    base_frame: str = ""
+    map_period: float = Field(5.0, gt=0.0, le=3600.0)
+    resolution: float = Field(0.05, ge=0.001, le=10.0)
+    slam_config: str = ""
+    queue_size: int = Field(50, ge=1, le=100_000)
+    tf_wait: float = Field(1.0, gt=0.0, le=60.0)
+
+    @classmethod
+    def from_mapping(cls, values: dict[str, Any], source: str = "ROS 2 parameter") -> MappingConfig:
+        """Check parameter name -> value; one :class:`InvalidParamsError` line when invalid."""
+        try:
+            config = cls(**values)
+        except ValidationError as exc:
+            error = exc.errors()[0]
+            name = ".".join(str(p) for p in error["loc"]) or "?"
+            if error["type"] == "extra_forbidden":
+                known = ", ".join(MAPPING_OPTIONS)
+                raise InvalidParamsError(f"unknown {source} {name}; known: {known}") from None
+            raise InvalidParamsError(f"{source} {name}: {error['msg']}") from None
+        if config.mount and (
+            len(config.mount) != 3 or not all(math.isfinite(v) for v in config.mount)
+        ):
+            raise InvalidParamsError(f"{source} mount: expected [x, y, yaw], got {config.mount}")
+        if config.mode == "localise" and not config.map:
+            raise InvalidParamsError(f"{source} map: mode localise needs -p map:=DIR")
+        return config
+
+    def slam_options(self) -> SlamOptions:
+        """The SLAM options (``slam_config`` YAML, or the defaults)."""
+        if not self.slam_config:
+            return SlamOptions()
+        import yaml
+
+        path = Path(self.slam_config)
+        try:
+            data = yaml.safe_load(path.read_text())
+        except (OSError, yaml.YAMLError) as exc:
+            raise InvalidParamsError(f"slam_config {path}: {exc}") from None
+        return SlamOptions.from_mapping(data or {}, source=str(path))
+
+
+def map_to_odom(pose: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The ``map -> odom`` transform that puts the base at ``pose`` (map) given its odometry
+    pose ``odom``: ``pose ∘ odom⁻¹`` (so ``map_to_odom ∘ odom = pose``)."""
+    return compose(np.asarray(pose, dtype=np.float64), invert(np.asarray(odom, dtype=np.float64)))
+
+
+class OdometryBook:
+    """Odometry and static transforms as they arrive; the base pose at any covered stamp.
+
+    Parameters
+    ----------
+    odom_frame, base_frame : str
+        The odometry frames ("" = those of the first ``nav_msgs/Odometry``, or the first
+        ``/tf`` transform whose child has a static child, e.g. ``odom -> base_link``).
+    """
+
+    def __init__(self, odom_frame: str = "", base_frame: str = "") -> None:
+        self.track = StreamingTrack()
+        self.odom_frame = frame_name(odom_frame)
+        self.base_frame = frame_name(base_frame)
+        self._dynamic: list[tuple[str, str, float, tuple[float, float, float]]] = []
+        self.n_odometry = 0
+        self._stamps: set[float] = set()
+
+    def add_odometry(
+        self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
+    ) -> None:
+        """One odometry sample (``nav_msgs/Odometry`` or the ``odom -> base`` transform)."""
+        odom, base = frame_name(odom_frame), frame_name(base_frame)
+        self.odom_frame = self.odom_frame or odom
+        self.base_frame = self.base_frame or base
+        if (odom, base) != (self.odom_frame, self.base_frame) or stamp in self._stamps:
+            return  # another odometry, or a sample we have (a republished one)
+        self._stamps.add(stamp)
+        self.track.add_odometry(odom, base, (float(stamp), *map(float, pose)))
+        self.n_odometry += 1
+
+    def add_transforms(
+        self, transforms: list[tuple[str, str, float, tuple[float, float, float]]], static: bool
+    ) -> None:
+        """Transforms ``(parent, child, stamp, pose)`` of one ``TFMessage``; on ``/tf`` the
+        ``odom -> base`` ones are odometry samples, the others join the tree."""
+        if static:
+            self.track.add_transforms([(p, c, pose) for p, c, _, pose in transforms], True)
+            return
+        tree = []
+        for parent, child, stamp, pose in transforms:
+            if self._is_odometry(frame_name(parent), frame_name(child)):
+                self.add_odometry(parent, child, stamp, pose)
+            else:
+                tree.append((parent, child, pose))
+        if tree:
+            self.track.add_transforms(tree, False)
+
+    def _is_odometry(self, parent: str, child: str) -> bool:
+        if self.odom_frame and self.base_frame:
+            return (parent, child) == (self.odom_frame, self.base_frame)
+        if self.odom_frame:
+            return parent == self.odom_frame
+        if self.base_frame:
+            return child == self.base_frame
+        return parent == "odom"  # REP 105's name, when nothing was configured
+
+    def ready(self, stamp: float, laser_frame: str, need_mount: bool) -> bool:
+        """Whether odometry after ``stamp`` is in (and the laser mount, if needed)."""
+        if not self.n_odometry:
+            return False
+        if need_mount:
+            return self.track.ready(round(stamp * 1e9), laser_frame)
+        return self.track.ready(round(stamp * 1e9), self.base_frame)
+
+    def base_pose(self, stamp: float) -> NDArray[np.float64] | None:
+        """The base pose in the odometry frame at ``stamp`` (interpolated), or None."""
+        pose = self.track.pose(stamp, self.base_frame) if self.n_odometry else None
+        return None if pose is None else np.asarray(pose, dtype=np.float64)
+
+    def mount(self, laser_frame: str) -> tuple[float, float, float] | None:
+        """Base -> laser from the static tree, or None."""
+        return self.track.mount_of(laser_frame) if self.base_frame else None
+
+
+@dataclass
+class Update:
+    """What one scan produced: the base pose in the map frame and ``map -> odom``."""
+
+    stamp: float
+    pose: NDArray[np.float64]
+    covariance: NDArray[np.float64]
+    map_to_odom: NDArray[np.float64]
+    status: str = "tracking"
+    ms: float = 0.0
+
+
+@dataclass
+class Counts:
+    """Scans seen, processed, dropped (no odometry in time), and without an estimate
+    (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms)."""
+
+    scans: int = 0
+    processed: int = 0
+    no_odometry: int = 0
+    no_fix: int = 0
+    ms: list[float] = field(default_factory=list)
+
+
+class MappingCore:
+    """Scans + odometry in, poses and ``map -> odom`` out (slam or localise).
+
+    Parameters
+    ----------
+    config : MappingConfig
+        Validated parameters.
+    clock : callable, optional
+        Seconds (monotonic) for the grid republication period; ``time.monotonic``.
+    """
+
+    def __init__(self, config: MappingConfig, clock: Any = time.monotonic) -> None:
+        self.config = config
+        self.clock = clock
+        self.book = OdometryBook(config.odom_frame, config.base_frame)
+        self.options = config.slam_options() if config.mode == "slam" else None
+        self.estimator: Any = None
+        self.mount: NDArray[np.float64] | None = (
+            np.asarray(config.mount, dtype=np.float64) if config.mount else None
+        )
+        self.pending: deque[tuple[LaserScan, float]] = deque()  # with the arrival time
+        self.counts = Counts()
+        self.last: Update | None = None
+        self._grid_at = -math.inf
+        self._grid_keyframes = -1
+        self.saved_grid: OccupancyGrid | None = None
+        self.saved: SavedMap | None = None
+        self._initial: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
+        if config.mode == "localise":  # read (and checked) at start: InputError, one line
+            self.saved = load_map(config.map)
+            self.saved_grid = self.saved.grid
+
+    # ------------------------------------------------------------------ scans
+    def add_scan(self, scan: LaserScan) -> list[Update]:
+        """Queue a scan; process every queued scan whose odometry is in, in stamp order."""
+        self.counts.scans += 1
+        self.pending.append((scan, self.clock()))
+        return self.release()
+
+    def release(self) -> list[Update]:
+        """Process the queued scans that can be (call after new odometry too)."""
+        out: list[Update] = []
+        now = self.clock()
+        while self.pending:
+            scan, arrived = self.pending[0]
+            assert scan.stamp is not None
+            ready = self.book.ready(scan.stamp, scan.frame_id, self.mount is None)
+            too_old = now - arrived > self.config.tf_wait
+            if not ready and not too_old and len(self.pending) <= self.config.queue_size:
+                break
+            self.pending.popleft()
+            if not ready and self.mount is None:  # odometry but no base -> laser transform
+                ready = self.book.ready(scan.stamp, scan.frame_id, False)
+            odom = self.book.base_pose(scan.stamp) if ready else None
+            if odom is None:
+                self.counts.no_odometry += 1
+                continue
+            update = self._process(scan, odom)
+            if update is not None:
+                out.append(update)
+        return out
+
+    def _process(self, scan: LaserScan, odom: NDArray[np.float64]) -> Update | None:
+        start = time.perf_counter()
+        assert scan.stamp is not None
+        if self.estimator is None:
+            self._start(scan)
+        if self.config.mode == "slam":
+            pose, cov = self.estimator.add(scan, odom, scan.stamp)
+            update = Update(scan.stamp, pose, cov, map_to_odom(pose, odom))
+        else:
+            est = self.estimator.add(scan, odom, scan.stamp)
+            if est is None:
+                self.counts.no_fix += 1
+                return None
+            update = Update(
+                scan.stamp,
+                np.asarray(est.pose, dtype=np.float64),
+                np.asarray(est.covariance, dtype=np.float64),
+                np.asarray(est.map_to_odom, dtype=np.float64),
+                str(est.status),
+            )
+        update.ms = (time.perf_counter() - start) * 1e3
+        self.counts.processed += 1
+        self.counts.ms.append(update.ms)
+        self.last = update
+        return update
+
+    def _start(self, scan: LaserScan) -> None:
+        """Create the estimator at the first paired scan (the mount is known then)."""
+        if self.mount is None:
+            found = self.book.mount(scan.frame_id)
+            if found is None and self.saved is not None:
+                found = tuple(self.saved.mount)  # localise: the map's own mount
+            self.mount = np.asarray(found if found is not None else (0.0, 0.0, 0.0))
+        if self.config.mode == "slam":
+            self.estimator = Slam(self.options, self.mount)
+            return
+        assert self.saved is not None
+        self.estimator = Localiser(self.saved, options=LocaliseOptions(), mount=self.mount)
+        if self._initial is not None:
+            self.estimator.set_pose(*self._initial)
+
+    def write_map(self, folder: Path, wall_s: float) -> Path | None:
+        """slam: write the map folder as ``laser-corners slam`` does (same writer); None when
+        nothing was mapped.
+
+        Raises
+        ------
+        OutputError
+            When the folder cannot be written.
+        """
+        if self.config.mode != "slam" or self.estimator is None:
+            return None
+        result = self.estimator.result()
+        info = SlamRunInfo(
+            "laser-corners ros2 (live)", wall_s, peak_rss_mb(), resolution=self.config.resolution
+        )
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"output {folder}: {exc}") from None
+        write_slam_outputs(result, folder, info)
+        return folder
+
+    def set_pose(self, pose: NDArray[np.float64], covariance: NDArray[np.float64] | None) -> bool:
+        """``/initialpose`` (localise): hand it to the localiser (kept until the first scan
+        when it comes earlier); False in slam mode."""
+        if self.config.mode != "localise":
+            return False
+        pose = np.asarray(pose, dtype=np.float64).reshape(3)
+        if covariance is not None and not np.any(np.asarray(covariance)):
+            covariance = None  # an all-zero covariance (some tools send one): the default
+        if self.estimator is None:
+            self._initial = (pose, covariance)
+        else:
+            self.estimator.set_pose(pose, covariance=covariance)
+        return True
+
+    # ------------------------------------------------------------------ map
+    def grid_due(self) -> bool:
+        """slam: a new grid is due (``map_period`` passed and new keyframes since the last)."""
+        if self.config.mode != "slam" or self.estimator is None:
+            return False
+        n = len(self.estimator.kf)
+        return (
+            n > 0
+            and n != self._grid_keyframes
+            and self.clock() - self._grid_at >= (self.config.map_period)
+        )
+
+    def grid(self) -> OccupancyGrid | None:
+        """slam: the grid of the keyframes at their current estimates; localise: the saved
+        map."""
+        if self.config.mode == "localise":
+            return self.saved_grid
+        job = self.grid_job()
+        return None if job is None else job()
+
+    def grid_job(self) -> Callable[[], OccupancyGrid] | None:
+        """slam: a snapshot of the keyframes (estimates copied) and the function that builds
+        their grid, for a worker thread (the numba kernel releases the GIL, so scans go on
+        meanwhile); the grid counts as built from now. None before the first keyframe."""
+        if self.config.mode != "slam" or self.estimator is None or not len(self.estimator.kf):
+            return None
+        kf = self.estimator.kf
+        n = min(len(kf.estimate), len(kf.scans))
+        self._grid_at, self._grid_keyframes = self.clock(), len(kf)
+        return partial(
+            occupancy_grid,
+            np.array(kf.estimate[:n], copy=True),
+            list(kf.scans[:n]),
+            self.estimator.mount.copy(),
+            self.config.resolution,
+        )
+
+    def landmarks(self) -> NDArray[np.float64]:
+        """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
+        if self.config.mode == "slam" and self.estimator is not None:
+            return np.asarray(self.estimator.kf.landmarks().xy, dtype=np.float64).reshape(-1, 2)
+        if self.saved is not None and self.saved.landmarks is not None:
+            return np.asarray(self.saved.landmarks, dtype=np.float64).reshape(-1, 2)
+        return np.zeros((0, 2))
+
+    def summary(self) -> str:
+        """Counts and timing, for the log line at shutdown."""
+        c = self.counts
+        ms = np.asarray(c.ms)
+        timing = (
+            f", {ms.mean():.2f} ms/scan mean, p95 {np.percentile(ms, 95):.2f}, max {ms.max():.1f}"
+            if ms.size
+            else ""
+        )
+        return (
+            f"{c.scans} scans, {c.processed} processed, {c.no_odometry} without odometry, "
+            f"{c.no_fix} before a fix{timing}"
+        )

@@ -1,0 +1,221 @@
+"""The map folder that ``slam`` writes and ``localise`` reads: ``keyframes.npz`` and friends.
+
+``keyframes.npz`` (numpy archive, no pickles) holds what localisation needs beyond the
+occupancy grid:
+
+=================  ==========================================================================
+``format_version`` int, :data:`FORMAT_VERSION`; an older file is refused by :func:`load_map`
+``poses``          (K, 3) keyframe base poses in the map frame (final estimate)
+``stamps``         (K,) keyframe stamps (s)
+``scan_index``     (K,) index of each keyframe among the mapped scans
+``offsets``        (K + 1,) keyframe ``k``'s points are rows ``offsets[k]:offsets[k + 1]``
+``points``         (M, 2) scan points in the keyframe's base frame (mount applied, thinned as
+                   :func:`~laser_corners.slam.points.scan_points` makes them)
+``normals``        (M, 2) their unit line normals (base frame), zero where ``has_normal`` is
+                   False
+``has_normal``     (M,) bool
+``mount``          (3,) base -> laser transform of the map's run
+=================  ==========================================================================
+
+:func:`save_map_data` writes it from a :class:`~laser_corners.slam.SlamResult`;
+:func:`load_map` reads a folder (``keyframes.npz``, ``map.yaml`` + ``map.pgm`` and
+``landmarks.csv`` when present) into a :class:`SavedMap`. Every problem of a folder is one
+:class:`~laser_corners.errors.InputError` line naming the folder and what is wrong.
+"""
+
+from __future__ import annotations
+
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.errors import InputError
+from laser_corners.io.base import PartialOutput
+from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.slam.points import scan_points
+
+__all__ = ["FORMAT_VERSION", "KEYFRAMES_FILE", "SavedMap", "load_map", "save_map_data"]
+
+FORMAT_VERSION = 1
+"""Version of ``keyframes.npz``; :func:`load_map` refuses other versions."""
+KEYFRAMES_FILE = "keyframes.npz"
+_ARRAYS = ("poses", "stamps", "scan_index", "offsets", "points", "normals", "has_normal", "mount")
+
+
+@dataclass
+class SavedMap:
+    """A map folder as :func:`load_map` reads it.
+
+    Attributes
+    ----------
+    folder : Path
+    poses : ndarray, shape (K, 3)
+        Keyframe base poses in the map frame.
+    stamps : ndarray, shape (K,)
+    scan_index : ndarray of int, shape (K,)
+    offsets : ndarray of int, shape (K + 1,)
+    points, normals : ndarray, shape (M, 2)
+        Keyframe points and normals in their keyframe's base frame.
+    has_normal : ndarray of bool, shape (M,)
+    mount : ndarray, shape (3,)
+    grid : OccupancyGrid or None
+        ``map.yaml`` + ``map.pgm`` when present.
+    landmarks : ndarray, shape (L, 2)
+        Landmark positions from ``landmarks.csv`` (empty when absent or header only).
+    """
+
+    folder: Path
+    poses: NDArray[np.float64]
+    stamps: NDArray[np.float64]
+    scan_index: NDArray[np.int64]
+    offsets: NDArray[np.int64]
+    points: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    has_normal: NDArray[np.bool_]
+    mount: NDArray[np.float64]
+    grid: OccupancyGrid | None = None
+    landmarks: NDArray[np.float64] | None = None
+
+    def __len__(self) -> int:
+        return int(self.poses.shape[0])
+
+    def world_points(self) -> tuple[NDArray, NDArray, NDArray]:
+        """Every keyframe point and normal moved into the map frame, with ``has_normal``."""
+        owner = np.repeat(np.arange(len(self)), np.diff(self.offsets))
+        pose = self.poses[owner]
+        c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+        p, n = self.points, self.normals
+        xy = np.column_stack(
+            [c * p[:, 0] - s * p[:, 1] + pose[:, 0], s * p[:, 0] + c * p[:, 1] + pose[:, 1]]
+        )
+        nrm = np.column_stack([c * n[:, 0] - s * n[:, 1], s * n[:, 0] + c * n[:, 1]])
+        return xy, nrm, self.has_normal
+
+
+def keyframe_arrays(result: Any) -> dict[str, NDArray]:
+    """The arrays of ``keyframes.npz`` from a SLAM result (points remade from its keyframe
+    scans with the result's own range limits and spacing)."""
+    opt = result.options
+    pts = [
+        scan_points(s, result.mount, opt.min_range, opt.max_range, opt.point_spacing)
+        for s in result.scans
+    ]
+    sizes = [len(p.xy) for p in pts]
+    cat = np.concatenate if pts else (lambda _a: np.zeros((0, 2)))
+    return {
+        "format_version": np.int64(FORMAT_VERSION),
+        "poses": np.asarray(result.keyframe_poses, dtype=np.float64).reshape(-1, 3),
+        "stamps": np.asarray(result.stamps, dtype=np.float64)[result.keyframes],
+        "scan_index": np.asarray(result.keyframes, dtype=np.int64),
+        "offsets": np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        "points": cat([p.xy for p in pts]).reshape(-1, 2),
+        "normals": cat([p.normals for p in pts]).reshape(-1, 2),
+        "has_normal": (np.concatenate([p.has_normal for p in pts]) if pts else np.zeros(0, bool)),
+        "mount": np.asarray(result.mount, dtype=np.float64),
+    }
+
+
+def save_map_data(result: Any, folder: str | Path) -> Path:
+    """Write ``keyframes.npz`` of a SLAM result into ``folder`` (atomically).
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written.
+    """
+    path = Path(folder) / KEYFRAMES_FILE
+    arrays = keyframe_arrays(result)
+    with PartialOutput(path, overwrite=True).writing() as temporary, temporary.open("wb") as f:
+        np.savez_compressed(f, **arrays)
+    return path
+
+
+def _read_npz(folder: Path) -> dict[str, NDArray]:
+    path = folder / KEYFRAMES_FILE
+    if not folder.is_dir():
+        raise InputError(f"{folder}: no such map folder")
+    if not path.is_file():
+        raise InputError(
+            f"{folder}: not a map folder for localisation ({KEYFRAMES_FILE} missing; "
+            "make it with `laser-corners slam INPUT -o DIR`)"
+        )
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputError(f"{path}: unreadable ({str(exc).splitlines()[0]})") from None
+    version = arrays.get("format_version")
+    if version is None or int(version) != FORMAT_VERSION:
+        found = "none" if version is None else int(version)
+        raise InputError(
+            f"{path}: format version {found}, this version reads {FORMAT_VERSION}; "
+            "remake the map with `laser-corners slam`"
+        )
+    missing = [k for k in _ARRAYS if k not in arrays]
+    if missing:
+        raise InputError(f"{path}: incomplete, missing {', '.join(missing)}")
+    return arrays
+
+
+def _check(path: Path, a: dict[str, NDArray]) -> None:
+    k = a["poses"].shape[0] if a["poses"].ndim == 2 else -1
+    m = int(a["offsets"][-1]) if a["offsets"].size else -1
+    ok = (
+        a["poses"].shape == (k, 3)
+        and a["stamps"].shape == (k,)
+        and a["offsets"].shape == (k + 1,)
+        and a["points"].shape == (m, 2)
+        and a["normals"].shape == (m, 2)
+        and a["has_normal"].shape == (m,)
+        and a["mount"].shape == (3,)
+    )
+    if not ok:
+        raise InputError(f"{path}: inconsistent array shapes (a damaged file?)")
+    if k == 0:
+        raise InputError(f"{path}: the map has no keyframe")
+
+
+def _landmarks(folder: Path) -> NDArray[np.float64]:
+    path = folder / "landmarks.csv"
+    if not path.is_file():
+        return np.zeros((0, 2))
+    try:
+        table = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: unreadable ({str(exc).splitlines()[0]})") from None
+    names = table.dtype.names or ()
+    if table.size == 0 or "x" not in names or "y" not in names:
+        return np.zeros((0, 2))
+    return np.column_stack([table["x"], table["y"]]).astype(np.float64)
+
+
+def load_map(folder: str | Path) -> SavedMap:
+    """Read a map folder written by ``laser-corners slam``.
+
+    Raises
+    ------
+    InputError
+        The folder or ``keyframes.npz`` is missing, of another format version, incomplete or
+        inconsistent; ``map.yaml`` is present but unreadable.
+    """
+    folder = Path(folder)
+    a = _read_npz(folder)
+    _check(folder / KEYFRAMES_FILE, a)
+    grid = read_map(folder / "map.yaml") if (folder / "map.yaml").is_file() else None
+    return SavedMap(
+        folder=folder,
+        poses=a["poses"].astype(np.float64),
+        stamps=a["stamps"].astype(np.float64),
+        scan_index=a["scan_index"].astype(np.int64),
+        offsets=a["offsets"].astype(np.int64),
+        points=a["points"].astype(np.float64),
+        normals=a["normals"].astype(np.float64),
+        has_normal=a["has_normal"].astype(bool),
+        mount=a["mount"].astype(np.float64),
+        grid=grid,
+        landmarks=_landmarks(folder),
+    )

@@ -1,0 +1,145 @@
+"""``laser-corners localise`` end to end on a simulated bag mapped by ``laser-corners slam``."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from laser_corners.cli import app
+from laser_corners.io.trajectory import read_tum
+from laser_corners.sim import UST_10LX, rectangular_room, trajectory
+from laser_corners.sim.export import simulate_sequence, write_bag
+
+runner = CliRunner()
+
+
+def _invoke(*args: str | Path):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def _one_line_error(result, *needles: str) -> None:
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert "Traceback" not in result.stderr
+    assert len(lines) == 1 and lines[0].startswith("laser-corners: error: "), result.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+
+
+@pytest.fixture(scope="module")
+def mapped(tmp_path_factory) -> tuple[Path, Path, np.ndarray, np.ndarray]:
+    """A bag of a drive through a room (odometry drifting) and the map ``slam`` made of it."""
+    folder = tmp_path_factory.mktemp("cli")
+    rng = np.random.default_rng(11)
+    world = rectangular_room()
+    n = 480
+    truth = trajectory(world, n, rng, rate_hz=UST_10LX.rate_hz, speed=0.5)
+    sequence = simulate_sequence(world, UST_10LX, truth, 0.005, rng, start_time=100.0)
+    odometry = truth.copy()
+    odometry[:, 2] += np.cumsum(np.full(n, math.radians(0.02)))
+    bag = folder / "sim.bag"
+    write_bag(replace(sequence, poses=odometry), bag)
+    result = _invoke("slam", bag, "-o", folder / "map")
+    assert result.exit_code == 0, result.output
+    assert (folder / "map" / "keyframes.npz").is_file()
+    return bag, folder / "map", sequence.stamps, truth
+
+
+def test_localise_writes_trajectory_summary_and_plot(mapped, tmp_path: Path) -> None:
+    bag, map_dir, stamps, _truth = mapped
+    out = tmp_path / "out"
+    result = _invoke("localise", map_dir, bag, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.iterdir()) == [
+        "summary.json",
+        "trajectory.png",
+        "trajectory.tum",
+    ]
+    summary = json.loads((out / "summary.json").read_text())
+    fix = summary["first_fix"]
+    assert fix is not None, summary
+    got_t, got_p = read_tum(out / "trajectory.tum")
+    assert got_t[0] == pytest.approx(fix["stamp"]) and got_t[0] >= stamps[0]
+    assert len(got_t) == summary["counts"]["estimates"] >= 0.8 * (len(stamps) - fix["scan_index"])
+    # the map's own trajectory is the reference: same frame
+    map_t, map_p = read_tum(map_dir / "trajectory.tum")
+    ref = map_p[np.searchsorted(map_t, got_t)]
+    assert np.max(np.hypot(*(got_p[:, :2] - ref[:, :2]).T)) < 0.15
+    assert summary["ms_per_scan_mean"] > 0 and summary["lost"] == 0
+    assert "first fix" in result.stdout
+
+
+def test_initial_pose_and_start_scan(mapped, tmp_path: Path) -> None:
+    bag, map_dir, stamps, _ = mapped
+    _, map_p = read_tum(map_dir / "trajectory.tum")
+    start = 200
+    pose = ",".join(f"{v:.6f}" for v in map_p[start])
+    out = tmp_path / "o"
+    result = _invoke(
+        "localise", map_dir, bag, "-o", out, "--initial-pose", pose, "--start-scan", start
+    )
+    assert result.exit_code == 0, result.output
+    got_t, got_p = read_tum(out / "trajectory.tum")
+    assert got_t[0] == pytest.approx(stamps[start])  # tracking from the first scan used
+    assert np.hypot(*(got_p[-1, :2] - map_p[-1, :2])) < 0.1
+    # no initial pose: the fix's scan index is the recording's
+    result = _invoke("localise", map_dir, bag, "-o", tmp_path / "g", "--start-scan", start)
+    assert result.exit_code == 0, result.output
+    fix = json.loads((tmp_path / "g" / "summary.json").read_text())["first_fix"]
+    assert fix["scan_index"] > start and fix["stamp"] == pytest.approx(stamps[fix["scan_index"]])
+
+
+def test_bad_inputs_are_one_line(mapped, tmp_path: Path) -> None:
+    bag, map_dir, _, _ = mapped
+    _one_line_error(
+        _invoke("localise", tmp_path / "nomap", bag, "-o", tmp_path / "a"), "no such map folder"
+    )
+    (tmp_path / "half").mkdir()
+    _one_line_error(
+        _invoke("localise", tmp_path / "half", bag, "-o", tmp_path / "b"), "keyframes.npz missing"
+    )
+    _one_line_error(
+        _invoke("localise", map_dir, bag, "-o", tmp_path / "c", "--initial-pose", "1,2"),
+        "--initial-pose",
+    )
+    _one_line_error(
+        _invoke("localise", map_dir, bag, "-o", tmp_path / "d", "--set", "fix_margin=2"),
+        "fix_margin",
+    )
+    ranges = " ".join(["2.0"] * 181)
+    lines = [
+        f"RAWLASER1 0 -1.5708 3.1416 0.01745 80 0.01 0 181 {ranges} 0 {t:.3f} host {t:.3f}"
+        for t in 10.0 + 0.1 * np.arange(20)
+    ]
+    log = tmp_path / "no_odom.clf"
+    log.write_text("\n".join(lines) + "\n")
+    _one_line_error(_invoke("localise", map_dir, log, "-o", tmp_path / "e"), "no_odom.clf")
+
+
+def test_ctrl_c_keeps_the_poses_written_and_exits_130(mapped, tmp_path: Path, monkeypatch) -> None:
+    import laser_corners.localise
+    from laser_corners.localise import LocaliserEstimate, LocaliseRun
+
+    def interrupted(map_data, path, options=None, *, on_estimate=None, **kwargs):
+        estimate = LocaliserEstimate(
+            np.array([1.0, 2.0, 0.5]), np.eye(3) * 1e-4, "relocalised", np.zeros(3), 0, 100.0
+        )
+        on_estimate(estimate)
+        return LocaliseRun(
+            [estimate], [], {"scans": 1, "estimates": 1}, np.ones(1), interrupted=True
+        )
+
+    monkeypatch.setattr(laser_corners.localise, "run_localise", interrupted)
+    bag, map_dir, _, _ = mapped
+    out = tmp_path / "out"
+    result = _invoke("localise", map_dir, bag, "-o", out)
+    assert result.exit_code == 130, result.output
+    stamps, poses = read_tum(out / "trajectory.tum")
+    assert stamps.tolist() == [100.0] and np.allclose(poses, [[1.0, 2.0, 0.5]])
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True

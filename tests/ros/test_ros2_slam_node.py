@@ -1,0 +1,480 @@
+"""The ROS 2 node's ``mode:=slam`` (and ``mode:=localise``) over real DDS, fed with fr079.
+
+As ``test_ros2_node.py`` (same isolation: a domain from the pid, loopback discovery, a
+namespace per node): the node runs as ``laser-corners ros2 --ros-args -p mode:=slam``; this
+process replays the first scans of ``fr079.bag`` with the bag's odometry and listens. The
+PyPI wheels have no ``tf2_msgs``, so there odometry goes over ``nav_msgs/Odometry`` (with
+``-p odom_topic``, ``-p mount``) and ``map -> odom`` comes back on ``map_to_odom``; with a
+ROS 2 installation that has ``tf2_msgs`` the test replays ``/tf`` + ``/tf_static`` instead and
+reads ``map -> odom`` from ``/tf``.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from itertools import islice
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from ros2_tools import RATE_HZ, STARTUP_TIMEOUT, Key, key_of, to_msg, wait_exit
+from ros_helpers import FR079, isolated_message_packages, stop, wait_for
+from test_ros2_node import Ros2, _run_ros2
+
+from laser_corners.ros.convert import seconds_to_sec_nanosec
+from laser_corners.slam.geometry import compose, compose_many, invert_many
+
+pytest.importorskip("gtsam")
+
+pytestmark = [
+    pytest.mark.ros2,
+    pytest.mark.real,
+    pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),
+]
+
+N_SCANS = 300  # the first 64 s of fr079
+HAS_TF = importlib.util.find_spec("tf2_msgs") is not None
+
+
+@pytest.fixture(scope="module")
+def ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
+    with isolated_message_packages():
+        yield from _run_ros2(tmp_path_factory)
+
+
+def _fr079(n: int) -> tuple[list[Any], list[tuple[float, Any]], tuple[float, float, float]]:
+    """The first ``n`` scans, the odometry messages up to 1 s after them, and the mount."""
+    from rosbags.highlevel import AnyReader
+
+    from laser_corners.pipeline.recording import open_recording
+
+    with open_recording(FR079, None) as rec:
+        scans = list(islice(rec.scans(), n))
+        mount = rec.source.mounts[scans[0].frame_id]
+    end = scans[-1].stamp + 1.0
+    odometry = []
+    with AnyReader([FR079]) as reader:
+        connections = [c for c in reader.connections if c.topic == "/odom"]
+        for connection, _, raw in reader.messages(connections=connections):
+            msg = reader.deserialize(raw, connection.msgtype)
+            stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+            if stamp > end:
+                break
+            odometry.append((stamp, msg))
+    return scans, odometry, mount
+
+
+def _odometry_msg(bag_msg: Any) -> Any:
+    from nav_msgs.msg import Odometry
+
+    msg = Odometry()
+    msg.header.stamp.sec = bag_msg.header.stamp.sec
+    msg.header.stamp.nanosec = bag_msg.header.stamp.nanosec
+    msg.header.frame_id, msg.child_frame_id = bag_msg.header.frame_id, bag_msg.child_frame_id
+    for name in ("x", "y", "z"):
+        setattr(msg.pose.pose.position, name, float(getattr(bag_msg.pose.pose.position, name)))
+    for name in ("x", "y", "z", "w"):
+        value = float(getattr(bag_msg.pose.pose.orientation, name))
+        setattr(msg.pose.pose.orientation, name, value)
+    return msg
+
+
+def _tf_msg(parent: str, child: str, stamp: float, pose: Any) -> Any:
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+
+    from laser_corners.ros.nav_convert import fill_transform
+
+    ts = fill_transform(TransformStamped(), parent, child, pose)
+    ts.header.stamp.sec, ts.header.stamp.nanosec = seconds_to_sec_nanosec(stamp)
+    return TFMessage(transforms=[ts])
+
+
+class Received:
+    """Poses and map -> odom transforms by stamp, with receive times (thread-safe)."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.poses: dict[Key, Any] = {}
+        self.received_at: dict[Key, float] = {}
+        self.map_to_odom: dict[Key, Any] = {}
+        self.grids: list[Any] = []
+
+    def on_pose(self, msg: Any) -> None:
+        now = time.perf_counter()
+        with self.lock:
+            key = key_of(msg.header.stamp)
+            self.poses.setdefault(key, msg)
+            self.received_at.setdefault(key, now)
+
+    def on_transform(self, msg: Any) -> None:
+        transforms = getattr(msg, "transforms", [msg])
+        with self.lock:
+            for ts in transforms:
+                if ts.child_frame_id == "odom" and ts.header.frame_id == "map":
+                    self.map_to_odom.setdefault(key_of(ts.header.stamp), ts)
+
+    def on_grid(self, msg: Any) -> None:
+        with self.lock:
+            self.grids.append(msg)
+
+    def count(self, keys: list[Key]) -> int:
+        with self.lock:
+            return sum(k in self.poses and k in self.map_to_odom for k in keys)
+
+
+def _planar(pose: Any) -> np.ndarray:
+    from laser_corners.io.poses import yaw_from_quaternion
+
+    o = pose.orientation
+    return np.array([pose.position.x, pose.position.y, yaw_from_quaternion(o.x, o.y, o.z, o.w)])
+
+
+def _transform(ts: Any) -> np.ndarray:
+    from laser_corners.io.poses import yaw_from_quaternion
+
+    t, r = ts.transform.translation, ts.transform.rotation
+    return np.array([t.x, t.y, yaw_from_quaternion(r.x, r.y, r.z, r.w)])
+
+
+class Replay:
+    """Publishes fr079's scans with its odometry (topic or /tf), odometry slightly ahead."""
+
+    def __init__(self, ros2: Ros2, name: str, odometry: list[tuple[float, Any]], mount) -> None:
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import LaserScan as LaserScanMsg
+
+        node = ros2.node
+        self.node, self.odometry, self.next_odom = node, odometry, 0
+        self.scan_pub = node.create_publisher(LaserScanMsg, ros2.topic(name, "scan"), 1000)
+        if HAS_TF:
+            from rclpy.qos import DurabilityPolicy, QoSProfile
+            from tf2_msgs.msg import TFMessage
+
+            latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            self.static_pub = node.create_publisher(TFMessage, "/tf_static", latched)
+            self.static_pub.publish(_tf_msg("base_link", "laser", 0.0, mount))
+            self.odom_pub = node.create_publisher(TFMessage, "/tf", 1000)
+        else:
+            self.odom_pub = node.create_publisher(Odometry, ros2.topic(name, "odom"), 1000)
+
+    def odometry_until(self, stamp: float) -> None:
+        while self.next_odom < len(self.odometry) and self.odometry[self.next_odom][0] <= stamp:
+            msg = self.odometry[self.next_odom][1]
+            if HAS_TF:
+                p, o = msg.pose.pose.position, msg.pose.pose.orientation
+                yaw = 2.0 * np.arctan2(o.z, o.w)
+                stamp = self.odometry[self.next_odom][0]
+                self.odom_pub.publish(_tf_msg("odom", "base_link", stamp, (p.x, p.y, yaw)))
+            else:
+                self.odom_pub.publish(_odometry_msg(msg))
+            self.next_odom += 1
+
+    def destroy(self) -> None:
+        self.node.destroy_publisher(self.scan_pub)
+        self.node.destroy_publisher(self.odom_pub)
+        if HAS_TF:
+            self.node.destroy_publisher(self.static_pub)
+
+
+def _start_slam(ros2: Ros2, name: str, mount, output: Path) -> Any:
+    args = ["-p", "mode:=slam", "-p", "map_period:=1.0", "-p", f"output:={output}"]
+    args += ["-p", f"queue_size:={N_SCANS}"]
+    if not HAS_TF:
+        args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
+    return ros2.start(name, *args)
+
+
+def _reference_poses(scans: list[Any], mount) -> np.ndarray:
+    """Offline SLAM on the same inputs (scans rounded to float32 as the messages carry them)."""
+    import dataclasses
+
+    from laser_corners.slam import Slam
+
+    slam = Slam(mount=mount)
+    undo = invert_many(np.asarray(mount))
+    out = []
+    for scan in scans:
+        scan32 = dataclasses.replace(scan, ranges=scan.ranges.astype(np.float32).astype(float))
+        pose, _ = slam.add(scan32, compose_many(np.asarray(scan.pose), undo), scan.stamp)
+        out.append(pose)
+    return np.array(out)
+
+
+def _subscribe(ros2: Ros2, name: str, got: Received) -> list[Any]:
+    """Our subscriptions to the node's pose and map -> odom."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
+
+    node = ros2.node
+    subs = [
+        node.create_subscription(
+            PoseWithCovarianceStamped, ros2.topic(name, "pose"), got.on_pose, 1000
+        )
+    ]
+    if HAS_TF:
+        from tf2_msgs.msg import TFMessage
+
+        subs.append(node.create_subscription(TFMessage, "/tf", got.on_transform, 1000))
+    else:
+        topic = ros2.topic(name, "map_to_odom")
+        subs.append(node.create_subscription(TransformStamped, topic, got.on_transform, 1000))
+    return subs
+
+
+def _latched_map(ros2: Ros2, name: str, got: Received, proc: Any) -> Any:
+    """Subscribe ``map`` now (a late subscriber, transient local) and wait for a grid."""
+    from nav_msgs.msg import OccupancyGrid
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    latched = QoSProfile(
+        depth=1,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        reliability=ReliabilityPolicy.RELIABLE,
+    )
+    topic = ros2.topic(name, "map")
+    sub = ros2.node.create_subscription(OccupancyGrid, topic, got.on_grid, latched)
+    wait_for(lambda: got.grids, 20.0, "the latched map", proc)
+    return sub
+
+
+def _wait_matched(ros2: Ros2, name: str, proc: Any) -> None:
+    wait_for(
+        lambda: (
+            ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1
+            and ros2.node.count_publishers(ros2.topic(name, "pose")) >= 1
+        ),
+        STARTUP_TIMEOUT,
+        "the node's scan subscription and pose publisher",
+        proc,
+    )
+
+
+def _probe_first(replay: Replay, scans, msgs, keys, got: Received, proc: Any, also=None) -> None:
+    """The first scan, repeated until answered: proves the whole path matched (discovery)."""
+    deadline = time.monotonic() + STARTUP_TIMEOUT
+    while got.count(keys[:1]) == 0:
+        assert time.monotonic() < deadline, "no pose for the first scan"
+        assert proc.poll() is None, f"the node exited with code {proc.returncode}"
+        replay.next_odom = 0  # again: the first ones may have gone before discovery matched
+        replay.odometry_until(scans[0].stamp + 0.5)
+        if also is not None:
+            also()
+        replay.scan_pub.publish(msgs[0])
+        time.sleep(0.3)
+
+
+def _play_rest(replay: Replay, scans, msgs, keys) -> dict[Key, float]:
+    """Scans 1.. at RATE_HZ with the odometry 0.5 s ahead; the publish times."""
+    published_at: dict[Key, float] = {}
+    start = time.perf_counter()
+    for i, msg in enumerate(msgs[1:], start=1):
+        delay = start + i / RATE_HZ - time.perf_counter()
+        if delay > 0:
+            time.sleep(delay)
+        replay.odometry_until(scans[i].stamp + 0.5)
+        published_at[keys[i]] = time.perf_counter()
+        replay.scan_pub.publish(msg)
+    replay.odometry_until(np.inf)
+    return published_at
+
+
+def _odometry_at(odometry: list[tuple[float, Any]], stamp: float) -> np.ndarray:
+    stamps = np.array([o[0] for o in odometry])
+    raw = np.array([_planar(o[1].pose.pose) for o in odometry])
+    yaw = np.unwrap(raw[:, 2])
+    return np.array([np.interp(stamp, stamps, column) for column in (raw[:, 0], raw[:, 1], yaw)])
+
+
+def _check_pose_messages(got: Received, keys, scans, odometry) -> np.ndarray:
+    """map -> odom ∘ odometry(stamp) = the published pose; frames; covariance. The poses."""
+    poses = []
+    for key, scan in zip(keys, scans, strict=True):
+        pose = _planar(got.poses[key].pose.pose)
+        base = _odometry_at(odometry, scan.stamp)
+        transform = _transform(got.map_to_odom[key])
+        np.testing.assert_allclose(compose(transform, base)[:2], pose[:2], atol=1e-4)
+        assert got.poses[key].header.frame_id == "map"
+        cov = np.asarray(got.poses[key].pose.covariance).reshape(6, 6)
+        assert cov[0, 0] > 0 and cov[1, 1] > 0 and cov[5, 5] > 0
+        poses.append(pose)
+    return np.array(poses).reshape(-1, 3)
+
+
+def _latency(got: Received, published_at: dict[Key, float]) -> str:
+    ms = np.array([got.received_at[k] - t for k, t in published_at.items() if k in got.poses])
+    ms *= 1e3
+    return (
+        f"publish scan -> pose received over {ms.size} scans at {RATE_HZ:g} Hz: median "
+        f"{np.median(ms):.2f} ms, p95 {np.percentile(ms, 95):.2f} ms, max {ms.max():.2f} ms"
+    )
+
+
+def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
+    """fr079 scans + odometry in: a pose and map -> odom per scan, /map latched, the map
+    folder written at SIGINT."""
+    scans, odometry, mount = _fr079(N_SCANS)
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name, output = "lc_slam", tmp_path / "map"
+    proc = _start_slam(ros2, name, mount, output)
+    got = Received()
+    subs = _subscribe(ros2, name, got)
+    replay = Replay(ros2, name, odometry, mount)
+    try:
+        _wait_matched(ros2, name, proc)
+        _probe_first(replay, scans, msgs, keys, got, proc)
+        published_at = _play_rest(replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys) == N_SCANS, 60.0, "a pose for every scan", proc)
+        time.sleep(1.5)  # one map_period after the last keyframe: the final grid
+        subs.append(_latched_map(ros2, name, got, proc))  # a late subscriber gets it
+        os.kill(proc.pid, signal.SIGINT)
+        returncode = wait_exit(proc, "SIGINT")
+    finally:
+        for sub in subs:
+            ros2.node.destroy_subscription(sub)
+        replay.destroy()
+        stop(proc, name)
+
+    log = ros2.log(name)
+    assert returncode == 0, log
+    assert "Traceback" not in log, log
+    summary = re.search(r"stopped by SIGINT: (\d+) scans, (\d+) processed, (\d+) without", log)
+    assert summary, log
+    assert int(summary.group(2)) >= N_SCANS and int(summary.group(3)) == 0, log
+    assert f"map written to {output}" in log, log
+    node_poses = _check_pose_messages(got, keys, scans, odometry)
+    # the node's SLAM is the library's: same poses as an offline run on the same inputs
+    reference = _reference_poses(scans, mount)
+    err = np.hypot(*(node_poses[:, :2] - reference[:, :2]).T)
+    assert np.percentile(err, 95) < 0.05, f"node vs offline SLAM: p95 {np.percentile(err, 95)}"
+    # the latched map: frame, size of the first 64 s of fr079, walls and free space
+    grid = got.grids[-1]
+    assert grid.header.frame_id == "map"
+    assert grid.info.resolution == pytest.approx(0.05)
+    width, height = grid.info.width * 0.05, grid.info.height * 0.05
+    assert 5.0 < width < 100.0 and 5.0 < height < 100.0, (width, height)
+    data = np.asarray(grid.data, dtype=np.int8)
+    assert data.size == grid.info.width * grid.info.height
+    assert (data >= 65).sum() > 500 and ((data >= 0) & (data <= 25)).sum() > 5000
+    for file in ("map.yaml", "map.pgm", "trajectory.tum", "summary.json", "keyframes.npz"):
+        assert (output / file).is_file(), file  # the folder of `laser-corners slam`
+    print(
+        f"\nROS 2 slam node, fr079: {_latency(got, published_at)}; node vs offline SLAM "
+        f"median {np.median(err) * 1e3:.2f} mm; grid {grid.info.width} x {grid.info.height}; "
+        f"node log: {re.search(r'stopped by SIGINT: .*', log).group(0)}"
+    )
+
+
+def _offline_map(scans, folder: Path) -> np.ndarray:
+    """The map of these scans, written by `laser-corners slam`'s writer; its scan poses."""
+    from laser_corners.slam.run import run_slam
+    from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+
+    result = run_slam(FR079, stop_scan=len(scans))
+    assert len(result.poses) == len(scans)
+    folder.mkdir()
+    write_slam_outputs(result, folder, SlamRunInfo(str(FR079), 1.0, 0.0))
+    return np.asarray(result.poses)
+
+
+def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
+    """The same fr079 scans localised in their map: /initialpose starts tracking, the poses
+    stay on the map's trajectory, the saved map is latched on /map."""
+    from geometry_msgs.msg import PoseWithCovarianceStamped
+
+    from laser_corners.ros.nav_convert import fill_pose_with_covariance
+
+    scans, odometry, mount = _fr079(N_SCANS)
+    truth = _offline_map(scans, tmp_path / "map")
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name = "lc_localise"
+    args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'map'}"]
+    args += ["-p", f"queue_size:={N_SCANS}"]
+    if not HAS_TF:
+        args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
+    proc = ros2.start(name, *args)
+    got = Received()
+    subs = _subscribe(ros2, name, got)
+    replay = Replay(ros2, name, odometry, mount)
+    initial = fill_pose_with_covariance(
+        PoseWithCovarianceStamped(), truth[0], np.diag([0.01, 0.01, 0.003])
+    )
+    initial.header.frame_id = "map"
+    initial_pub = ros2.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", 10)
+    try:
+        subs.append(_latched_map(ros2, name, got, proc))  # at start: the saved map.pgm
+        _wait_matched(ros2, name, proc)
+        # no fix without it on the first scan: an answer proves /initialpose arrived
+        _probe_first(replay, scans, msgs, keys, got, proc, lambda: initial_pub.publish(initial))
+        published_at = _play_rest(replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys[-1:]) == 1, 60.0, "a pose for the last scan", proc)
+        os.kill(proc.pid, signal.SIGTERM)
+        returncode = wait_exit(proc, "SIGTERM")
+    finally:
+        for sub in subs:
+            ros2.node.destroy_subscription(sub)
+        ros2.node.destroy_publisher(initial_pub)
+        replay.destroy()
+        stop(proc, name)
+
+    log = ros2.log(name)
+    assert returncode == 0, log
+    assert "Traceback" not in log, log
+    assert re.search(r"initial pose \[.*\] applied", log), log
+    answered = [i for i, k in enumerate(keys) if k in got.poses and k in got.map_to_odom]
+    assert len(answered) >= 0.95 * N_SCANS, f"{len(answered)} of {N_SCANS} scans got a pose"
+    poses = _check_pose_messages(
+        got, [keys[i] for i in answered], [scans[i] for i in answered], odometry
+    )
+    err = np.hypot(*(poses[:, :2] - truth[answered, :2]).T)
+    dyaw = np.degrees(np.abs(np.angle(np.exp(1j * (poses[:, 2] - truth[answered, 2])))))
+    assert err.max() < 0.3 and dyaw.max() < 3.0, (err.max(), dyaw.max())
+    grid = got.grids[0]
+    saved = (tmp_path / "map" / "map.pgm").read_bytes()
+    assert grid.info.width * grid.info.height == len(grid.data) and len(grid.data) < len(saved)
+    print(
+        f"\nROS 2 localise node, fr079 in its own map: {_latency(got, published_at)}; "
+        f"{len(answered)} of {N_SCANS} scans localised, max error {err.max() * 100:.1f} cm / "
+        f"{dyaw.max():.2f} deg; node log: {re.search(r'stopped by SIGTERM: .*', log).group(0)}"
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["-p", "mode:=mapping"], "ROS 2 parameter mode: unknown mode 'mapping'"),
+        (["-p", "mode:=slam", "-p", "mape:=x"], "unknown ROS 2 parameter mape"),
+        (["-p", "mode:=localise"], "map: mode localise needs -p map:=DIR"),
+        (["-p", "mode:=localise", "-p", "map:=/nonexistent/map"], "/nonexistent/map: no such"),
+        (["-p", "mode:=slam", "-p", "map_period:=-1.0"], "ROS 2 parameter map_period"),
+    ],
+)
+def test_mapping_modes_refuse_bad_parameters(ros2: Ros2, args: list[str], message: str) -> None:
+    name = f"lc_bad_{abs(hash(tuple(args))) % 10**6}"
+    proc = ros2.start(name, *args)
+    returncode = wait_exit(proc, f"bad parameters ({args})")
+    log = ros2.log(name)
+    assert returncode == 2, log
+    assert "Traceback" not in log, log
+    errors = [line for line in log.splitlines() if "error:" in line]
+    assert len(errors) == 1 and message in errors[0], log
+
+
+@pytest.mark.skipif(HAS_TF, reason="tf2_msgs is importable here: the node uses /tf")
+def test_without_tf2_msgs_slam_mode_needs_an_odometry_topic(ros2: Ros2) -> None:
+    """The PyPI wheels have no tf2_msgs: one line saying what to do, exit code 2."""
+    name = "lc_no_tf"
+    proc = ros2.start(name, "-p", "mode:=slam")
+    returncode = wait_exit(proc, "mode slam without tf2_msgs")
+    log = ros2.log(name)
+    assert returncode == 2, log
+    errors = [line for line in log.splitlines() if "error:" in line]
+    assert len(errors) == 1 and "-p odom_topic:=/odom" in errors[0], log

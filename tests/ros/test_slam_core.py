@@ -1,0 +1,398 @@
+"""The ROS-free core of the ROS 2 node's slam / localise modes, without ROS.
+
+Scans of a simulated building with known poses; odometry arrives as ``/tf``-like transforms
+(``odom -> base_link``) or ``nav_msgs/Odometry``-like samples, the mount on ``/tf_static``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gtsam")
+
+from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
+from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.ros.nav_convert import (
+    fill_occupancy_grid,
+    fill_pose_with_covariance,
+    fill_transform,
+    landmark_marker_fields,
+    odometry_of,
+    pose_with_covariance_of,
+    transform_of,
+)
+from laser_corners.ros.slam_core import MappingConfig, MappingCore, OdometryBook, map_to_odom
+from laser_corners.sim import SICK_LMS_1DEG, World
+from laser_corners.slam.geometry import compose, compose_many, invert
+
+RATE = 10.0
+MOUNT = (0.2, -0.05, 0.1)
+
+
+def _world() -> World:
+    world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
+    world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
+    world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
+    return world
+
+
+def _drive(n: int = 60) -> tuple[np.ndarray, list]:
+    """Base poses along x at 0.4 m/s and their scans (frame ``laser``)."""
+    truth = np.array([(1.5 + 0.04 * i, 1.5 + 0.01 * i, 0.02 * i) for i in range(n)])
+    world, rng = _world(), np.random.default_rng(1)
+    laser = compose_many(truth, np.asarray(MOUNT))
+    scans = [
+        dataclasses.replace(
+            world.scan(tuple(p), SICK_LMS_1DEG, noise_sigma=0.005, rng=rng, stamp=i / RATE),
+            frame_id="laser",
+        )
+        for i, p in enumerate(laser)
+    ]
+    return truth, scans
+
+
+def _tf(parent: str, child: str, stamp: float, pose) -> tuple:
+    return (parent, child, stamp, tuple(float(v) for v in pose))
+
+
+class Clock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_map_to_odom_puts_the_base_at_its_map_pose() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        pose = rng.uniform([-50, -50, -np.pi], [50, 50, np.pi])
+        odom = rng.uniform([-50, -50, -np.pi], [50, 50, np.pi])
+        np.testing.assert_allclose(compose(map_to_odom(pose, odom), odom), pose, atol=1e-9)
+
+
+def test_odometry_book_interpolates_tf_and_chains_the_static_mount() -> None:
+    book = OdometryBook()
+    book.add_transforms(
+        [_tf("base_link", "mast", 0, (0.1, 0, 0)), _tf("mast", "laser", 0, (0.1, -0.05, 0.1))],
+        static=True,
+    )
+    book.add_transforms([_tf("odom", "base_link", 1.0, (1.0, 0.0, 0.0))], static=False)
+    assert not book.ready(1.5, "laser", need_mount=True)  # no odometry after the stamp yet
+    book.add_transforms([_tf("odom", "base_link", 2.0, (2.0, 1.0, 0.4))], static=False)
+    assert book.ready(1.5, "laser", need_mount=True)
+    assert not book.ready(1.5, "camera", need_mount=True)  # no chain base -> camera
+    np.testing.assert_allclose(book.base_pose(1.5), [1.5, 0.5, 0.2])
+    np.testing.assert_allclose(book.mount("laser"), MOUNT, atol=1e-12)
+    assert (book.odom_frame, book.base_frame) == ("odom", "base_link")
+    book.add_odometry("other_odom", "base_link", 3.0, (9, 9, 0))  # another odometry: ignored
+    book.add_odometry("odom", "base_link", 1.0, (5, 5, 0))  # a repeated stamp: ignored
+    np.testing.assert_allclose(book.base_pose(1.0), [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(book.base_pose(2.0), [2.0, 1.0, 0.4])
+
+
+def _core(clock=None, **values) -> MappingCore:
+    config = MappingConfig.from_mapping({"mode": "slam", **values})
+    return MappingCore(config, clock=clock or Clock())
+
+
+def test_scans_wait_for_odometry_and_come_out_in_order() -> None:
+    truth, scans = _drive(40)
+    core = _core()
+    core.book.add_transforms([_tf("base_link", "laser", 0, MOUNT)], static=True)
+    # the scans arrive before the odometry of their stamp (as over DDS: tf lags)
+    out = []
+    for i, scan in enumerate(scans):
+        out += core.add_scan(scan)
+        if i >= 3:
+            j = i - 3
+            core.book.add_transforms([_tf("odom", "base_link", j / RATE, truth[j])], False)
+            out += core.release()
+    assert [u.stamp for u in out] == sorted(u.stamp for u in out)
+    assert len(out) == len(scans) - 4  # the last ones wait for odometry after their stamp
+    assert core.counts.no_odometry == 0
+    np.testing.assert_allclose(core.estimator.mount, MOUNT)  # the mount came from /tf_static
+    # odometry is exact here: the map pose is the odometry pose, map -> odom is ~identity
+    for update in out:
+        i = round(update.stamp * RATE)
+        np.testing.assert_allclose(update.pose, truth[i], atol=0.03)
+        assert abs(update.map_to_odom[:2]).max() < 0.03
+        assert update.covariance.shape == (3, 3)
+        assert np.all(np.linalg.eigvalsh(update.covariance) > 0)
+
+
+def test_map_to_odom_absorbs_odometry_drift() -> None:
+    """Odometry rotated by 10 degrees about its start: map -> odom undoes it."""
+    truth, scans = _drive(40)
+    drift = np.array([0.5, -0.3, math.radians(10)])
+    odom = compose_many(drift, truth)  # odometry frame offset from the map
+    core = _core(mount=list(MOUNT))
+    out = []
+    for i, scan in enumerate(scans):
+        core.book.add_odometry("odom", "base_link", i / RATE, odom[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, odom[i])
+        out += core.add_scan(scan)
+    assert len(out) == len(scans)
+    first = out[0]  # SLAM starts its map at the first odometry pose
+    np.testing.assert_allclose(first.map_to_odom, [0, 0, 0], atol=1e-9)
+    # every later map pose is map_to_odom ∘ odometry
+    for update in out:
+        i = round(update.stamp * RATE)
+        np.testing.assert_allclose(compose(update.map_to_odom, odom[i]), update.pose, atol=1e-9)
+
+
+def test_scans_without_odometry_are_dropped_and_counted() -> None:
+    """A scan waits ``tf_wait`` seconds (wall clock) after it arrived, then is dropped."""
+    _, scans = _drive(30)
+    clock = Clock()
+    core = _core(clock, mount=list(MOUNT), tf_wait=0.5)
+    for scan in scans:
+        clock.now += 0.1
+        assert core.add_scan(scan) == []
+    assert core.counts.no_odometry == len(scans) - 5  # kept: those that arrived < 0.5 s ago
+    assert len(core.pending) == 5
+    clock.now += 10.0
+    assert core.release() == [] and core.counts.no_odometry == len(scans)
+
+
+def test_a_full_queue_drops_its_oldest_scans() -> None:
+    _, scans = _drive(30)
+    core = _core(mount=list(MOUNT), tf_wait=60.0, queue_size=10)
+    for scan in scans:
+        core.add_scan(scan)
+    assert len(core.pending) == 10
+    assert core.counts.no_odometry == 20
+
+
+def test_grid_is_due_after_the_period_and_new_keyframes() -> None:
+    truth, scans = _drive(60)
+    clock = Clock()
+    core = _core(clock, mount=list(MOUNT), map_period=2.0)
+    assert not core.grid_due() and core.grid() is None  # nothing mapped yet
+    for i, scan in enumerate(scans[:30]):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        core.add_scan(scan)
+    assert core.grid_due()
+    grid = core.grid()
+    assert isinstance(grid, OccupancyGrid)
+    rows, cols = grid.shape
+    assert 6 < cols * grid.resolution < 16 and 4 < rows * grid.resolution < 12  # the room
+    occ = grid.occupancy
+    assert (occ >= 65).sum() > 100 and ((occ >= 0) & (occ < 50)).sum() > 1000
+    assert not core.grid_due()  # just built
+    clock.now = 5.0
+    assert not core.grid_due()  # the period passed, but no new keyframe
+    for i, scan in enumerate(scans[30:], start=30):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        core.add_scan(scan)
+    assert core.grid_due()
+
+
+def test_write_map_writes_the_slam_folder(tmp_path) -> None:
+    truth, scans = _drive(30)
+    core = _core(mount=list(MOUNT), output=str(tmp_path / "out"))
+    assert core.write_map(tmp_path / "none", 1.0) is None  # nothing mapped
+    for i, scan in enumerate(scans):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        core.add_scan(scan)
+    folder = core.write_map(tmp_path / "out", 3.0)
+    names = {p.name for p in folder.iterdir()}
+    assert {"trajectory.tum", "map.pgm", "map.yaml", "summary.json", "graph.g2o"} <= names
+    lines = (folder / "trajectory.tum").read_text().splitlines()
+    assert len([line for line in lines if not line.startswith("#")]) == len(scans)
+
+
+@pytest.mark.parametrize(
+    ("values", "message"),
+    [
+        ({"mode": "slam", "mape": "x"}, "unknown ROS 2 parameter mape"),
+        ({"mode": "slam", "mount": [1.0, 2.0]}, "mount: expected [x, y, yaw]"),
+        ({"mode": "localise"}, "map: mode localise needs -p map:=DIR"),
+        ({"mode": "slam", "map_period": 0.0}, "map_period"),
+        ({"mode": "slam", "queue_size": "many"}, "queue_size"),
+    ],
+)
+def test_invalid_parameters_give_one_line(values, message) -> None:
+    with pytest.raises(InvalidParamsError) as err:
+        MappingConfig.from_mapping(values)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def test_missing_map_folder_is_one_line(tmp_path) -> None:
+    config = MappingConfig.from_mapping({"mode": "localise", "map": str(tmp_path / "nope")})
+    with pytest.raises(InputError, match="nope: no such map folder"):
+        MappingCore(config)
+    (tmp_path / "empty").mkdir()
+    config = MappingConfig.from_mapping({"mode": "localise", "map": str(tmp_path / "empty")})
+    with pytest.raises(InputError, match=r"keyframes\.npz missing"):
+        MappingCore(config)
+
+
+def _feed(core: MappingCore, truth: np.ndarray, scans: list, start: int = 0) -> list:
+    out = []
+    for i, scan in enumerate(scans[start:], start=start):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        out += core.add_scan(scan)
+    return out
+
+
+@pytest.fixture(scope="module")
+def saved_map(tmp_path_factory) -> tuple:
+    """A map of the simulated drive, written by the slam mode's writer."""
+    truth, scans = _drive(60)
+    core = _core(mount=list(MOUNT))
+    _feed(core, truth, scans)
+    folder = core.write_map(tmp_path_factory.mktemp("map") / "map", 3.0)
+    return folder, truth, scans
+
+
+def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) -> None:
+    """/initialpose before any scan: kept, applied when the localiser starts; the poses then
+    follow the map's trajectory and map -> odom absorbs the odometry's offset."""
+    folder, truth, scans = saved_map
+    config = {"mode": "localise", "map": str(folder), "mount": list(MOUNT)}
+    core = MappingCore(MappingConfig.from_mapping(config))
+    assert core.grid() is not None and core.grid().shape[0] > 50  # the saved map.pgm
+    drift = np.array([1.0, -2.0, 0.3])  # this run's odometry frame differs from the map's
+    odom = compose_many(drift, truth)
+    assert core.set_pose(truth[10], np.diag([0.01, 0.01, 0.001]))
+    out = _feed(core, odom, scans, start=10)
+    assert len(out) >= 45, core.summary()
+    for update in out:
+        i = round(update.stamp * RATE)
+        np.testing.assert_allclose(update.pose[:2], truth[i][:2], atol=0.1)
+        np.testing.assert_allclose(compose(update.map_to_odom, odom[i]), update.pose, atol=1e-6)
+    assert core.set_pose(truth[0], None)  # once running, handed over at once
+    assert core.estimator.status == "tracking"
+
+
+def test_initial_pose_is_refused_in_slam_mode() -> None:
+    assert not _core().set_pose(np.zeros(3), None)
+
+
+def test_bad_slam_config_is_one_line(tmp_path) -> None:
+    path = tmp_path / "slam.yaml"
+    path.write_text("keyframe_distance: -1\n")
+    config = MappingConfig.from_mapping({"slam_config": str(path)})
+    with pytest.raises(InvalidParamsError, match="keyframe_distance"):
+        config.slam_options()
+
+
+# ---------------------------------------------------------------------- message conversions
+def _vec(**kw) -> SimpleNamespace:
+    return SimpleNamespace(**{k: kw.get(k, 0.0) for k in ("x", "y", "z")})
+
+
+def _quat() -> SimpleNamespace:
+    return SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0)
+
+
+def _stamp(sec: int, nanosec: int) -> SimpleNamespace:
+    return SimpleNamespace(sec=sec, nanosec=nanosec)
+
+
+def _transform_msg() -> SimpleNamespace:
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=_stamp(0, 0), frame_id=""),
+        child_frame_id="",
+        transform=SimpleNamespace(translation=_vec(), rotation=_quat()),
+    )
+
+
+def _pose_cov_msg() -> SimpleNamespace:
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=_stamp(0, 0), frame_id="map"),
+        pose=SimpleNamespace(
+            pose=SimpleNamespace(position=_vec(), orientation=_quat()), covariance=[0.0] * 36
+        ),
+    )
+
+
+def test_transform_round_trip() -> None:
+    ts = fill_transform(_transform_msg(), "map", "odom", (1.0, -2.0, 3.0))
+    ts.header.stamp = _stamp(12, 500_000_000)
+    parent, child, stamp, pose = transform_of(ts)
+    assert (parent, child, stamp) == ("map", "odom", 12.5)
+    np.testing.assert_allclose(pose, (1.0, -2.0, 3.0), atol=1e-12)
+    ts.transform.translation.x = float("nan")
+    with pytest.raises(InvalidScanError, match="map -> odom"):
+        transform_of(ts)
+    with pytest.raises(InvalidScanError, match="TransformStamped"):
+        transform_of(SimpleNamespace())
+
+
+def test_pose_with_covariance_round_trip() -> None:
+    cov = np.array([[0.04, 0.01, 0.002], [0.01, 0.09, -0.003], [0.002, -0.003, 0.01]])
+    msg = fill_pose_with_covariance(_pose_cov_msg(), (3.0, 4.0, -2.5), cov)
+    full = np.asarray(msg.pose.covariance).reshape(6, 6)
+    assert full[5, 5] == 0.01 and full[0, 5] == 0.002 and full[2, 2] == 0.0
+    frame, pose, back = pose_with_covariance_of(msg)
+    assert frame == "map"
+    np.testing.assert_allclose(pose, (3.0, 4.0, -2.5), atol=1e-12)
+    np.testing.assert_allclose(back, cov)
+    msg.pose.covariance = [0.0] * 35
+    with pytest.raises(InvalidScanError, match="35 values"):
+        pose_with_covariance_of(msg)
+
+
+def test_odometry_of() -> None:
+    msg = SimpleNamespace(
+        header=SimpleNamespace(stamp=_stamp(3, 0), frame_id="odom"),
+        child_frame_id="base_link",
+        pose=SimpleNamespace(pose=SimpleNamespace(position=_vec(x=1.0), orientation=_quat())),
+    )
+    msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = math.sin(0.3), math.cos(0.3)
+    frame, child, stamp, pose = odometry_of(msg)
+    assert (frame, child, stamp) == ("odom", "base_link", 3.0)
+    np.testing.assert_allclose(pose, (1.0, 0.0, 0.6), atol=1e-12)
+
+
+def test_occupancy_grid_message_keeps_rows_bottom_up() -> None:
+    occupancy = np.array([[0, 100, -1], [50, 0, 0]], dtype=np.int8)
+    grid = OccupancyGrid(occupancy, 0.1, (-1.0, 2.0, 0.0))
+    info = SimpleNamespace(
+        resolution=0.0,
+        width=0,
+        height=0,
+        origin=SimpleNamespace(position=_vec(), orientation=_quat()),
+    )
+    msg = fill_occupancy_grid(SimpleNamespace(info=info, data=None), grid)
+    assert (msg.info.width, msg.info.height) == (3, 2)
+    assert msg.info.resolution == pytest.approx(0.1)
+    assert (msg.info.origin.position.x, msg.info.origin.position.y) == (-1.0, 2.0)
+    assert list(msg.data) == [0, 100, -1, 50, 0, 0]  # row 0 (bottom) first, as ROS
+
+
+def test_landmark_markers() -> None:
+    assert landmark_marker_fields(np.zeros((0, 2))) == []
+    delete, spheres = landmark_marker_fields([[1.0, 2.0], [3.0, 4.0]])
+    assert delete["action"] == 3
+    assert spheres["type"] == 7 and spheres["points"] == [(1.0, 2.0, 0.0), (3.0, 4.0, 0.0)]
+
+
+def test_inverse_helpers_agree() -> None:
+    pose = np.array([1.0, 2.0, 0.5])
+    np.testing.assert_allclose(compose(pose, invert(pose)), [0, 0, 0], atol=1e-12)
+
+
+def test_without_a_mount_the_first_scan_waits_tf_wait_then_uses_identity() -> None:
+    truth, scans = _drive(10)
+    clock = Clock()
+    core = _core(clock, tf_wait=1.0)
+    for i, scan in enumerate(scans):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        assert core.add_scan(scan) == []  # waiting for /tf_static
+    clock.now = 1.5
+    out = core.release()
+    assert len(out) == len(scans) and core.counts.no_odometry == 0
+    np.testing.assert_allclose(core.estimator.mount, [0.0, 0.0, 0.0])
