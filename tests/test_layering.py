@@ -40,7 +40,7 @@ ROOM_LAYERS = {
     "demo": 7,
 }
 MAX_MODULE_LINES = 600
-MAX_FUNCTION_LINES = 120
+MAX_FUNCTION_LINES = 80
 
 
 def _module_name(path: Path) -> str:
