@@ -332,8 +332,7 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     -------
     dict of str to Path
         ``trajectory``, ``odometry``, ``graph``, ``landmarks``, ``keyframes``, ``map_yaml``,
-        ``map_pgm``,
-        ``map_png``, ``options``, ``summary``, ``report``.
+        ``map_pgm``, ``map_png``, ``options``, ``summary``, ``report``.
 
     Raises
     ------
