@@ -458,3 +458,30 @@ def test_help_answers_at_once() -> None:
     help_seconds = _median_seconds([*CLI, "--help"])
     floor = _median_seconds([sys.executable, "-c", "import typer, typer.rich_utils"])
     assert help_seconds < max(0.5, 2.0 * floor), (help_seconds, floor)
+
+
+def test_a_stale_kernel_of_another_room_does_not_say_compiling(tmp_path: Path) -> None:
+    # after an upgrade, a matching kernel that has not run again keeps a stale index: the
+    # detector's kernels are warm, so a detecting command must not say it compiles
+    script = """
+import shutil
+from numba.core.dispatcher import Dispatcher
+import numpy as np
+from laser_corners import CornerDetector, LaserScan
+import laser_corners.matching.core as other
+from laser_corners.kernel import candidates
+from laser_corners.cli.kernels import kernels_are_cold
+
+CornerDetector().detect(LaserScan(np.full(64, 2.0), -0.5, 0.01, 0.05, 10.0))
+warm = next(o for o in vars(candidates).values() if isinstance(o, Dispatcher) and o.stats.cache_hits + o.stats.cache_misses)
+kernel = next(o for o in vars(other).values() if isinstance(o, Dispatcher) and o.py_func.__module__ == other.__name__)
+stale = kernel._cache._cache_file._index_path
+shutil.copyfile(warm._cache._cache_file._index_path, stale)  # another source's stamp
+assert not kernel._cache._cache_file._load_index()  # stale indeed
+print(kernels_are_cold())
+"""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    run = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert run.stdout.strip() == "False", run.stderr

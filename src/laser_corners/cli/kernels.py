@@ -22,12 +22,17 @@ __all__ = ["COMPILING", "KernelCommand", "kernels_are_cold"]
 COMPILING = "compiling the detector's kernels (first run only, about 30 s)..."
 """What a detecting command says on stderr when the kernel cache is cold."""
 
+DETECTOR_MODULES = ("laser_corners.kernel.", "laser_corners.noise", "laser_corners.pose")
+"""The modules whose kernels the detector runs (and ``warmup`` compiles): a stale index of
+another room's kernel (after an upgrade, until that kernel runs again) must not make every
+detecting command say it compiles."""
+
 
 def kernels_are_cold() -> bool:
     """Whether numba will compile the detector's kernels in this process.
 
     Reads numba's on-disk cache index of every cached (``cache=True``) kernel of the modules
-    the detector loads: cold when none has a usable index (a fresh install, an empty
+    the detector runs (:data:`DETECTOR_MODULES`): cold when none has a usable index (a fresh install, an empty
     ``NUMBA_CACHE_DIR``) or when any index is stale (its source file changed, or another numba
     version wrote it). Kernels that never ran on their own (inlined helpers) have no index and
     do not count. Unknown cache layouts count as warm (no message rather than a wrong one).
@@ -38,8 +43,8 @@ def kernels_are_cold() -> bool:
 
     usable = stale = 0
     for name, module in list(sys.modules.items()):
-        if not name.startswith("laser_corners.") or module is None:
-            continue
+        if not name.startswith(DETECTOR_MODULES) or module is None:
+            continue  # other rooms' kernels (matching, slam...): warmup does not compile them
         for obj in list(vars(module).values()):
             if not isinstance(obj, Dispatcher) or obj.py_func.__module__ != name:
                 continue
