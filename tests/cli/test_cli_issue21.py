@@ -473,8 +473,11 @@ from laser_corners.kernel import candidates
 from laser_corners.cli.kernels import kernels_are_cold
 
 CornerDetector().detect(LaserScan(np.full(64, 2.0), -0.5, 0.01, 0.05, 10.0))
-warm = next(o for o in vars(candidates).values() if isinstance(o, Dispatcher) and o.stats.cache_hits + o.stats.cache_misses)
-kernel = next(o for o in vars(other).values() if isinstance(o, Dispatcher) and o.py_func.__module__ == other.__name__)
+def own_kernels(module):
+    return [o for o in vars(module).values()
+            if isinstance(o, Dispatcher) and o.py_func.__module__ == module.__name__]
+warm = own_kernels(candidates)[0]
+kernel = own_kernels(other)[0]
 stale = kernel._cache._cache_file._index_path
 shutil.copyfile(warm._cache._cache_file._index_path, stale)  # another source's stamp
 assert not kernel._cache._cache_file._load_index()  # stale indeed
