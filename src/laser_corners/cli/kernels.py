@@ -35,7 +35,8 @@ def kernels_are_cold() -> bool:
     the detector runs (:data:`DETECTOR_MODULES`): cold when none has a usable index (a fresh
     install, an empty ``NUMBA_CACHE_DIR``) or when any index is stale (its source file
     changed, or another numba version wrote it). Kernels that never ran on their own (inlined
-    helpers) have no index and do not count. Unknown cache layouts count as warm (no message rather than a wrong one).
+    helpers) have no index and do not count. Unknown cache layouts count as warm (no message
+    rather than a wrong one).
     """
     from numba.core.dispatcher import Dispatcher
 
