@@ -299,7 +299,10 @@ def _check_pose_messages(got: Received, keys, scans, odometry) -> np.ndarray:
         pose = _planar(got.poses[key].pose.pose)
         base = _odometry_at(odometry, scan.stamp)
         transform = _transform(got.map_to_odom[key])
-        np.testing.assert_allclose(compose(transform, base)[:2], pose[:2], atol=1e-4)
+        # 5 mm: under load the node's odometry queue (keep last N) may drop a sample, so its
+        # interpolation bracket can be wider than ours (0.5 mm seen); a wrong composition is
+        # off by centimetres to metres
+        np.testing.assert_allclose(compose(transform, base)[:2], pose[:2], atol=5e-3)
         assert got.poses[key].header.frame_id == "map"
         cov = np.asarray(got.poses[key].pose.covariance).reshape(6, 6)
         assert cov[0, 0] > 0 and cov[1, 1] > 0 and cov[5, 5] > 0
