@@ -17,10 +17,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.errors import InvalidParamsError
+from laser_corners.pose import between_many, compose, compose_many, relative_pose, wrap_angle
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, PointMap, icp
 from laser_corners.slam.backend import Backend
-from laser_corners.slam.geometry import between, between_many, compose, compose_many, wrap
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.loops import (
     MAX_WINDOW_XY,
@@ -126,10 +126,10 @@ class Slam:
             if jump:
                 self.counts["time_jumps"] += 1
                 self._jump = True
-            delta = between(self._last_odom, odo)
-            pred = compose(self.pose, delta)
+            delta = np.array(relative_pose(self._last_odom, odo))
+            pred = np.array(compose(self.pose, delta))
             self.pose = self._track(pts.xy, pred, delta, jump)
-            moved = between(self._anchor, self.pose)
+            moved = relative_pose(self._anchor, self.pose)
             if (
                 self._jump
                 or not self._aligned_since_kf  # new ground: into the map at once
@@ -142,7 +142,7 @@ class Slam:
         self._stamps.append(float(stamp))
         self._odom.append(odo)
         self._ref.append(len(self.kf) - 1)
-        self._rel.append(between(self._anchor, self.pose))
+        self._rel.append(np.array(relative_pose(self._anchor, self.pose)))
         self._ms.append((time.perf_counter() - start) * 1e3)
         self.counts["scans"] += 1
         return self.pose.copy(), self._covariance()
@@ -209,7 +209,7 @@ class Slam:
         cut = self._jump and not self._aligned_since_kf  # a gap the alignment did not bridge
         k = self.backend.add_keyframe(self.pose, prior=cut and not first)
         if not first:
-            rel = between(self._anchor, self.pose)
+            rel = np.array(relative_pose(self._anchor, self.pose))
             self._links.append(None if cut else rel)
             dist = float(np.hypot(rel[0], rel[1]))
             if self._aligned_since_kf:
@@ -295,7 +295,7 @@ class Slam:
         w = np.where(has_next, np.clip((np.asarray(self._stamps) - kst[ref]) / span, 0, 1), 0.0)
         out = from_a.copy()
         out[:, :2] += w[:, None] * (from_b[:, :2] - from_a[:, :2])
-        out[:, 2] = wrap(from_a[:, 2] + w * wrap(from_b[:, 2] - from_a[:, 2]))
+        out[:, 2] = wrap_angle(from_a[:, 2] + w * wrap_angle(from_b[:, 2] - from_a[:, 2]))
         return out
 
     def _prune(self, closure: LoopClosure) -> None:
