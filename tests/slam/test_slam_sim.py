@@ -188,11 +188,6 @@ def test_write_g2o_with_robust_loop_closures(drive, tmp_path) -> None:
     assert float(edges[-1][6]) == pytest.approx(1 / 0.05**2)  # information of the Gaussian base
 
 
-def test_landmarks_are_refused_until_implemented() -> None:
-    with pytest.raises(InvalidParamsError, match="not implemented"):
-        Slam(SlamOptions(landmarks=True))
-
-
 def test_recording_without_odometry_is_one_line(tmp_path) -> None:
     path = tmp_path / "scans.clf"
     line = "RAWLASER1 0 -1.5708 3.1416 0.7854 50 0.01 0 5 1 1 1 1 1 0 {t} host {t}\n"
