@@ -101,6 +101,7 @@ class _Tracks:
         self.n_obs = np.zeros(0, dtype=np.int64)
         self.first = np.zeros(0)
         self.last = np.zeros(0)
+        self.last_keyframe = np.zeros(0, dtype=np.int64)
         self.var = np.full(0, -1, dtype=np.int64)  # landmark index in the graph, -1: not yet
         self.pending: list[list[tuple[int, NDArray, NDArray]]] = []
 
@@ -110,8 +111,11 @@ class _Tracks:
     def xy(self) -> NDArray[np.float64]:
         return np.linalg.solve(self.info, self.info_xy[:, :, None])[:, :, 0]
 
-    def add(self, info: NDArray, xy: NDArray, ori: NDArray, opening: NDArray, stamp: float):
+    def add(
+        self, info: NDArray, xy: NDArray, ori: NDArray, opening: NDArray, stamp: float, k: int
+    ) -> None:
         n = xy.shape[0]
+        self.last_keyframe = np.concatenate([self.last_keyframe, np.full(n, k, dtype=np.int64)])
         self.info = np.concatenate([self.info, info])
         self.info_xy = np.concatenate([self.info_xy, (info @ xy[:, :, None])[:, :, 0]])
         self.orientation = np.concatenate([self.orientation, ori])
@@ -170,34 +174,42 @@ class LandmarkTracker:
         jac = _pose_jacobians(pose, bxy)
         mcov = rot @ bcov @ rot.T + jac @ _capped(pose_cov) @ jac.transpose(0, 2, 1)
         mori = wrap_angle(bori + pose[2])
-        pairs, fresh = self._associate(mxy, mcov, mori, opening)
+        pairs, fresh = self._associate(k, mxy, mcov, mori, opening)
         t = self.tracks
         for i, j in pairs:
             t.info[j] += np.linalg.inv(mcov[i])
             t.info_xy[j] += np.linalg.solve(mcov[i], mxy[i])
             t.n_obs[j] += 1
             t.last[j] = stamp
+            t.last_keyframe[j] = k
             self._observation(j, k, bxy[i], bcov[i])
         if fresh.size:
-            t.add(np.linalg.inv(mcov[fresh]), mxy[fresh], mori[fresh], opening[fresh], stamp)
+            t.add(np.linalg.inv(mcov[fresh]), mxy[fresh], mori[fresh], opening[fresh], stamp, k)
             for i, j in zip(fresh, range(len(t) - fresh.size, len(t)), strict=True):
                 t.pending[j].append((k, bxy[i], bcov[i]))
 
     def _associate(
-        self, mxy: NDArray, mcov: NDArray, mori: NDArray, opening: NDArray
+        self, k: int, mxy: NDArray, mcov: NDArray, mori: NDArray, opening: NDArray
     ) -> tuple[list[tuple[int, int]], NDArray[np.int64]]:
         """One-to-one (keypoint, track) pairs within the gate, nearest first, and the indices
-        of the keypoints that start new tracks (within no track's gate)."""
+        of the keypoints that start new tracks (within no track's gate). Only tracks seen
+        within the last ``landmark_window`` keyframes are candidates (0: every track)."""
         t = self.tracks
-        if len(t) == 0:
+        window = self.options.landmark_window
+        live = np.flatnonzero(k - t.last_keyframe <= window) if window else np.arange(len(t))
+        if live.size == 0:
             return [], np.arange(mxy.shape[0])
+        txy = t.xy()[live]
+        near = [
+            live[np.asarray(c, dtype=np.int64)]
+            for c in cKDTree(txy).query_ball_point(mxy, SEARCH_RADIUS)
+        ]
         txy = t.xy()
-        near = cKDTree(txy).query_ball_point(mxy, SEARCH_RADIUS)
         gate2 = self.options.landmark_gate**2
         scored: list[tuple[float, int, int]] = []
         in_gate = np.zeros(mxy.shape[0], dtype=np.int64)
         for i, cand in enumerate(near):
-            if not cand:
+            if len(cand) == 0:
                 continue
             cand = np.asarray(cand)
             d = mxy[i] - txy[cand]

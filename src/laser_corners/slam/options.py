@@ -57,6 +57,10 @@ class SlamOptions(Options):
     landmark_gate: float = Field(3.0, ge=0.5, le=10.0)
     """Mahalanobis gate (standard deviations, keypoint covariance + pose uncertainty) of an
     association between a keypoint and a landmark."""
+    landmark_window: int = Field(20, ge=0, le=100000)
+    """Only landmarks seen within this many keyframes are associated (0: all): a corner seen
+    again after a loop starts a new landmark, so a wrong association across a loop (poses
+    off by the drift) cannot bend the map; loops are closed by the scan alignment."""
     landmark_sigma_floor: float = Field(0.03, ge=0.0, le=1.0)
     """Standard deviation (m) added in quadrature to each keypoint's covariance (the
     detector's covariance leaves out a corner's shape seen from different places)."""
