@@ -52,7 +52,7 @@ def _run(lap, **options):
 
 def test_landmarks_sit_on_the_known_corners(lap, tmp_path) -> None:
     world, truth, _, _ = lap
-    result = _run(lap, landmarks=True)
+    result = _run(lap)  # landmarks are on by default
     lm = result.landmarks
     assert len(lm) >= 10 and result.counts["landmarks"] == len(lm)
     # every landmark is a true corner of the world, or the round pole (no vertices)
@@ -77,14 +77,14 @@ def test_landmarks_sit_on_the_known_corners(lap, tmp_path) -> None:
 
 
 def test_landmarks_off_leave_the_graph_without_landmarks(lap) -> None:
-    result = _run(lap)
+    result = _run(lap, landmarks=False)
     assert len(result.landmarks) == 0 and result.counts["landmark_observations"] == 0
 
 
 @pytest.mark.parametrize("front_end", ["corners", "both"])
 def test_corner_front_end(lap, front_end) -> None:
     _, truth, odo, _ = lap
-    result = _run(lap, front_end=front_end)
+    result = _run(lap, front_end=front_end, landmarks=False)
     assert result.counts["corner_registrations"] > 0
     assert result.counts["corner_registrations_used"] > 0.3 * result.counts["scans"]
     rel = _relations(truth)[:-10]
