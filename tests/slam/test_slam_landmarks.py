@@ -52,7 +52,7 @@ def _run(lap, **options):
 
 def test_landmarks_sit_on_the_known_corners(lap, tmp_path) -> None:
     world, truth, _, _ = lap
-    result = _run(lap)  # landmarks are on by default
+    result = _run(lap, landmarks=True)
     lm = result.landmarks
     assert len(lm) >= 10 and result.counts["landmarks"] == len(lm)
     # every landmark is a true corner of the world, or the round pole (no vertices)

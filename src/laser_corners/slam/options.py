@@ -49,11 +49,11 @@ class SlamOptions(Options):
     (:func:`~laser_corners.matching.register_keypoints`) against the last keyframe, the
     odometry prediction where it fails (no scan alignment at all); ``both`` the corner
     registration as ICP's first guess where it succeeds, the prediction elsewhere."""
-    landmarks: bool = True
+    landmarks: bool = False
     """Corner keypoints of keyframes associated into landmarks ``L(i)`` of the graph, each
-    observation a bearing-range factor weighted by ``Keypoints.cov`` (Huber). On by default:
-    on fr079, aces and intel it lowered the relation error slightly on each (docs/slam.md,
-    ablation)."""
+    observation a bearing-range factor weighted by ``Keypoints.cov`` (Huber). Off by default:
+    on fr079, aces and intel (bag mountings) it lowered the relation error slightly, but fr079
+    with the log's mounting lost a long loop with it (0.07 -> 1.45 m; docs/slam.md, ablation)."""
     landmark_min_observations: int = Field(3, ge=2, le=100)
     """Keyframes that must see a corner before it enters the graph as a landmark."""
     landmark_gate: float = Field(3.0, ge=0.5, le=10.0)
