@@ -35,7 +35,7 @@ def main() -> None:
         if log == "fr079":
             variants.append(("log mount -0.04", ["mount=-0.04,0,0"]))
         for label, extra in variants:
-            options = SlamOptions.with_overrides([*args.overrides, *extra])
+            options = SlamOptions().with_overrides([*args.overrides, *extra])
             start = time.perf_counter()
             result = run_slam(args.data / f"{log}.bag", options)
             wall = time.perf_counter() - start

@@ -12,12 +12,15 @@ import math
 
 import numba as nb
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "Pose2D",
+    "between_many",
     "compose",
+    "compose_many",
     "invert",
+    "invert_many",
     "pose_error",
     "relative_pose",
     "rotation",
@@ -83,3 +86,29 @@ def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:
     [2.0, 0.0, 0.0]
     """
     return compose(invert(a), b)
+
+
+def compose_many(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """``a ⊕ b`` row by row on ``(N, 3)`` arrays of poses (either side may be one pose,
+    shape (3,)): the vectorised :func:`compose`."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    yaw = wrap_angle(np.asarray(a[..., 2] + b[..., 2], dtype=np.float64))
+    return np.stack(np.broadcast_arrays(x, y, yaw), axis=-1)
+
+
+def invert_many(a: ArrayLike) -> NDArray[np.float64]:
+    """``⊖ a`` row by row: the vectorised :func:`invert`."""
+    a = np.asarray(a, dtype=np.float64)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = -c * a[..., 0] - s * a[..., 1]
+    y = s * a[..., 0] - c * a[..., 1]
+    return np.stack([x, y, wrap_angle(np.asarray(-a[..., 2], dtype=np.float64))], axis=-1)
+
+
+def between_many(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """``⊖ a ⊕ b`` row by row: the vectorised :func:`relative_pose` (``b`` in ``a``'s frame)."""
+    return compose_many(invert_many(a), b)

@@ -9,7 +9,7 @@ import pytest
 
 from laser_corners.errors import InputError
 from laser_corners.eval.relations import read_relations, relation_metrics
-from laser_corners.slam.geometry import between_many
+from laser_corners.pose import between_many
 
 
 def _square_path(n: int = 200) -> tuple[np.ndarray, np.ndarray]:

@@ -11,10 +11,10 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.eval.relations import closure_consistency, relation_metrics
+from laser_corners.pose import between_many, compose, compose_many
 from laser_corners.scan import LaserScan
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import Slam, SlamOptions, run_slam
-from laser_corners.slam.geometry import between_many, compose, compose_many
 
 RATE = 10.0
 
@@ -146,12 +146,12 @@ def test_beam_count_change_and_time_jump_do_not_crash() -> None:
 
 
 def test_options_overrides_and_validation() -> None:
-    opts = SlamOptions.with_overrides(["keyframe_distance=0.5", "mount=-0.04,0,0"])
+    opts = SlamOptions().with_overrides(["keyframe_distance=0.5", "mount=-0.04,0,0"])
     assert opts.keyframe_distance == 0.5 and opts.mount == (-0.04, 0.0, 0.0)
     with pytest.raises(InvalidParamsError, match="keyframe_distance"):
         SlamOptions(keyframe_distance=-1.0)
     with pytest.raises(InvalidParamsError, match="unknown option"):
-        SlamOptions.with_overrides(["no_such=1"])
+        SlamOptions().with_overrides(["no_such=1"])
     with pytest.raises(InvalidParamsError):
         opts.keyframe_distance = 2.0  # frozen
 
@@ -186,11 +186,6 @@ def test_write_g2o_with_robust_loop_closures(drive, tmp_path) -> None:
     ends = [gtsam.Symbol(keys[-1]).index(), gtsam.Symbol(keys[0]).index()]
     assert [int(edges[-1][1]), int(edges[-1][2])] == ends
     assert float(edges[-1][6]) == pytest.approx(1 / 0.05**2)  # information of the Gaussian base
-
-
-def test_landmarks_are_refused_until_implemented() -> None:
-    with pytest.raises(InvalidParamsError, match="not implemented"):
-        Slam(SlamOptions(landmarks=True))
 
 
 def test_recording_without_odometry_is_one_line(tmp_path) -> None:

@@ -46,28 +46,17 @@ _Resolution = Annotated[
 
 
 def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOptions:
-    """``SlamOptions`` from a YAML file (or the defaults), then ``key=value`` overrides.
+    """``SlamOptions`` from a YAML/TOML file (or the defaults), then ``key=value`` overrides.
 
     Raises
     ------
-    InvalidParamsError, InputError
-        An unknown key or a bad value (named); a file that cannot be read or is not YAML.
+    InvalidParamsError
+        An unknown key or a bad value (named); a file that cannot be read or parsed.
     """
-    import yaml
-
-    from laser_corners.errors import InputError
     from laser_corners.slam import SlamOptions
 
-    options = SlamOptions()
-    if config is not None:
-        try:
-            data = yaml.safe_load(config.read_text(encoding="utf-8")) or {}
-        except OSError as exc:
-            raise InputError(f"{config}: cannot read ({exc.strerror})") from None
-        except yaml.YAMLError as exc:
-            raise InputError(f"{config}: not valid YAML: {str(exc).splitlines()[0]}") from None
-        options = SlamOptions.from_mapping(data, source=str(config))
-    return SlamOptions.with_overrides(overrides, base=options) if overrides else options
+    options = SlamOptions() if config is None else SlamOptions.from_file(config)
+    return options.with_overrides(overrides) if overrides else options
 
 
 def _progress_bar() -> Any:

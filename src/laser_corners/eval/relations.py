@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.io.trajectory import read_numeric_table
-from laser_corners.slam.geometry import between_many, compose_many, invert_many, wrap
+from laser_corners.pose import between_many, compose_many, invert_many, wrap_angle
 from laser_corners.slam.result import SlamResult
 
 __all__ = ["RelationMetrics", "closure_consistency", "read_relations", "relation_metrics"]
@@ -101,7 +101,7 @@ def relation_metrics(stamps: ArrayLike, poses: ArrayLike, relations: ArrayLike) 
     actual = between_many(p1, p2)
     error = compose_many(invert_many(rel[:, 2:5]), actual)
     trans = np.hypot(error[:, 0], error[:, 1])
-    rot = np.degrees(np.abs(wrap(error[:, 2])))
+    rot = np.degrees(np.abs(wrap_angle(error[:, 2])))
     return RelationMetrics(
         int(covered.size),
         int(rel.shape[0]),
@@ -134,6 +134,6 @@ def closure_consistency(
     measured = np.array([c.relative for c in accepted], dtype=np.float64)
     error = between_many(measured, between_many(match, query))
     bad = (np.hypot(error[:, 0], error[:, 1]) > max_translation) | (
-        np.degrees(np.abs(wrap(error[:, 2]))) > max_rotation_deg
+        np.degrees(np.abs(wrap_angle(error[:, 2]))) > max_rotation_deg
     )
     return float(bad.mean())

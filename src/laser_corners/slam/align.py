@@ -18,7 +18,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.slam.geometry import wrap
+from laser_corners.pose import wrap_angle
 
 __all__ = ["Alignment", "PointMap", "icp", "match_share"]
 
@@ -263,6 +263,6 @@ def icp(
         )
     except np.linalg.LinAlgError:  # pragma: no cover - singular system
         return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))
-    pose[2] = wrap(pose[2])
+    pose[2] = wrap_angle(pose[2])
     overlap = match_share(src, overlap_map or pointmap, pose, inlier_distance)
     return Alignment(pose, overlap, src.shape[0], info)

@@ -116,16 +116,40 @@ class Backend:
         return k
 
     def add_observation(
-        self, keyframe: int, landmark: int, bearing: float, rng: float, sigmas: tuple[float, float]
+        self,
+        keyframe: int,
+        landmark: int,
+        bearing: float,
+        rng: float,
+        cov: NDArray[np.float64],
     ) -> None:
-        """A bearing-range factor from keyframe ``keyframe`` (base frame) to ``landmark``."""
+        """A bearing-range factor from keyframe ``keyframe`` (base frame) to ``landmark``,
+        noise ``cov`` (2x2, bearing rad and range m) under a Huber kernel."""
         noise = gtsam.noiseModel.Robust.Create(
-            gtsam.noiseModel.mEstimator.Huber.Create(1.345),
-            gtsam.noiseModel.Diagonal.Sigmas(np.array(sigmas)),
+            gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K),
+            gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov, dtype=np.float64)),
         )
         self._add(
-            gtsam.BearingRangeFactor2D(X(keyframe), L(landmark), gtsam.Rot2(bearing), rng, noise)
+            gtsam.BearingRangeFactor2D(
+                X(keyframe), L(landmark), gtsam.Rot2(float(bearing)), float(rng), noise
+            )
         )
+
+    def marginals(self) -> object | None:
+        """``gtsam.Marginals`` of the current graph at the current estimate (None when the
+        graph cannot be factorised, e.g. an under-constrained landmark)."""
+        try:
+            return gtsam.Marginals(self.graph, self.values)
+        except RuntimeError:
+            return None
+
+    @staticmethod
+    def landmark_covariance(marginals: object, landmark: int) -> NDArray[np.float64]:
+        """Marginal covariance (2x2, map frame) of ``landmark`` from ``marginals``."""
+        try:
+            return np.asarray(marginals.marginalCovariance(L(landmark)))
+        except RuntimeError:
+            return np.full((2, 2), np.nan)
 
     def update(
         self, extra_iterations: int = 0, full: bool = True, recent: int = 0

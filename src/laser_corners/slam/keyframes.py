@@ -8,7 +8,6 @@ from numpy.typing import NDArray
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import PointMap
 from laser_corners.slam.points import ScanPoints
-from laser_corners.slam.result import Landmarks
 
 __all__ = ["KeyframeStore"]
 
@@ -72,7 +71,3 @@ class KeyframeStore:
         )
         every = PointMap.build(moved, np.zeros_like(moved))
         return PointMap.build(moved[line], turned[line]), every
-
-    def landmarks(self) -> Landmarks:
-        """The corner landmarks (none yet in this store)."""
-        return Landmarks()

@@ -16,9 +16,9 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.pose import between_many, compose, invert, relative_pose
 from laser_corners.slam.align import PointMap, icp, match_share
 from laser_corners.slam.correlative import ScoreGrid, search
-from laser_corners.slam.geometry import between, between_many, compose, invert
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import ScanPoints
 from laser_corners.slam.result import LoopClosure
@@ -94,7 +94,7 @@ def _query(
     """Points of keyframe ``k`` and its ``n - 1`` predecessors in ``k``'s frame, thinned."""
     parts = []
     for i in range(max(0, k - n + 1), k + 1):
-        pose = between(estimate[k], estimate[i])
+        pose = np.array(relative_pose(estimate[k], estimate[i]))
         c, s = np.cos(pose[2]), np.sin(pose[2])
         parts.append(points[i].xy @ np.array([[c, s], [-s, c]]) + pose[:2])
     xy = np.concatenate(parts)
@@ -211,17 +211,17 @@ class ClosureGate:
         self.pending: list[tuple[LoopClosure, NDArray[np.float64]]] = []
 
     def _agree(self, a: NDArray[np.float64], b: NDArray[np.float64]) -> bool:
-        d = between(a, b)
+        d = relative_pose(a, b)
         return bool(np.hypot(d[0], d[1]) <= self.agree_xy and abs(d[2]) <= self.agree_yaw)
 
     def offer(self, closure: LoopClosure, estimate: NDArray[np.float64]) -> list[LoopClosure]:
         """Offer a verified closure; returns the closures to add to the graph now, and drops
         (marks rejected) pending ones older than the horizon."""
         k, j = closure.query, closure.match
-        implied = compose(estimate[j], np.asarray(closure.relative))
-        correction = between(estimate[k], implied)  # in k's frame
+        implied = compose(estimate[j], closure.relative)
+        correction = np.array(relative_pose(estimate[k], implied))  # in k's frame
         # a correction expressed as a map-frame transform, comparable across keyframes
-        shift = compose(compose(estimate[k], correction), invert(estimate[k]))
+        shift = np.array(compose(compose(estimate[k], correction), invert(estimate[k])))
         expired = [p for p in self.pending if k - p[0].query > self.horizon]
         for p, _ in expired:
             p.accepted = False

@@ -1,28 +1,36 @@
 """Options of :mod:`laser_corners.slam`: one validated, frozen object, one set of defaults.
 
-The field names are the vocabulary of the Python API, of YAML files and of the CLI's
-``--set key=value``. The defaults were chosen from the sensors and the robots (range noise
-of a few centimetres, walking-speed platforms, indoor rooms of a few metres), not from the
-relation errors of any log; see ``docs/slam.md``.
+The field names are the vocabulary of the Python API, of YAML files (a ``slam:`` table, or the
+fields at the top) and of the CLI's ``--set key=value``; :class:`SlamOptions` is an
+:class:`~laser_corners.options.Options`, the package's one form of an options object. The
+defaults were chosen from the sensors and the robots (range noise of a few centimetres,
+walking-speed platforms, indoor rooms of a few metres), not from the relation errors of any
+log; see ``docs/slam.md``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
-from typing import Any
+from typing import ClassVar, Literal
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import Field
 
-from laser_corners.errors import InvalidParamsError
+from laser_corners.options import Options
 
 __all__ = ["SlamOptions"]
 
 
-class SlamOptions(BaseModel):
-    """Options of :class:`~laser_corners.slam.Slam` and :func:`~laser_corners.slam.run_slam`."""
+class SlamOptions(Options):
+    """Options of :class:`~laser_corners.slam.Slam` and :func:`~laser_corners.slam.run_slam`.
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    Examples
+    --------
+    >>> SlamOptions().with_overrides(["keyframe_distance=0.5", "mount=-0.04,0,0"]).mount
+    (-0.04, 0.0, 0.0)
+    """
+
+    what: ClassVar[str] = "option"
+    section: ClassVar[str] = "slam"
+    tuple_hints: ClassVar[dict[str, str]] = {"mount": "x,y,yaw (three numbers)"}
 
     keyframe_distance: float = Field(0.4, ge=0.01, le=10.0)
     """Travelled distance (m) after which the next scan becomes a keyframe (a graph node)."""
@@ -33,19 +41,40 @@ class SlamOptions(BaseModel):
     local_map_keyframes: int = Field(20, ge=1, le=500)
     """Recent keyframes whose points form the local map each scan is aligned to."""
     scan_alignment: bool = True
-    """Align every scan to the local map (point-to-line ICP); off: odometry prediction only
-    (the corners-only front end, corner registration, is not implemented yet)."""
+    """Align scans to the local map (point-to-line ICP) when ``front_end`` uses the scan;
+    off: odometry prediction only, whatever ``front_end`` says."""
+    front_end: Literal["scan", "corners", "both"] = "scan"
+    """How a scan is registered before the keyframe graph: ``scan`` point-to-line ICP
+    against the local map; ``corners`` corner registration
+    (:func:`~laser_corners.matching.register_keypoints`) against the last keyframe, the
+    odometry prediction where it fails (no scan alignment at all); ``both`` the corner
+    registration as ICP's first guess where it succeeds, the prediction elsewhere."""
     landmarks: bool = False
-    """Corner keypoints of keyframes as landmarks in the graph. Not implemented yet: True is
-    refused with an :class:`~laser_corners.errors.InvalidParamsError`."""
+    """Corner keypoints of keyframes associated into landmarks ``L(i)`` of the graph, each
+    observation a bearing-range factor weighted by ``Keypoints.cov`` (Huber). Off by default:
+    on fr079, aces and intel (bag mountings) it lowered the relation error slightly, but fr079
+    with the log's mounting lost a long loop with it (0.07 -> 1.45 m; docs/slam.md, ablation)."""
+    landmark_min_observations: int = Field(3, ge=2, le=100)
+    """Keyframes that must see a corner before it enters the graph as a landmark."""
+    landmark_gate: float = Field(3.0, ge=0.5, le=10.0)
+    """Mahalanobis gate (standard deviations, keypoint covariance + pose uncertainty) of an
+    association between a keypoint and a landmark."""
+    landmark_window: int = Field(20, ge=0, le=100000)
+    """Only landmarks seen within this many keyframes are associated (0: all): a corner seen
+    again after a loop starts a new landmark, so a wrong association across a loop (poses
+    off by the drift) cannot bend the map; loops are closed by the scan alignment."""
+    landmark_sigma_floor: float = Field(0.03, ge=0.0, le=1.0)
+    """Standard deviation (m) added in quadrature to each keypoint's covariance (the
+    detector's covariance leaves out a corner's shape seen from different places)."""
     loop_closure: bool = True
     """Search and verify loop closures against older keyframes."""
     final_optimisation: bool = True
     """Run a batch Levenberg-Marquardt optimisation of the whole graph at the end."""
     mount: tuple[float, float, float] | None = None
     """Base -> laser transform ``(x, y, yaw)``, overriding the recording's (``/tf_static``)."""
-    detector_preset: str = "paper"
-    """Corner detector preset for keypoints (landmarks, corners-only front end)."""
+    detector_preset: Literal["paper", "auto", "robust"] = "paper"
+    """Corner detector preset for keypoints (landmarks, corner front end); ``auto`` and
+    ``robust`` adapt to the first scan's sensor."""
     max_range: float = Field(30.0, ge=0.5, le=1000.0)
     """Beams longer than this (m) are not used for alignment (long beams: large angular error)."""
     min_range: float = Field(0.1, ge=0.0, le=10.0)
@@ -101,86 +130,3 @@ class SlamOptions(BaseModel):
     """A gap (s) between scan stamps (either way) longer than this is a time jump: the scan
     becomes a keyframe, its alignment gets a weak odometry prior, and when it does not align
     the graph is cut there (a new segment under a weak prior)."""
-
-    def __init__(self, **data: Any) -> None:
-        try:
-            super().__init__(**data)
-        except ValidationError as exc:
-            raise InvalidParamsError(_one_line(exc)) from None
-
-    @classmethod
-    def from_mapping(cls, data: Mapping[str, Any], source: str = "options") -> SlamOptions:
-        """Options from a mapping such as parsed YAML (a top-level ``slam`` table is used)."""
-        if not isinstance(data, Mapping):
-            raise InvalidParamsError(f"{source}: expected a mapping of option names to values")
-        if "slam" in data and isinstance(data["slam"], Mapping):
-            data = data["slam"]
-        try:
-            return cls(**dict(data))
-        except InvalidParamsError as exc:
-            raise InvalidParamsError(f"{source}: {exc}") from None
-
-    @classmethod
-    def with_overrides(
-        cls, assignments: Iterable[str] | Mapping[str, Any], base: SlamOptions | None = None
-    ) -> SlamOptions:
-        """Options with fields replaced from ``"key=value"`` strings (values parsed as YAML).
-
-        Examples
-        --------
-        >>> SlamOptions.with_overrides(["keyframe_distance=0.5", "mount=-0.04,0,0"]).mount
-        (-0.04, 0.0, 0.0)
-        """
-        updates: dict[str, Any] = {}
-        if isinstance(assignments, Mapping):
-            updates.update(assignments)
-        else:
-            for item in assignments:
-                key, sep, raw = item.partition("=")
-                key = key.strip()
-                if not sep or not key:
-                    raise InvalidParamsError(f"override {item!r} is not of the form key=value")
-                try:
-                    updates[key] = yaml.safe_load(raw)
-                except yaml.YAMLError:
-                    raise InvalidParamsError(f"override {item!r}: value is not valid") from None
-        unknown = set(updates) - set(cls.model_fields)
-        if unknown:
-            known = ", ".join(cls.model_fields)
-            raise InvalidParamsError(
-                f"unknown option(s) {', '.join(sorted(unknown))}; known: {known}"
-            )
-        if isinstance(updates.get("mount"), str):
-            try:
-                updates["mount"] = tuple(
-                    float(v) for v in updates["mount"].strip("[]() ").split(",")
-                )
-            except ValueError:
-                raise InvalidParamsError(
-                    f"mount: expected x,y,yaw, got {updates['mount']!r}"
-                ) from None
-        merged = (base or cls()).model_dump()
-        merged.update(updates)
-        return cls(**merged)
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        raise InvalidParamsError(
-            f"SlamOptions is frozen: cannot set {name!r}; make a changed copy with "
-            f"SlamOptions.with_overrides({{{name!r}: ...}}, base=options)"
-        )
-
-    def to_yaml(self) -> str:
-        """The options as a YAML document (``slam:`` table)."""
-        data = self.model_dump()
-        if data["mount"] is not None:
-            data["mount"] = list(data["mount"])
-        return yaml.safe_dump({"slam": data}, sort_keys=False)
-
-
-def _one_line(exc: ValidationError) -> str:
-    parts = []
-    for error in exc.errors():
-        where = ".".join(str(p) for p in error.get("loc", ())) or "options"
-        message = str(error.get("msg", "invalid")).removeprefix("Value error, ")
-        parts.append(f"{where}: {message}")
-    return "; ".join(dict.fromkeys(parts))

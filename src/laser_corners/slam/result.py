@@ -9,8 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.errors import OutputError
+from laser_corners.pose import compose_many
 from laser_corners.scan import LaserScan
-from laser_corners.slam.geometry import compose_many
 from laser_corners.slam.options import SlamOptions
 
 __all__ = ["Landmarks", "LoopClosure", "SlamResult"]

@@ -19,7 +19,7 @@ import numpy as np
 from laser_corners.errors import InputError
 from laser_corners.pipeline.interrupt import stop_requests
 from laser_corners.pipeline.recording import open_recording
-from laser_corners.slam.geometry import compose_many, invert_many
+from laser_corners.pose import compose_many, invert_many
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import SlamResult
 from laser_corners.slam.slam import Slam

@@ -16,12 +16,14 @@ import time
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from laser_corners.errors import InvalidParamsError
+from laser_corners.keypoints import Keypoints
+from laser_corners.pose import between_many, compose, compose_many, relative_pose, wrap_angle
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, PointMap, icp
 from laser_corners.slam.backend import Backend
-from laser_corners.slam.geometry import between, between_many, compose, compose_many, wrap
+from laser_corners.slam.corners import CornerRegistrar
 from laser_corners.slam.keyframes import KeyframeStore
+from laser_corners.slam.landmarks import LandmarkTracker, make_detector
 from laser_corners.slam.loops import (
     MAX_WINDOW_XY,
     MAX_WINDOW_YAW,
@@ -32,7 +34,7 @@ from laser_corners.slam.loops import (
 )
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import scan_points
-from laser_corners.slam.result import LoopClosure, SlamResult
+from laser_corners.slam.result import Landmarks, LoopClosure, SlamResult
 
 __all__ = ["Slam"]
 
@@ -51,6 +53,9 @@ COUNT_KEYS = (
     "closures_rejected",
     "closures_pruned",
     "landmarks",
+    "landmark_observations",
+    "corner_registrations",
+    "corner_registrations_used",
 )
 
 
@@ -69,13 +74,16 @@ class Slam:
         self, options: SlamOptions | None = None, mount: ArrayLike = (0.0, 0.0, 0.0)
     ) -> None:
         self.options = options or SlamOptions()
-        if self.options.landmarks:
-            raise InvalidParamsError(
-                "landmarks=true: corner landmarks are not implemented yet in laser_corners.slam"
-            )
         chosen = self.options.mount if self.options.mount is not None else mount
         self.mount = np.asarray(chosen, dtype=np.float64).reshape(3)
         self.backend = Backend()
+        self.tracker = (
+            LandmarkTracker(self.options, self.mount, self.backend)
+            if self.options.landmarks
+            else None
+        )
+        self.corners = CornerRegistrar(self.mount) if self.options.front_end != "scan" else None
+        self._detector = None
         self.kf = KeyframeStore()
         self.closures: list[LoopClosure] = []
         self.counts = dict.fromkeys(COUNT_KEYS, 0)
@@ -118,18 +126,19 @@ class Slam:
         opt = self.options
         odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
         pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
+        kp = self._keypoints(scan) if self.corners is not None else None
         if self.pose is None:
             self.pose = odo.copy()
-            self._make_keyframe(scan, pts, odo, stamp, first=True)
+            self._make_keyframe(scan, pts, odo, stamp, first=True, kp=kp)
         else:
             jump = abs(stamp - self._last_stamp) > opt.time_jump
             if jump:
                 self.counts["time_jumps"] += 1
                 self._jump = True
-            delta = between(self._last_odom, odo)
-            pred = compose(self.pose, delta)
-            self.pose = self._track(pts.xy, pred, delta, jump)
-            moved = between(self._anchor, self.pose)
+            delta = np.array(relative_pose(self._last_odom, odo))
+            pred = np.array(compose(self.pose, delta))
+            self.pose = self._track(pts.xy, pred, delta, jump, self._corner_guess(scan, kp, pred))
+            moved = relative_pose(self._anchor, self.pose)
             if (
                 self._jump
                 or not self._aligned_since_kf  # new ground: into the map at once
@@ -137,24 +146,55 @@ class Slam:
                 or abs(moved[2]) >= opt.keyframe_angle
                 or stamp - self.kf.stamps[-1] >= opt.keyframe_max_interval
             ):
-                self._make_keyframe(scan, pts, odo, stamp)
+                self._make_keyframe(scan, pts, odo, stamp, kp=kp)
         self._last_odom, self._last_stamp = odo, stamp
         self._stamps.append(float(stamp))
         self._odom.append(odo)
         self._ref.append(len(self.kf) - 1)
-        self._rel.append(between(self._anchor, self.pose))
+        self._rel.append(np.array(relative_pose(self._anchor, self.pose)))
         self._ms.append((time.perf_counter() - start) * 1e3)
         self.counts["scans"] += 1
         return self.pose.copy(), self._covariance()
 
-    def _track(self, xy: NDArray, pred: NDArray, delta: NDArray, jump: bool) -> NDArray:
-        """The pose of a scan: ICP against the local map from the odometry prediction; when
-        it fails (too little overlap), the prediction (counted). (A recovery by a correlative
-        search around the last pose was tried: on intel.bag's out-of-order scans it locked
-        onto wrong rotations and broke the map, so it is not used.)"""
+    def _keypoints(self, scan: LaserScan) -> Keypoints:
+        """Corner keypoints of ``scan`` (sensor frame), detector made on the first scan."""
+        if self._detector is None:
+            self._detector = make_detector(self.options.detector_preset, scan)
+        return self._detector.detect(scan)
+
+    def _corner_guess(self, scan: LaserScan, kp: Keypoints | None, pred: NDArray) -> NDArray | None:
+        """The base pose from the corner registration to the last keyframe (``front_end``
+        ``corners``/``both``), when accepted and within the odometry's reach of ``pred``
+        (1 m, 0.5 rad: a registration farther off is a wrong match); else None."""
+        if self.corners is None or kp is None:
+            return None
+        rel = self.corners.register(scan, kp)
+        self.counts["corner_registrations"] = self.corners.attempts
+        if rel is None:
+            return None
+        guess = np.array(compose(self._anchor, rel))
+        off = relative_pose(pred, guess)
+        if np.hypot(off[0], off[1]) > 1.0 or abs(off[2]) > 0.5:
+            return None
+        self.counts["corner_registrations_used"] += 1
+        return guess
+
+    def _track(
+        self, xy: NDArray, pred: NDArray, delta: NDArray, jump: bool, corner: NDArray | None
+    ) -> NDArray:
+        """The pose of a scan: ICP against the local map from the corner registration
+        (``corner``, when there is one) or the odometry prediction; when it fails (too little
+        overlap), the prediction (counted). ``front_end=corners``: the corner registration,
+        no ICP. (A recovery by a correlative search around the last pose was tried: on
+        intel.bag's out-of-order scans it locked onto wrong rotations and broke the map, so
+        it is not used.)"""
         opt = self.options
+        if opt.front_end == "corners":
+            return corner if corner is not None else self._failed(pred)
         if not opt.scan_alignment or self._local is None:
             return pred
+        if corner is not None:
+            pred = corner
         dist = float(np.hypot(delta[0], delta[1]))
         if jump:
             sig = np.array([1.0, 1.0, 0.5])
@@ -202,14 +242,20 @@ class Slam:
 
     # ------------------------------------------------------------------ keyframes
     def _make_keyframe(
-        self, scan: LaserScan, pts, odo: NDArray, stamp: float, first: bool = False
+        self,
+        scan: LaserScan,
+        pts,
+        odo: NDArray,
+        stamp: float,
+        first: bool = False,
+        kp: Keypoints | None = None,
     ) -> None:
         opt = self.options
         assert self.pose is not None
         cut = self._jump and not self._aligned_since_kf  # a gap the alignment did not bridge
         k = self.backend.add_keyframe(self.pose, prior=cut and not first)
         if not first:
-            rel = between(self._anchor, self.pose)
+            rel = np.array(relative_pose(self._anchor, self.pose))
             self._links.append(None if cut else rel)
             dist = float(np.hypot(rel[0], rel[1]))
             if self._aligned_since_kf:
@@ -222,6 +268,7 @@ class Slam:
             self.backend.add_between(k - 1, k, rel, sig)
             self._since_closure += dist
         self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
+        self._corner_keyframe(k, scan, kp, stamp)
         closed = self._close_loops(k) if opt.loop_closure and not first else False
         full = closed or k % FULL_ESTIMATE_EVERY == 0
         if full:
@@ -230,6 +277,8 @@ class Slam:
             extra_iterations=1 if closed else 0, full=full, recent=opt.local_map_keyframes + 5
         )
         self.kf.estimate = estimate
+        if full and self.tracker is not None:
+            self.tracker.refresh()
         self.pose = estimate[k].copy()
         self._anchor = self.pose.copy()
         self._aligned_since_kf = True
@@ -237,6 +286,20 @@ class Slam:
         self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
         self.counts["keyframes"] = len(self.kf)
         self._cov = self.backend.covariance(k)
+
+    def _corner_keyframe(self, k: int, scan: LaserScan, kp: Keypoints | None, stamp: float):
+        """Keyframe ``k``'s corners: the corner front end's new reference, and landmark
+        observations (associated at the keyframe's current estimate)."""
+        if self.corners is None and self.tracker is None:
+            return
+        if kp is None:
+            kp = self._keypoints(scan)
+        if self.corners is not None:
+            self.corners.set_reference(scan, kp)
+        if self.tracker is not None:
+            assert self.pose is not None
+            self.tracker.observe(k, self.pose, self._cov, kp, stamp)
+            self.counts["landmark_observations"] = self.tracker.n_factors
 
     def _close_loops(self, k: int) -> bool:
         opt = self.options
@@ -295,7 +358,7 @@ class Slam:
         w = np.where(has_next, np.clip((np.asarray(self._stamps) - kst[ref]) / span, 0, 1), 0.0)
         out = from_a.copy()
         out[:, :2] += w[:, None] * (from_b[:, :2] - from_a[:, :2])
-        out[:, 2] = wrap(from_a[:, 2] + w * wrap(from_b[:, 2] - from_a[:, 2]))
+        out[:, 2] = wrap_angle(from_a[:, 2] + w * wrap_angle(from_b[:, 2] - from_a[:, 2]))
         return out
 
     def _prune(self, closure: LoopClosure) -> None:
@@ -323,7 +386,10 @@ class Slam:
             poses = self._scan_poses()
         else:
             poses = np.zeros((0, 3))
-        self.counts["landmarks"] = 0
+        landmarks = Landmarks()
+        if self.tracker is not None and self.backend.n_landmarks:
+            landmarks = self.tracker.landmarks(self.backend.marginals())
+        self.counts["landmarks"] = len(landmarks)
         accepted = sum(c.accepted for c in self.closures)
         self.counts["closures_accepted"] = accepted
         self.counts["closures_rejected"] = len(self.closures) - accepted
@@ -335,7 +401,7 @@ class Slam:
             keyframe_poses=np.asarray(self.kf.estimate, dtype=np.float64).reshape(-1, 3),
             scans=list(self.kf.scans),
             mount=self.mount.copy(),
-            landmarks=self.kf.landmarks(),
+            landmarks=landmarks,
             closures=list(self.closures),
             ms_per_scan=np.asarray(self._ms, dtype=np.float64),
             options=self.options,
