@@ -45,8 +45,8 @@ from laser_corners.eval.relations import read_relations, relation_metrics
 from laser_corners.io.trajectory import read_tum
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pipeline.recording import open_recording
+from laser_corners.pose import between_many, compose_many, invert_many
 from laser_corners.slam import run_slam
-from laser_corners.slam.geometry import between, compose, compose_many, invert_many
 from laser_corners.slam.mapfile import load_map
 from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
 
@@ -80,7 +80,7 @@ def cached_map(path: Path, folder: Path, stop_scan: int | None) -> Path:
 
 
 def pose_error(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    d = between(b, a)
+    d = between_many(b, a)
     return math.hypot(d[0], d[1]), abs(math.degrees(d[2]))
 
 
@@ -90,7 +90,7 @@ def drive(loc, scans, odo, stamps, order, ref) -> dict:
     travel = 0.0
     for n, i in enumerate(order):
         if n:
-            d = between(odo[order[n - 1]], odo[i])
+            d = between_many(odo[order[n - 1]], odo[i])
             travel += math.hypot(d[0], d[1])
         status = loc.status
         cpu = time.process_time()
@@ -142,7 +142,7 @@ def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
         if after[-1] >= len(scans):
             continue
         # continuous odometry: the scans after the jump keep their motion, not their place
-        shift = compose(odo[before[-1]], invert_many(odo[after[0]]))
+        shift = compose_many(odo[before[-1]], invert_many(odo[after[0]]))
         odo2 = odo.copy()
         odo2[after] = compose_many(shift, odo[after])
         loc = Localiser(saved, options)

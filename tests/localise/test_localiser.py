@@ -10,9 +10,9 @@ import pytest
 
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.pose import between_many, compose_many
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import SlamOptions
-from laser_corners.slam.geometry import between_many, compose
 from laser_corners.slam.mapfile import FORMAT_VERSION, load_map, save_map_data
 
 RATE = 10.0
@@ -50,7 +50,7 @@ def noisy_odometry(truth: np.ndarray, seed: int) -> np.ndarray:
     odo = [np.array([5.0, -3.0, 1.0])]  # an odometry frame unrelated to the map's
     for d in between_many(truth[:-1], truth[1:]):
         noisy = np.array([d[0] * 1.03, d[1], d[2] * 1.02 + 0.002])
-        odo.append(compose(odo[-1], noisy + rng.normal(0.0, [0.004, 0.002, 0.003])))
+        odo.append(compose_many(odo[-1], noisy + rng.normal(0.0, [0.004, 0.002, 0.003])))
     return np.array(odo)
 
 
@@ -136,7 +136,7 @@ def test_tracking_from_an_initial_pose_is_accurate_and_cheap(building_map) -> No
     assert np.mean(d) < 0.03 and np.percentile(d, 99) < 0.06 and yaw.max() < math.radians(1.5)
     # map -> odom composes the odometry into the estimate
     e = estimates[-1]
-    np.testing.assert_allclose(compose(e.map_to_odom, odo[-1]), e.pose, atol=1e-9)
+    np.testing.assert_allclose(compose_many(e.map_to_odom, odo[-1]), e.pose, atol=1e-9)
     assert np.median(loc.ms_per_scan[5:]) < 20.0  # loose: a shared test machine
 
 
@@ -149,7 +149,7 @@ def test_kidnap_is_detected_and_relocalised(building_map) -> None:
     steps[199] = 0.0  # the jump is invisible to the odometry
     odo = [np.zeros(3)]
     for d in steps:
-        odo.append(compose(odo[-1], d))
+        odo.append(compose_many(odo[-1], d))
     loc = Localiser(folder)
     loc.set_pose(drive[0])
     estimates = [

@@ -20,8 +20,8 @@ from ros_helpers import isolated_message_packages, skip_or_fail
 
 pytest.importorskip("gtsam")
 
+from laser_corners.pose import compose_many
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam.geometry import compose, compose_many
 
 pytestmark = [
     pytest.mark.ros2,
@@ -137,6 +137,8 @@ def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None
         assert (parent, child) == ("map", "odom") and stamp == pytest.approx(i / 10.0)
         o = pose_msg.pose.pose
         pose = (o.position.x, o.position.y, 2 * np.arctan2(o.orientation.z, o.orientation.w))
-        np.testing.assert_allclose(compose(np.array(map_to_odom), odom[i])[:2], pose[:2], atol=1e-6)
+        np.testing.assert_allclose(
+            compose_many(np.array(map_to_odom), odom[i])[:2], pose[:2], atol=1e-6
+        )
     node.subs["scan"](SimpleNamespace(header=None))  # malformed: logged, counted, no raise
     assert adapter.n_skipped == 1 and any("malformed scan" in line for line in node.logs)

@@ -28,8 +28,8 @@ from ros2_tools import RATE_HZ, STARTUP_TIMEOUT, Key, key_of, to_msg, wait_exit
 from ros_helpers import FR079, isolated_message_packages, stop, wait_for
 from test_ros2_node import Ros2, _run_ros2
 
+from laser_corners.pose import compose_many, invert_many
 from laser_corners.ros.convert import seconds_to_sec_nanosec
-from laser_corners.slam.geometry import compose, compose_many, invert_many
 
 pytest.importorskip("gtsam")
 
@@ -302,7 +302,7 @@ def _check_pose_messages(got: Received, keys, scans, odometry) -> np.ndarray:
         # 5 mm: under load the node's odometry queue (keep last N) may drop a sample, so its
         # interpolation bracket can be wider than ours (0.5 mm seen); a wrong composition is
         # off by centimetres to metres
-        np.testing.assert_allclose(compose(transform, base)[:2], pose[:2], atol=5e-3)
+        np.testing.assert_allclose(compose_many(transform, base)[:2], pose[:2], atol=5e-3)
         assert got.poses[key].header.frame_id == "map"
         cov = np.asarray(got.poses[key].pose.covariance).reshape(6, 6)
         assert cov[0, 0] > 0 and cov[1, 1] > 0 and cov[5, 5] > 0

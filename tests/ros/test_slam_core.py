@@ -17,6 +17,7 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.pose import compose_many, invert_many
 from laser_corners.ros.nav_convert import (
     fill_occupancy_grid,
     fill_pose_with_covariance,
@@ -28,7 +29,6 @@ from laser_corners.ros.nav_convert import (
 )
 from laser_corners.ros.slam_core import MappingConfig, MappingCore, OdometryBook, map_to_odom
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam.geometry import compose, compose_many, invert
 
 RATE = 10.0
 MOUNT = (0.2, -0.05, 0.1)
@@ -73,7 +73,7 @@ def test_map_to_odom_puts_the_base_at_its_map_pose() -> None:
     for _ in range(20):
         pose = rng.uniform([-50, -50, -np.pi], [50, 50, np.pi])
         odom = rng.uniform([-50, -50, -np.pi], [50, 50, np.pi])
-        np.testing.assert_allclose(compose(map_to_odom(pose, odom), odom), pose, atol=1e-9)
+        np.testing.assert_allclose(compose_many(map_to_odom(pose, odom), odom), pose, atol=1e-9)
 
 
 def test_odometry_book_interpolates_tf_and_chains_the_static_mount() -> None:
@@ -143,7 +143,9 @@ def test_map_to_odom_absorbs_odometry_drift() -> None:
     # every later map pose is map_to_odom ∘ odometry
     for update in out:
         i = round(update.stamp * RATE)
-        np.testing.assert_allclose(compose(update.map_to_odom, odom[i]), update.pose, atol=1e-9)
+        np.testing.assert_allclose(
+            compose_many(update.map_to_odom, odom[i]), update.pose, atol=1e-9
+        )
 
 
 def test_scans_without_odometry_are_dropped_and_counted() -> None:
@@ -270,7 +272,9 @@ def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) ->
     for update in out:
         i = round(update.stamp * RATE)
         np.testing.assert_allclose(update.pose[:2], truth[i][:2], atol=0.1)
-        np.testing.assert_allclose(compose(update.map_to_odom, odom[i]), update.pose, atol=1e-6)
+        np.testing.assert_allclose(
+            compose_many(update.map_to_odom, odom[i]), update.pose, atol=1e-6
+        )
     assert core.set_pose(truth[0], None)  # once running, handed over at once
     assert core.estimator.status == "tracking"
 
@@ -381,7 +385,7 @@ def test_landmark_markers() -> None:
 
 def test_inverse_helpers_agree() -> None:
     pose = np.array([1.0, 2.0, 0.5])
-    np.testing.assert_allclose(compose(pose, invert(pose)), [0, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(compose_many(pose, invert_many(pose)), [0, 0, 0], atol=1e-12)
 
 
 def test_without_a_mount_the_first_scan_waits_tf_wait_then_uses_identity() -> None:

@@ -36,9 +36,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.mapmodel import MapModel, _distinct
 from laser_corners.localise.options import LocaliseOptions
+from laser_corners.pose import between_many, compose_many, invert_many
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, icp
-from laser_corners.slam.geometry import between, compose, invert
 from laser_corners.slam.mapfile import SavedMap, load_map
 from laser_corners.slam.points import scan_points
 
@@ -186,7 +186,7 @@ class Localiser:
         start = time.perf_counter()
         opt = self.options
         odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
-        delta = np.zeros(3) if self._last_odom is None else between(self._last_odom, odo)
+        delta = np.zeros(3) if self._last_odom is None else between_many(self._last_odom, odo)
         jump = (
             math.hypot(delta[0], delta[1]) > opt.odometry_jump
             or abs(delta[2]) > opt.odometry_jump
@@ -237,7 +237,7 @@ class Localiser:
         assert self.pose is not None
         opt = self.options
         prior = self._prior(delta, jump)
-        pred = compose(self.pose, delta)
+        pred = compose_many(self.pose, delta)
         aligned, agreement = self._align(pts.xy, pred, prior)
         usual = float(np.mean(self._recent)) if self._recent else 1.0
         if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
@@ -282,7 +282,7 @@ class Localiser:
             pose=self.pose.copy(),
             covariance=rot @ self._cov @ rot.T,
             status=status,
-            map_to_odom=compose(self.pose, invert(odo)),
+            map_to_odom=compose_many(self.pose, invert_many(odo)),
             scan_index=index,
             stamp=stamp,
             agreement=float(agreement),
@@ -327,7 +327,7 @@ class Localiser:
         opt = self.options
         prior = self._prior(delta, False)
         for h in self.hypotheses:
-            aligned, agreement = self._align(xy, compose(h.pose, delta), prior)
+            aligned, agreement = self._align(xy, compose_many(h.pose, delta), prior)
             h.pose = aligned.pose
             h.recent.append(agreement)
             while len(h.recent) > opt.recent_scans:

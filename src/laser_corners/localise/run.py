@@ -20,7 +20,7 @@ from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pipeline.interrupt import stop_requests
 from laser_corners.pipeline.recording import open_recording
-from laser_corners.slam.geometry import compose_many, invert_many
+from laser_corners.pose import compose_many, invert_many
 from laser_corners.slam.mapfile import SavedMap
 
 __all__ = ["LocaliseRun", "run_localise"]

@@ -36,8 +36,8 @@ from laser_corners.errors import InvalidParamsError, OutputError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.pose import compose_many, invert_many
 from laser_corners.scan import LaserScan
-from laser_corners.slam.geometry import compose, invert
 from laser_corners.slam.grid import occupancy_grid
 from laser_corners.slam.mapfile import SavedMap, load_map
 from laser_corners.slam.options import SlamOptions
@@ -141,20 +141,15 @@ class MappingConfig(BaseModel):
         """The SLAM options (``slam_config`` YAML, or the defaults)."""
         if not self.slam_config:
             return SlamOptions()
-        import yaml
-
-        path = Path(self.slam_config)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError) as exc:
-            raise InvalidParamsError(f"slam_config {path}: {exc}") from None
-        return SlamOptions.from_mapping(data or {}, source=str(path))
+        return SlamOptions.from_file(self.slam_config)
 
 
 def map_to_odom(pose: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:
     """The ``map -> odom`` transform that puts the base at ``pose`` (map) given its odometry
     pose ``odom``: ``pose ∘ odom⁻¹`` (so ``map_to_odom ∘ odom = pose``)."""
-    return compose(np.asarray(pose, dtype=np.float64), invert(np.asarray(odom, dtype=np.float64)))
+    return compose_many(
+        np.asarray(pose, dtype=np.float64), invert_many(np.asarray(odom, dtype=np.float64))
+    )
 
 
 class OdometryBook:
