@@ -420,6 +420,7 @@ class Localiser:
         if (
             best.travel < travel
             or float(np.mean(best.conflict)) > opt.max_conflict
+            or best.conflict[-1] > opt.max_conflict
             or best.scans < opt.fix_scans
             or best.score() < opt.fix_agreement
         ):
