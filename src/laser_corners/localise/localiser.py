@@ -55,9 +55,6 @@ RECOVER_XY = 0.3
 """Half-width (m) of the recovery search window."""
 RECOVER_YAW = 0.3
 """Half-width (rad) of the recovery search window."""
-CONFLICT_SCANS = 10
-"""While tracking, the free-space conflict is averaged over this many scans (one scan with
-a person in front of the robot is not a wrong pose)."""
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
 
@@ -168,7 +165,6 @@ class Localiser:
         self.counts["recoveries"] = 0
         self.counts["refused_free_space"] = 0
         self._recent: deque = deque(maxlen=self.options.recent_scans)
-        self._conflict: deque = deque(maxlen=CONFLICT_SCANS)
         self.ms_per_scan: list[float] = []
         self.pose: NDArray[np.float64] | None = None
         self._cov = np.diag([1.0, 1.0, 0.5])
@@ -192,7 +188,6 @@ class Localiser:
         self.hypotheses = []
         self._bad = 0
         self._recent.clear()
-        self._conflict.clear()
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -264,8 +259,8 @@ class Localiser:
         usual = float(np.mean(self._recent)) if self._recent else 1.0
         if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
             aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
-        if agreement < max(opt.track_agreement, usual - opt.track_drop) or not self._fits(
-            aligned.pose, pts.xy, self._conflict
+        if agreement < max(opt.track_agreement, usual - opt.track_drop) or (
+            self._support(aligned.pose, pts.xy).outside > opt.max_outside
         ):
             self.pose = pred
             self._bad += 1
@@ -287,16 +282,11 @@ class Localiser:
         """Outside / conflict shares of the scan ``xy`` at ``pose`` (``freespace``)."""
         return self.map.space.support(pose, xy, self.mount)
 
-    def _fits(self, pose: NDArray, xy: NDArray, recent: deque | None = None) -> bool:
-        """Whether the scan at ``pose`` neither contradicts the map's free space (on average
-        with the ``recent`` scans' conflicts, if given) nor lies mostly outside the map
-        (counted in ``refused_free_space`` when not)."""
+    def _fits(self, pose: NDArray, xy: NDArray) -> bool:
+        """Whether the scan at ``pose`` neither contradicts the map's free space nor lies
+        mostly outside the map (counted in ``refused_free_space`` when not)."""
         s = self._support(pose, xy)
-        conflict = s.conflict
-        if recent is not None:
-            recent.append(s.conflict)
-            conflict = float(np.mean(recent))
-        ok = conflict <= self.options.max_conflict and s.outside <= self.options.max_outside
+        ok = s.conflict <= self.options.max_conflict and s.outside <= self.options.max_outside
         self.counts["refused_free_space"] += not ok
         return ok
 
@@ -358,7 +348,6 @@ class Localiser:
             return None
         self.pose = winner.pose.copy()
         self.hypotheses = []
-        self._conflict.clear()
         self.fixes.append(Fix(index, stamp, self._search_travel, tuple(winner.pose.tolist())))
         self._cov = np.diag([0.05, 0.05, 0.02]) ** 2
         agreement = winner.recent[-1]
