@@ -14,10 +14,15 @@ Three states (:attr:`Localiser.status`):
     scans, agrees at least ``fix_agreement`` and every other surviving hypothesis agrees less
     by ``fix_margin``: in a symmetric or ambiguous map several hypotheses keep agreeing and no
     fix is given (no estimate is better than a confident wrong one).
+    A hypothesis, and the fix, must also not contradict the map's free space (beams ending
+    where the map saw free space, or seeing through its walls: :mod:`.freespace`) on more
+    than ``max_conflict`` of the beams; a winner whose scans partly end outside the map
+    needs ``outside_travel`` times the travel.
 ``tracking``
     Odometry predicts, ICP against the map corrects (the odometry noise is the prior), the
     covariance is the inverse of the ICP information plus the prior's (with a floor for the
-    map's own error). A scan agreeing less than ``track_agreement`` gives no estimate.
+    map's own error). A scan agreeing less than ``track_agreement``, or with more than ``max_outside`` of its beams
+    outside the map, gives no estimate.
 ``lost``
     ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
     (a kidnapped robot); the next fix is reported as ``relocalised``.
