@@ -21,8 +21,8 @@ Three states (:attr:`Localiser.status`):
 ``tracking``
     Odometry predicts, ICP against the map corrects (the odometry noise is the prior), the
     covariance is the inverse of the ICP information plus the prior's (with a floor for the
-    map's own error). A scan agreeing less than ``track_agreement``, or with more than ``max_outside`` of its beams
-    outside the map, gives no estimate.
+    map's own error). A scan agreeing less than ``track_agreement``, or with more than
+    ``max_outside`` of its beams outside the map, gives no estimate.
 ``lost``
     ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
     (a kidnapped robot); the next fix is reported as ``relocalised``.
