@@ -19,10 +19,10 @@ RATE = 10.0
 
 
 def building() -> World:
-    """Two rooms joined by a door, a pillar, a triangle, a post: no symmetry."""
+    """Two rooms joined by a wide opening, a pillar, a triangle, a post: no symmetry."""
     world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
-    world.add_polygon([[6, 0], [6.1, 0], [6.1, 3], [6, 3]])
-    world.add_polygon([[6, 5], [6.1, 5], [6.1, 8], [6, 8]])
+    world.add_polygon([[6, 0], [6.1, 0], [6.1, 1.0], [6, 1.0]])  # the robot drives through
+    world.add_polygon([[6, 7.0], [6.1, 7.0], [6.1, 8], [6, 8]])  # the opening, not the wall
     world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
     world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
     world.add_circle((8.5, 2.0), 0.15)

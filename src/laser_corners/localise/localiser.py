@@ -14,10 +14,15 @@ Three states (:attr:`Localiser.status`):
     scans, agrees at least ``fix_agreement`` and every other surviving hypothesis agrees less
     by ``fix_margin``: in a symmetric or ambiguous map several hypotheses keep agreeing and no
     fix is given (no estimate is better than a confident wrong one).
+    A hypothesis, and the fix, must also not contradict the map's free space (beams ending
+    where the map saw free space, or seeing through its walls: :mod:`.freespace`) on more
+    than ``max_conflict`` of the beams; a winner whose scans partly end outside the map
+    needs ``outside_travel`` times the travel.
 ``tracking``
     Odometry predicts, ICP against the map corrects (the odometry noise is the prior), the
     covariance is the inverse of the ICP information plus the prior's (with a floor for the
-    map's own error). A scan agreeing less than ``track_agreement`` gives no estimate.
+    map's own error). A scan agreeing less than ``track_agreement``, or with more than
+    ``max_outside`` of its beams outside the map, gives no estimate.
 ``lost``
     ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
     (a kidnapped robot); the next fix is reported as ``relocalised``.
@@ -34,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from laser_corners.localise.freespace import Support
 from laser_corners.localise.mapmodel import MapModel, _distinct
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import between_many, compose_many, invert_many
@@ -97,10 +103,25 @@ class Hypothesis:
     recent: deque = field(default_factory=deque)
     travel: float = 0.0
     scans: int = 0
+    conflict: deque = field(default_factory=deque)
+    """Recent shares of beams contradicting the map's free space (``freespace``)."""
+    outside: deque = field(default_factory=deque)
+    """Recent shares of beams ending where the map saw nothing."""
 
     def score(self) -> float:
         """Mean recent agreement."""
         return float(np.mean(self.recent)) if self.recent else 0.0
+
+    def remember(self, agreement: float, support: Support, window: int) -> None:
+        """Append one scan's agreement and free-space support, keep the last ``window``."""
+        for queue, value in (
+            (self.recent, agreement),
+            (self.conflict, support.conflict),
+            (self.outside, support.outside),
+        ):
+            queue.append(value)
+            while len(queue) > window:
+                queue.popleft()
 
 
 @dataclass
@@ -147,6 +168,7 @@ class Localiser:
         self.fixes: list[Fix] = []
         self.counts = {"scans": 0, "estimates": 0, "lost": 0, "searches": 0, "no_agreement": 0}
         self.counts["recoveries"] = 0
+        self.counts["refused_free_space"] = 0
         self._recent: deque = deque(maxlen=self.options.recent_scans)
         self.ms_per_scan: list[float] = []
         self.pose: NDArray[np.float64] | None = None
@@ -242,7 +264,9 @@ class Localiser:
         usual = float(np.mean(self._recent)) if self._recent else 1.0
         if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
             aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
-        if agreement < max(opt.track_agreement, usual - opt.track_drop):
+        if agreement < max(opt.track_agreement, usual - opt.track_drop) or (
+            self._support(aligned.pose, pts.xy).outside > opt.max_outside
+        ):
             self.pose = pred
             self._bad += 1
             self.counts["no_agreement"] += 1
@@ -258,6 +282,18 @@ class Localiser:
             cov = np.linalg.inv(prior)
         self._cov = cov + COVARIANCE_FLOOR
         return self._estimate(odo, index, stamp, "tracking", agreement)
+
+    def _support(self, pose: NDArray, xy: NDArray) -> Support:
+        """Outside / conflict shares of the scan ``xy`` at ``pose`` (``freespace``)."""
+        return self.map.space.support(pose, xy, self.mount)
+
+    def _fits(self, pose: NDArray, xy: NDArray) -> bool:
+        """Whether the scan at ``pose`` neither contradicts the map's free space nor lies
+        mostly outside the map (counted in ``refused_free_space`` when not)."""
+        s = self._support(pose, xy)
+        ok = s.conflict <= self.options.max_conflict and s.outside <= self.options.max_outside
+        self.counts["refused_free_space"] += not ok
+        return ok
 
     def _recover(
         self, xy: NDArray, pred: NDArray, aligned: Alignment, agreement: float
@@ -329,12 +365,14 @@ class Localiser:
         for h in self.hypotheses:
             aligned, agreement = self._align(xy, compose_many(h.pose, delta), prior)
             h.pose = aligned.pose
-            h.recent.append(agreement)
-            while len(h.recent) > opt.recent_scans:
-                h.recent.popleft()
+            h.remember(agreement, self._support(h.pose, xy), opt.recent_scans)
             h.travel += step
             h.scans += 1
-        alive = [h for h in self.hypotheses if h.score() >= opt.hypothesis_agreement]
+        alive = [
+            h
+            for h in self.hypotheses
+            if h.score() >= opt.hypothesis_agreement and np.mean(h.conflict) <= opt.max_conflict
+        ]
         self.hypotheses = self._merged(alive)
 
     def _merged(self, hypotheses: list[Hypothesis]) -> list[Hypothesis]:
@@ -358,8 +396,10 @@ class Localiser:
         fresh = []
         for guess, _ in found:
             aligned, agreement = self._align(xy, guess, prior)
-            if agreement >= opt.hypothesis_agreement:
-                fresh.append(Hypothesis(aligned.pose, index, deque([agreement])))
+            if agreement >= opt.hypothesis_agreement and self._fits(aligned.pose, xy):
+                h = Hypothesis(aligned.pose, index)
+                h.remember(agreement, self._support(h.pose, xy), opt.recent_scans)
+                fresh.append(h)
         self.hypotheses = self._merged(self.hypotheses + fresh)
 
     def _winner(self) -> Hypothesis | None:
@@ -368,8 +408,13 @@ class Localiser:
         if not self.hypotheses:
             return None
         best = max(self.hypotheses, key=lambda h: h.score())
+        # (b) a scan partly outside the map: the lead must hold over a longer travel
+        outside = float(np.mean(best.outside))
+        travel = opt.fix_travel * (opt.outside_travel if outside > opt.partly_outside else 1.0)
         if (
-            best.travel < opt.fix_travel
+            best.travel < travel
+            or float(np.mean(best.conflict)) > opt.max_conflict
+            or best.conflict[-1] > opt.max_conflict
             or best.scans < opt.fix_scans
             or best.score() < opt.fix_agreement
         ):

@@ -25,6 +25,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.localise.freespace import FreeSpace
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.slam.align import PointMap
 from laser_corners.slam.correlative import ScoreGrid
@@ -97,6 +98,7 @@ class MapModel:
         self.every = PointMap.build(xy, np.zeros_like(xy))
         self.grid = ScoreGrid.build(xy, GLOBAL_GRID, GLOBAL_SIGMA, margin=1.0)
         self.positions = self._lattice(saved.poses[:, :2], options)
+        self.space = FreeSpace.build(saved)
 
     def _lattice(self, centres: NDArray, options: LocaliseOptions) -> NDArray[np.float64]:
         """Lattice positions within ``global_reach`` of a keyframe, clear of the walls."""

@@ -74,6 +74,20 @@ class LocaliseOptions(Options):
     fix_margin: float = Field(0.04, ge=0.0, le=1.0)
     """Every other hypothesis must agree less than the winner by this much on average over
     the recent scans both were scored on (at least 3): a share of the scan's points."""
+    max_conflict: float = Field(0.4, ge=0.0, le=1.0)
+    """Share of the tested beams (at most, on average over the recent scans) that may
+    contradict the map's free space (end in space the map saw free, or see through its
+    walls) at a hypothesis, a fix or a tracked pose; above it the pose is refused
+    (``localise.freespace``). Right poses on fr079 (clutter, people, doors): median 0.19,
+    95th percentile 0.52 per scan; its wrong fixes 0.83 and 0.92."""
+    max_outside: float = Field(0.5, ge=0.0, le=1.0)
+    """A scan with more of its beams ending where the map saw nothing is *outside* the map:
+    no estimate, no fix attempt."""
+    partly_outside: float = Field(0.15, ge=0.0, le=1.0)
+    """A winner whose recent scans end outside the map more than this (mean share) needs
+    ``outside_travel`` times ``fix_travel`` to become the fix."""
+    outside_travel: float = Field(2.0, ge=1.0, le=20.0)
+    """See ``partly_outside``."""
     fix_travel: float = Field(2.0, ge=0.0, le=100.0)
     """Odometry travel (m, turns counted as 0.5 m per radian) the winner must have survived."""
     fix_scans: int = Field(20, ge=1, le=10000)

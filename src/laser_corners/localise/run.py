@@ -37,7 +37,8 @@ class LocaliseRun:
     fixes : list of Fix
         The first fix and every relocalisation (``scan_index`` in the recording too).
     counts : dict of str to int
-        ``scans, estimates, lost, searches, no_agreement, skipped_no_odometry``.
+        ``scans, estimates, lost, searches, no_agreement, recoveries, refused_free_space,
+        skipped_no_odometry``.
     ms_per_scan : ndarray
     odometry_stamps, odometry : ndarray
         Stamp and base odometry of every scan given.

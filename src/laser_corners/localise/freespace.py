@@ -1,0 +1,195 @@
+"""What the map knows to be free, occupied or never seen: :class:`FreeSpace` (issue 20).
+
+A global search that scores only how many scan points land on map points cannot tell a
+look-alike place from the right one when the robot is somewhere the map never covered: the
+scan's corridor fits a corridor of the map. The free-space grid adds what the map *excludes*:
+at load every keyframe ray is walked (numba, half-cell steps) from the keyframe's sensor to
+each of its points, counting per cell the rays that end in it and those that cross it: a
+cell crossed by rays is *free* unless rays end in it at least ``OCCUPIED_RATIO`` as often
+(then *occupied*), a cell no ray reached is *unknown*. :meth:`FreeSpace.support` then tests
+a hypothesised pose on a subsample of the scan's beams:
+
+* **outside**: the beam's end point falls where the map saw nothing (no known cell within one
+  cell): the scan is partly outside the map;
+* **conflict**: the beam's end point lies in space the map saw free (no occupied cell within
+  one cell), or its ray passes through an occupied cell more than ``clear`` before its end
+  (the scan sees through a wall of the map).
+
+Both are shares of the tested beams. A pose where the map and the scan contradict each other
+is not the robot's pose, however many points agree.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.slam.mapfile import SavedMap
+
+__all__ = ["FreeSpace", "Support"]
+
+UNKNOWN, FREE, OCCUPIED = 0, 1, 2
+CELL = 0.1
+"""Cell (m) of the free-space grid."""
+CLEAR = 0.3
+"""A ray's last metres (m) before its end point are not tested for walls (noise, grazing
+angles, walls one cell thick)."""
+OCCUPIED_RATIO = 0.3
+"""A cell is occupied when the rays ending in it are at least this share of those crossing
+it: what a person walking by or a door left open once leaves in the map (hit once, crossed
+by many rays) is not a wall."""
+BEAMS = 90
+"""Beams tested per pose at most (evenly subsampled)."""
+
+
+@numba.njit(cache=True)
+def _carve(
+    hits: NDArray[np.int32],
+    misses: NDArray[np.int32],
+    origin: NDArray[np.float64],
+    res: float,
+    sensors: NDArray[np.float64],
+    owner: NDArray[np.int64],
+    xy: NDArray[np.float64],
+) -> None:
+    """Count, per cell, the rays ending in it (hits) and crossing it (misses)."""
+    ny, nx = hits.shape
+    for k in range(xy.shape[0]):
+        sx, sy = sensors[owner[k], 0], sensors[owner[k], 1]
+        dx, dy = xy[k, 0] - sx, xy[k, 1] - sy
+        length = math.hypot(dx, dy)
+        steps = int(max(length - res, 0.0) / (0.5 * res))
+        last_x, last_y = -1, -1
+        for j in range(steps):
+            t = j * 0.5 * res / max(length, 1e-9)
+            ix = math.floor((sx + t * dx - origin[0]) / res)
+            iy = math.floor((sy + t * dy - origin[1]) / res)
+            if (ix != last_x or iy != last_y) and 0 <= ix < nx and 0 <= iy < ny:
+                misses[iy, ix] += 1
+            last_x, last_y = ix, iy
+        ix = math.floor((xy[k, 0] - origin[0]) / res)
+        iy = math.floor((xy[k, 1] - origin[1]) / res)
+        if 0 <= ix < nx and 0 <= iy < ny:
+            hits[iy, ix] += 1
+
+
+@numba.njit(cache=True)
+def _around(state: NDArray[np.int8], ix: int, iy: int) -> tuple[bool, bool]:
+    """Whether the 3 x 3 cells around ``(ix, iy)`` hold a known and an occupied cell."""
+    ny, nx = state.shape
+    known = False
+    occupied = False
+    for y in range(iy - 1, iy + 2):
+        for x in range(ix - 1, ix + 2):
+            if 0 <= x < nx and 0 <= y < ny:
+                v = state[y, x]
+                known = known or v != UNKNOWN
+                occupied = occupied or v == OCCUPIED
+    return known, occupied
+
+
+@numba.njit(cache=True)
+def _support(
+    state: NDArray[np.int8],
+    origin: NDArray[np.float64],
+    res: float,
+    sensor: NDArray[np.float64],
+    ends: NDArray[np.float64],
+    clear: float,
+) -> tuple[int, int]:
+    """Beams ending outside the known map, and beams contradicting it (see the module)."""
+    outside = 0
+    conflict = 0
+    ny, nx = state.shape
+    for k in range(ends.shape[0]):
+        ex, ey = ends[k, 0], ends[k, 1]
+        known, occupied = _around(
+            state, math.floor((ex - origin[0]) / res), math.floor((ey - origin[1]) / res)
+        )
+        bad = known and not occupied
+        if not known:
+            outside += 1
+        dx, dy = ex - sensor[0], ey - sensor[1]
+        length = math.hypot(dx, dy)
+        steps = int(max(length - clear, 0.0) / (0.5 * res))
+        for j in range(steps):
+            t = j * 0.5 * res / max(length, 1e-9)
+            ix = math.floor((sensor[0] + t * dx - origin[0]) / res)
+            iy = math.floor((sensor[1] + t * dy - origin[1]) / res)
+            if bad:
+                break
+            if 0 <= ix < nx and 0 <= iy < ny and state[iy, ix] == OCCUPIED:
+                bad = True
+        conflict += bad
+    return outside, conflict
+
+
+@dataclass(frozen=True)
+class Support:
+    """How a scan at a pose fits what the map knows: shares of the tested beams."""
+
+    outside: float
+    """Share of beams ending where the map saw nothing."""
+    conflict: float
+    """Share of beams ending in the map's free space or seeing through its walls."""
+
+
+@dataclass
+class FreeSpace:
+    """Free / occupied / unknown grid of a saved map (see the module notes)."""
+
+    state: NDArray[np.int8]
+    origin: NDArray[np.float64]
+    resolution: float
+    mount: NDArray[np.float64]
+
+    @classmethod
+    def build(cls, saved: SavedMap, resolution: float = CELL) -> FreeSpace:
+        """Walk every keyframe ray of ``saved`` (sensor at the keyframe pose ∘ mount)."""
+        xy, _, _ = saved.world_points()
+        mount = np.asarray(saved.mount, dtype=np.float64).reshape(3)
+        if len(xy) == 0:
+            return cls(np.zeros((1, 1), np.int8), np.zeros(2), resolution, mount)
+        poses = saved.poses
+        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        sensors = np.column_stack(
+            [
+                poses[:, 0] + c * mount[0] - s * mount[1],
+                poses[:, 1] + s * mount[0] + c * mount[1],
+            ]
+        )
+        lo = np.minimum(xy.min(axis=0), sensors.min(axis=0)) - 1.0
+        hi = np.maximum(xy.max(axis=0), sensors.max(axis=0)) + 1.0
+        shape = (np.ceil((hi - lo) / resolution).astype(int) + 1)[::-1]
+        hits = np.zeros(shape, dtype=np.int32)
+        misses = np.zeros(shape, dtype=np.int32)
+        owner = np.repeat(np.arange(len(saved)), np.diff(saved.offsets)).astype(np.int64)
+        _carve(hits, misses, lo, resolution, np.ascontiguousarray(sensors), owner, xy)
+        state = np.where(misses > 0, FREE, UNKNOWN).astype(np.int8)
+        state[(hits > 0) & (hits >= OCCUPIED_RATIO * misses)] = OCCUPIED
+        return cls(state, lo, resolution, mount)
+
+    def support(
+        self, pose: NDArray[np.float64], points: NDArray[np.float64], mount: NDArray[np.float64]
+    ) -> Support:
+        """Outside and conflict shares of ``points`` (base frame) seen from base ``pose`` by a
+        sensor at ``mount`` (base -> laser)."""
+        if len(points) == 0:
+            return Support(1.0, 0.0)
+        if len(points) > BEAMS:
+            points = points[np.linspace(0, len(points) - 1, BEAMS).astype(int)]
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        ends = np.column_stack(
+            [
+                c * points[:, 0] - s * points[:, 1] + pose[0],
+                s * points[:, 0] + c * points[:, 1] + pose[1],
+            ]
+        )
+        m = mount
+        sensor = np.array([pose[0] + c * m[0] - s * m[1], pose[1] + s * m[0] + c * m[1]])
+        outside, conflict = _support(self.state, self.origin, self.resolution, sensor, ends, CLEAR)
+        return Support(outside / len(points), conflict / len(points))
