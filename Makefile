@@ -44,7 +44,7 @@ ros1-deps:
 test: $(VENV)/.test ros1-deps
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m ruff format --check src tests benchmarks
-	$(PY) -m pytest -rs
+	$(PY) -m pytest -rsx
 
 # the ROS 1 and ROS 2 node tests alone, printing the end-to-end latencies (docs/ros.md)
 test-ros: $(VENV)/.test ros1-deps
