@@ -238,6 +238,23 @@ def test_missing_map_folder_is_one_line(tmp_path) -> None:
         MappingCore(config)
 
 
+def test_slam_mode_landmarks_are_the_backend_estimates(tmp_path) -> None:
+    # the node asks for the landmarks every map period (markers); they are the back end's
+    # current estimates (none with landmarks off). It crashed the node before (exit 1).
+    truth, scans = _drive(60)
+    for on in (False, True):
+        config = tmp_path / f"slam_{on}.yaml"
+        config.write_text(f"landmarks: {str(on).lower()}\n")
+        core = _core(mount=list(MOUNT), slam_config=str(config))
+        assert core.landmarks().shape == (0, 2)  # nothing mapped yet
+        _feed(core, truth, scans)
+        xy = core.landmarks()
+        assert xy.ndim == 2 and xy.shape[1] == 2 and np.isfinite(xy).all()
+        assert np.array_equal(xy, core.estimator.backend.landmark_estimates().reshape(-1, 2))
+        if not on:
+            assert len(xy) == 0
+
+
 def _feed(core: MappingCore, truth: np.ndarray, scans: list, start: int = 0) -> list:
     out = []
     for i, scan in enumerate(scans[start:], start=start):

@@ -430,7 +430,7 @@ class MappingCore:
     def landmarks(self) -> NDArray[np.float64]:
         """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
         if self.config.mode == "slam" and self.estimator is not None:
-            return np.asarray(self.estimator.kf.landmarks().xy, dtype=np.float64).reshape(-1, 2)
+            return self.estimator.backend.landmark_estimates().reshape(-1, 2)
         if self.saved is not None and self.saved.landmarks is not None:
             return np.asarray(self.saved.landmarks, dtype=np.float64).reshape(-1, 2)
         return np.zeros((0, 2))
