@@ -18,10 +18,9 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.errors import InputError
 from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.pipeline.interrupt import stop_requests
 from laser_corners.pipeline.recording import open_recording
-from laser_corners.pose import compose_many, invert_many
 from laser_corners.slam.mapfile import SavedMap
+from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
 
 __all__ = ["LocaliseRun", "run_localise"]
 
@@ -103,60 +102,41 @@ def run_localise(
     """
     options = options or LocaliseOptions()
     with open_recording(path, topic) as rec:
-        mounts = getattr(rec.source, "mounts", {})
-        if rec.first.pose is None and getattr(rec.source, "odom_topic", "") is None:
-            raise InputError(f"{path}: no odometry (no nav_msgs/Odometry topic, no scan poses)")
-        recorded = mounts.get(rec.first.frame_id)
+        require_odometry(rec, path)
+        recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id)
         loc = Localiser(map_data, options, mount=recorded)
         if initial_pose is not None:
             loc.set_pose(initial_pose)
-        run = _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress)
+        run = _loop(loc, rec, start_scan, stop_scan, on_estimate, progress)
     if loc.counts["scans"] == 0 and not run.interrupted:
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     return run
 
 
-def _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress) -> LocaliseRun:
+def _loop(loc, rec, start_scan, stop_scan, on_estimate, progress) -> LocaliseRun:
     """Feed the scans; Ctrl-C stops between two scans."""
-    undo: dict[str, NDArray] = {}
     estimates: list[LocaliserEstimate] = []
     stamps: list[float] = []
     index: list[int] = []
     odometry: list[NDArray] = []
-    skipped = 0
-    interrupted = False
-    total = rec.source.n_scans
+    feed = OdometryFeed()
     try:
-        with stop_requests() as stop:
-            for i, scan in enumerate(rec.scans()):
-                if stop.is_set():
-                    interrupted = True
-                    break
-                if stop_scan is not None and i >= stop_scan:
-                    break
-                if i < start_scan:
-                    continue
-                if scan.pose is None or scan.stamp is None:
-                    skipped += 1
-                    continue
-                if scan.frame_id not in undo:
-                    undo[scan.frame_id] = invert_many(mounts.get(scan.frame_id) or (0.0, 0.0, 0.0))
-                base = compose_many(np.asarray(scan.pose), undo[scan.frame_id])
-                estimate = loc.add(scan, base, float(scan.stamp))
-                index.append(i)
-                stamps.append(float(scan.stamp))
-                odometry.append(base)
-                if estimate is not None:
-                    estimate.scan_index = i  # the recording's index, not the localiser's
-                    estimates.append(estimate)
-                    if on_estimate is not None:
-                        on_estimate(estimate)
-                if progress is not None:
-                    progress(i + 1, total, float(scan.stamp))
+        for i, scan, base in odometry_scans(rec, feed, start_scan, stop_scan):
+            estimate = loc.add(scan, base, float(scan.stamp))
+            index.append(i)
+            stamps.append(float(scan.stamp))
+            odometry.append(base)
+            if estimate is not None:
+                estimate.scan_index = i  # the recording's index, not the localiser's
+                estimates.append(estimate)
+                if on_estimate is not None:
+                    on_estimate(estimate)
+            if progress is not None:
+                progress(i + 1, rec.source.n_scans, float(scan.stamp))
     except KeyboardInterrupt:
-        interrupted = True
-    counts = dict(loc.counts, skipped_no_odometry=skipped)
+        feed.interrupted = True
+    counts = dict(loc.counts, skipped_no_odometry=feed.skipped)
     return LocaliseRun(
         estimates,
         [replace(f, scan_index=index[f.scan_index]) for f in loc.fixes],
@@ -164,5 +144,5 @@ def _loop(loc, rec, mounts, start_scan, stop_scan, on_estimate, progress) -> Loc
         np.asarray(loc.ms_per_scan, dtype=np.float64),
         np.asarray(stamps, dtype=np.float64),
         np.asarray(odometry, dtype=np.float64).reshape(-1, 3),
-        interrupted,
+        feed.interrupted,
     )

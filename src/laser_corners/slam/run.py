@@ -11,20 +11,23 @@ Scans without a pose are counted (``skipped_no_odometry``) and skipped.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from laser_corners.errors import InputError
 from laser_corners.pipeline.interrupt import stop_requests
-from laser_corners.pipeline.recording import open_recording
+from laser_corners.pipeline.recording import Recording, open_recording
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.scan import LaserScan
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import SlamResult
 from laser_corners.slam.slam import Slam
 
-__all__ = ["run_slam"]
+__all__ = ["OdometryFeed", "odometry_scans", "require_odometry", "run_slam"]
 
 
 def run_slam(
@@ -61,38 +64,61 @@ def run_slam(
     """
     options = options or SlamOptions()
     with open_recording(path, topic) as rec:
-        mounts = getattr(rec.source, "mounts", {})
-        recorded = mounts.get(rec.first.frame_id) or (0.0, 0.0, 0.0)
+        require_odometry(rec, path)
+        recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id) or (0.0, 0.0, 0.0)
         mount = np.asarray(options.mount if options.mount is not None else recorded)
-        if rec.first.pose is None and getattr(rec.source, "odom_topic", "") is None:
-            raise InputError(f"{path}: no odometry (no nav_msgs/Odometry topic, no scan poses)")
         slam = Slam(options, mount)
-        # a bag's scan pose was composed with the recorded mount: undo that one
-        undo: dict[str, np.ndarray] = {}
-        total = rec.source.n_scans
-        skipped = 0
-        interrupted = False
+        feed = OdometryFeed()
         try:
-            with stop_requests() as stop:
-                for i, scan in enumerate(rec.scans()):
-                    if stop.is_set():
-                        interrupted = True
-                        break
-                    if stop_scan is not None and i >= stop_scan:
-                        break
-                    if scan.pose is None or scan.stamp is None:
-                        skipped += 1
-                        continue
-                    if scan.frame_id not in undo:
-                        recorded_mount = mounts.get(scan.frame_id) or (0.0, 0.0, 0.0)
-                        undo[scan.frame_id] = invert_many(recorded_mount)
-                    base = compose_many(np.asarray(scan.pose), undo[scan.frame_id])
-                    slam.add(scan, base, float(scan.stamp))
-                    if progress is not None:
-                        progress(i + 1, total, float(scan.stamp))
+            for i, scan, base in odometry_scans(rec, feed, stop_scan=stop_scan):
+                slam.add(scan, base, float(scan.stamp))
+                if progress is not None:
+                    progress(i + 1, rec.source.n_scans, float(scan.stamp))
         except KeyboardInterrupt:  # a second Ctrl-C, or one before the first scan
-            interrupted = True
-    slam.counts["skipped_no_odometry"] = skipped
-    if slam.counts["scans"] == 0 and not interrupted:
-        raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
-    return slam.result(interrupted=interrupted)
+            feed.interrupted = True
+    slam.counts["skipped_no_odometry"] = feed.skipped
+    if slam.counts["scans"] == 0 and not feed.interrupted:
+        raise InputError(f"{path}: no scan with odometry ({feed.skipped} scans without a pose)")
+    return slam.result(interrupted=feed.interrupted)
+
+
+def require_odometry(rec: Recording, path: str | Path) -> None:
+    """One line when the recording has no odometry at all (no topic, no scan poses)."""
+    if rec.first.pose is None and getattr(rec.source, "odom_topic", "") is None:
+        raise InputError(f"{path}: no odometry (no nav_msgs/Odometry topic, no scan poses)")
+
+
+@dataclass
+class OdometryFeed:
+    """What :func:`odometry_scans` counted: scans without a pose, and a stop by Ctrl-C."""
+
+    skipped: int = 0
+    interrupted: bool = False
+
+
+def odometry_scans(
+    rec: Recording, feed: OdometryFeed, start_scan: int = 0, stop_scan: int | None = None
+) -> Iterator[tuple[int, LaserScan, NDArray[np.float64]]]:
+    """``(index, scan, base odometry pose)`` for the scans ``start_scan`` to ``stop_scan``.
+
+    A bag's scan pose was composed with the recorded mount: that one is undone, per laser
+    frame. Scans without a pose or stamp are counted in ``feed.skipped``; Ctrl-C (checked
+    between two scans) ends the iteration with ``feed.interrupted`` set.
+    """
+    mounts = getattr(rec.source, "mounts", {})
+    undo: dict[str, NDArray[np.float64]] = {}
+    with stop_requests() as stop:
+        for i, scan in enumerate(rec.scans()):
+            if stop.is_set():
+                feed.interrupted = True
+                return
+            if stop_scan is not None and i >= stop_scan:
+                return
+            if i < start_scan:
+                continue
+            if scan.pose is None or scan.stamp is None:
+                feed.skipped += 1
+                continue
+            if scan.frame_id not in undo:
+                undo[scan.frame_id] = invert_many(mounts.get(scan.frame_id) or (0.0, 0.0, 0.0))
+            yield i, scan, compose_many(np.asarray(scan.pose), undo[scan.frame_id])
