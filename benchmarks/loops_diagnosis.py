@@ -49,7 +49,7 @@ from laser_corners.eval.methods import DEFAULT_METHODS
 from laser_corners.eval.real import load_scans
 from laser_corners.eval.revisits import travel_distance
 from laser_corners.matching import KeypointBank, register_pairs
-from laser_corners.matching.kernel_args import Bank, KernelOptions, ScanArrays
+from laser_corners.matching.kernel_args import KernelOptions, Offsets, ScanArrays, Side
 from laser_corners.matching.verify import verify_pose
 from laser_corners.scan import LaserScan, pose_error, relative_pose
 
@@ -66,7 +66,8 @@ pose hypotheses (3000 RANSAC draws) go to the scan check."""
 
 @nb.njit(cache=True, parallel=True)
 def _verifiable(
-    bank: Bank,
+    rows: Side,
+    offsets: Offsets,
     poses: NDArray[np.float64],
     travel: NDArray[np.float64],
     window: float,
@@ -74,8 +75,8 @@ def _verifiable(
     out: NDArray[np.bool_],
 ) -> None:
     """``out[q, c]``: candidate c passes the scan check at the true pose of c in q."""
-    ranges, geom, pts = bank.rows.scan
-    r_off, p_off = bank.range_offsets, bank.point_offsets
+    ranges, geom, pts = rows.ranges, rows.geometry, rows.points
+    r_off, p_off = offsets.ranges, offsets.points
     n = poses.shape[0]
     for q in nb.prange(n):
         cq, sq = math.cos(poses[q, 2]), math.sin(poses[q, 2])
@@ -126,7 +127,7 @@ def diagnose(scans: list[LaserScan], result: LoopsResult) -> None:
     for name, m in result.methods.items():
         bank = loop_bank(scans, detectors[name](scans), cfg)
         ok_pairs = np.zeros((len(scans), len(scans)), dtype=np.bool_)
-        _verifiable(bank.arrays(), poses, travel, cfg.window_travel, check, ok_pairs)
+        _verifiable(*bank.arrays(), poses, travel, cfg.window_travel, check, ok_pairs)
         verifiable = rev & ok_pairs.any(axis=1)
         found = m.correct & (m.best_inliers >= cfg.min_inliers)
         missed = np.flatnonzero(verifiable & ~found)

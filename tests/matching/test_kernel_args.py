@@ -9,6 +9,7 @@ from laser_corners.matching.core import VERIFY_CLIQUE
 from laser_corners.matching.kernel_args import (
     Bank,
     KernelOptions,
+    Offsets,
     ScanArrays,
     Side,
     scan_geometry,
@@ -31,5 +32,6 @@ def test_scan_geometry_names_the_row() -> None:
     assert (g.angle_min, g.angle_increment, g.range_min, g.range_max) == (-1.5, 0.01, 0.1, 30.0)
     # one list of names for a scan's arrays: a side's scan, and a bank's rows (a side of all
     # its scans) with their offsets
-    assert Side._fields[-1] == "scan" and ScanArrays._fields == ("ranges", "geometry", "points")
-    assert Bank._fields == ("rows", "offsets", "range_offsets", "point_offsets")
+    assert Side._fields[-3:] == ScanArrays._fields == ("ranges", "geometry", "points")
+    assert Bank._fields == ("rows", "offsets")
+    assert Offsets._fields == ("keypoints", "ranges", "points")

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching.descriptors import Descriptors
-from laser_corners.matching.kernel_args import Bank, ScanArrays, Side
+from laser_corners.matching.kernel_args import Bank, Offsets, Side
 from laser_corners.matching.registration import MatchOptions, _check_pair
 from laser_corners.matching.solve import register_batch
 from laser_corners.matching.verify import scan_arrays
@@ -50,9 +50,8 @@ class KeypointBank:
     """Keypoints, descriptors and (optionally) scans of many scans in flat arrays.
 
     Build it once per log with :meth:`from_lists`; ``data`` holds the arrays as the kernels
-    read them (:class:`~laser_corners.matching.kernel_args.Bank`: scan ``c`` owns keypoint
-    rows ``offsets[c]:offsets[c+1]``, ranges ``range_offsets[c]:...`` and check points
-    ``point_offsets[c]:...``).
+    read them (:class:`~laser_corners.matching.kernel_args.Bank`: the rows of every scan and
+    where each scan's rows start).
     """
 
     kind: str
@@ -61,11 +60,11 @@ class KeypointBank:
     has_scans: bool = False
 
     def __len__(self) -> int:
-        return int(self.data.offsets.shape[0] - 1)
+        return int(self.data.offsets.keypoints.shape[0] - 1)
 
     def counts(self) -> NDArray[np.int64]:
         """Keypoints per scan."""
-        return np.diff(self.data.offsets)
+        return np.diff(self.data.offsets.keypoints)
 
     def arrays(self) -> Bank:
         """The bank as the kernels' :class:`~laser_corners.matching.kernel_args.Bank`."""
@@ -105,18 +104,16 @@ class KeypointBank:
             _flat([k.opening_angle_deg for k in keypoints], (0,), np.float64),
             _flat([d.bits for d in descriptors], (0, 0), np.uint64),
             _flat([d.values for d in descriptors], (0, 0), np.float64),
-            ScanArrays(
-                _flat([a.ranges for a in arr], (0,), np.float64),
-                _flat([a.geometry[None, :] for a in arr], (n, 4), np.float64),
-                _flat([a.points for a in arr], (0, 2), np.float64),
-            ),
+            _flat([a.ranges for a in arr], (0,), np.float64),
+            _flat([a.geometry[None, :] for a in arr], (n, 4), np.float64),
+            _flat([a.points for a in arr], (0, 2), np.float64),
         )
-        data = Bank(
-            rows,
+        offsets = Offsets(
             _offsets([len(k) for k in keypoints]),
             _offsets([len(a.ranges) for a in arr] if arr else [0] * n),
             _offsets([len(a.points) for a in arr] if arr else [0] * n),
         )
+        data = Bank(rows, offsets)
         return cls(descriptors[0].kind, descriptors[0].n_bits, data, scans is not None)
 
 
@@ -171,8 +168,8 @@ def _run(
     register_batch(
         1 if bank_b.kind == "csc" else 0,
         inv_bits,
-        bank_a.arrays(),
-        bank_b.arrays(),
+        *bank_a.data,
+        *bank_b.data,
         qa,
         cb,
         options.kernel_options(bank_b.kind),

@@ -250,7 +250,7 @@ def side_arrays(k: Keypoints, d: Descriptors, scan: ScanArrays = NO_SCAN) -> Sid
         np.ascontiguousarray(k.opening_angle_deg, dtype=np.float64),
         np.ascontiguousarray(d.bits),
         np.ascontiguousarray(d.values),
-        scan,
+        *scan,
     )
 
 

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from laser_corners.matching.clique import max_clique
 from laser_corners.matching.core import VERIFY_CLIQUE, ransac
-from laser_corners.matching.kernel_args import Bank, KernelOptions, ScanArrays, Side
+from laser_corners.matching.kernel_args import KernelOptions, Offsets, Side, side_scan
 from laser_corners.matching.nearest import candidate_matches
 from laser_corners.matching.verify import precheck, verify_pose
 from laser_corners.pose import wrap_angle
@@ -355,14 +355,14 @@ def register_pair(
     for h in range(nk):
         if counts[h] < need:
             break
-        if not precheck(a.scan, b.scan, (hyp[h, 0], hyp[h, 1], hyp[h, 2]), options):
+        if not precheck(side_scan(a), side_scan(b), (hyp[h, 0], hyp[h, 1], hyp[h, 2]), options):
             status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
             continue
         n_sel, tx, ty, th = _refine(a, b, m, n, hyp[h], options, need, sel, pose_cov)
         best_n = max(best_n, n_sel)
         if n_sel < need:
             continue
-        agreement, (tx, ty, th) = verify_pose(a.scan, b.scan, (tx, ty, th), options)
+        agreement, (tx, ty, th) = verify_pose(side_scan(a), side_scan(b), (tx, ty, th), options)
         if agreement < 0.0:
             status = SCAN_DISAGREES
             continue
@@ -375,12 +375,11 @@ def register_pair(
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _side(bank: Bank, s: int) -> Side:
-    """Scan ``s`` of a bank as a side."""
-    rows = bank.rows
-    lo, hi = bank.offsets[s], bank.offsets[s + 1]
-    r0, r1 = bank.range_offsets[s], bank.range_offsets[s + 1]
-    p0, p1 = bank.point_offsets[s], bank.point_offsets[s + 1]
+def _side(rows: Side, offsets: Offsets, s: int) -> Side:
+    """Scan ``s`` of a bank (its ``rows`` and ``offsets``) as a side."""
+    lo, hi = offsets.keypoints[s], offsets.keypoints[s + 1]
+    r0, r1 = offsets.ranges[s], offsets.ranges[s + 1]
+    p0, p1 = offsets.points[s], offsets.points[s + 1]
     return Side(
         rows.xy[lo:hi],
         rows.cov[lo:hi],
@@ -388,7 +387,9 @@ def _side(bank: Bank, s: int) -> Side:
         rows.opening[lo:hi],
         rows.bits[lo:hi],
         rows.values[lo:hi],
-        ScanArrays(rows.scan.ranges[r0:r1], rows.scan.geometry[s], rows.scan.points[p0:p1]),
+        rows.ranges[r0:r1],
+        rows.geometry[s],
+        rows.points[p0:p1],
     )
 
 
@@ -396,8 +397,10 @@ def _side(bank: Bank, s: int) -> Side:
 def register_batch(
     kind: int,
     inv_bits: float,
-    bank_a: Bank,
-    bank_b: Bank,
+    rows_a: Side,
+    offsets_a: Offsets,
+    rows_b: Side,
+    offsets_b: Offsets,
     qa: NDArray[np.int64],
     cb: NDArray[np.int64],
     options: KernelOptions,
@@ -407,11 +410,13 @@ def register_batch(
     pose_covs: NDArray[np.float64],
     agreement: NDArray[np.float64],
 ) -> None:
-    """:func:`register_pair` of scan ``qa[t]`` of ``bank_a`` (A) and scan ``cb[t]`` of
-    ``bank_b`` (B) for every t, in parallel; outputs are indexed by t."""
+    """:func:`register_pair` of scan ``qa[t]`` of bank A and scan ``cb[t]`` of bank B for
+    every t, in parallel; outputs are indexed by t. A bank comes as its
+    :class:`~laser_corners.matching.kernel_args.Bank` ``rows`` and ``offsets`` (numba's
+    parallel loops take flat tuples only)."""
     for t in nb.prange(qa.shape[0]):
-        a = _side(bank_a, qa[t])
-        b = _side(bank_b, cb[t])
+        a = _side(rows_a, offsets_a, qa[t])
+        b = _side(rows_b, offsets_b, cb[t])
         inl = np.empty((max(min(a.xy.shape[0], b.xy.shape[0]), 1), 2), dtype=np.int64)
         st, k, _, agr = register_pair(kind, inv_bits, a, b, options, poses[t], pose_covs[t], inl)
         status[t] = st
