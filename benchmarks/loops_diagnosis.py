@@ -49,7 +49,7 @@ from laser_corners.eval.methods import DEFAULT_METHODS
 from laser_corners.eval.real import load_scans
 from laser_corners.eval.revisits import travel_distance
 from laser_corners.matching import KeypointBank, register_pairs
-from laser_corners.matching.kernel_args import Bank, KernelOptions
+from laser_corners.matching.kernel_args import KernelOptions, Offsets, ScanArrays, Side
 from laser_corners.matching.verify import verify_pose
 from laser_corners.scan import LaserScan, pose_error, relative_pose
 
@@ -66,7 +66,8 @@ pose hypotheses (3000 RANSAC draws) go to the scan check."""
 
 @nb.njit(cache=True, parallel=True)
 def _verifiable(
-    bank: Bank,
+    rows: Side,
+    offsets: Offsets,
     poses: NDArray[np.float64],
     travel: NDArray[np.float64],
     window: float,
@@ -74,29 +75,23 @@ def _verifiable(
     out: NDArray[np.bool_],
 ) -> None:
     """``out[q, c]``: candidate c passes the scan check at the true pose of c in q."""
-    ranges, r_off, geom = bank.ranges, bank.range_offsets, bank.geometry
-    pts, p_off = bank.points, bank.point_offsets
+    ranges, geom, pts = rows.ranges, rows.geometry, rows.points
+    r_off, p_off = offsets.ranges, offsets.points
     n = poses.shape[0]
     for q in nb.prange(n):
         cq, sq = math.cos(poses[q, 2]), math.sin(poses[q, 2])
+        scan_q = ScanArrays(ranges[r_off[q] : r_off[q + 1]], geom[q], pts[p_off[q] : p_off[q + 1]])
         for c in range(n):
             if abs(travel[c] - travel[q]) < window:
                 continue
             dx, dy = poses[c, 0] - poses[q, 0], poses[c, 1] - poses[q, 1]
             if dx * dx + dy * dy > 400.0:  # 20 m: no overlap on these logs
                 continue
-            agreement, _, _, _ = verify_pose(
-                ranges[r_off[q] : r_off[q + 1]],
-                geom[q],
-                pts[p_off[q] : p_off[q + 1]],
-                ranges[r_off[c] : r_off[c + 1]],
-                geom[c],
-                pts[p_off[c] : p_off[c + 1]],
-                cq * dx + sq * dy,
-                -sq * dx + cq * dy,
-                poses[c, 2] - poses[q, 2],
-                options,
+            scan_c = ScanArrays(
+                ranges[r_off[c] : r_off[c + 1]], geom[c], pts[p_off[c] : p_off[c + 1]]
             )
+            pose = (cq * dx + sq * dy, -sq * dx + cq * dy, poses[c, 2] - poses[q, 2])
+            agreement, _ = verify_pose(scan_q, scan_c, pose, options)
             out[q, c] = agreement >= 0.0
 
 
@@ -132,7 +127,7 @@ def diagnose(scans: list[LaserScan], result: LoopsResult) -> None:
     for name, m in result.methods.items():
         bank = loop_bank(scans, detectors[name](scans), cfg)
         ok_pairs = np.zeros((len(scans), len(scans)), dtype=np.bool_)
-        _verifiable(bank.arrays(), poses, travel, cfg.window_travel, check, ok_pairs)
+        _verifiable(*bank.arrays(), poses, travel, cfg.window_travel, check, ok_pairs)
         verifiable = rev & ok_pairs.any(axis=1)
         found = m.correct & (m.best_inliers >= cfg.min_inliers)
         missed = np.flatnonzero(verifiable & ~found)

@@ -41,7 +41,7 @@ from laser_corners.options import Options
         (lambda: DescriptorParams("bsc", radius=-1.0), "DescriptorParams.radius"),
         (lambda: FalkoLikeParams(sectors=2), "FalkoLikeParams.sectors"),
         (lambda: SplitAndMergeParams(min_points=1), "SplitAndMergeParams.min_points"),
-        (lambda: MatchOptions(bogus=1), "MatchOptions.bogus: extra inputs are not permitted"),
+        (lambda: MatchOptions(bogus=1), "unknown match option 'bogus'; known: min_inliers,"),
     ],
 )
 def test_errors_name_the_field_and_the_range_in_one_line(build, message: str) -> None:
@@ -87,3 +87,75 @@ def test_params_choice_is_the_one_preset_plus_overrides() -> None:
     # the evaluation config holds a choice; the old preset/overrides keywords still work
     cfg = RealEvalConfig(preset="auto", overrides=("min_points=6",))
     assert cfg.detector == auto and cfg.preset == "auto" and cfg.overrides == ("min_points=6",)
+
+
+def _slam_options() -> type[Options]:
+    from laser_corners.slam.options import SlamOptions
+
+    return SlamOptions
+
+
+def _localise_options() -> type[Options]:
+    from laser_corners.localise import LocaliseOptions
+
+    return LocaliseOptions
+
+
+def _mapping_config() -> type[Options]:
+    from laser_corners.ros.slam_core import MappingConfig
+
+    return MappingConfig
+
+
+@pytest.mark.parametrize(
+    ("options", "what"),
+    [
+        (lambda: DetectorParams, "parameter"),
+        (lambda: MatchOptions, "match option"),
+        (_slam_options, "option"),
+        (_localise_options, "option"),
+        (_mapping_config, "parameter"),
+    ],
+)
+def test_an_unknown_key_reads_the_same_everywhere(options, what: str) -> None:
+    # the constructor, a mapping (YAML, ROS parameters) and key=value overrides all say
+    # "unknown <what> 'x'; known: <every field>" (the constructor used to say "x: Extra
+    # inputs are not permitted", and MappingConfig "unknown ROS 2 parameter x")
+    cls = options()
+    known = "known: " + ", ".join(cls.model_fields)
+    shape = f"unknown {what} 'bgus'; {known}"
+    with pytest.raises(InvalidParamsError) as info:
+        cls(bgus=1)
+    assert str(info.value) == shape
+    with pytest.raises(InvalidParamsError) as info:
+        cls.from_mapping({"bgus": 1}, "f.yaml")
+    assert str(info.value) == f"f.yaml: {shape}"
+    with pytest.raises(InvalidParamsError) as info:
+        cls().with_overrides(["bgus=1"])
+    assert str(info.value) == shape
+    with pytest.raises(InvalidParamsError) as info:  # several at once: one line names them all
+        cls.from_mapping({"bgus": 1, "zz": 2}, "f.yaml")
+    assert str(info.value) == f"f.yaml: unknown {what} 'bgus', 'zz'; {known}"
+
+
+def test_ros_node_parameters_say_unknown_keys_the_same_way() -> None:
+    from laser_corners.ros.node_core import NodeConfig, parameter_names
+    from laser_corners.ros.slam_core import MappingConfig
+
+    known = "known: " + ", ".join(parameter_names())
+    with pytest.raises(InvalidParamsError) as info:
+        NodeConfig.from_mapping({"min_pionts": 4}, source="ROS 2 parameter", prefix="")
+    assert str(info.value) == f"ROS 2 parameters: unknown parameter 'min_pionts'; {known}"
+    with pytest.raises(InvalidParamsError) as info:
+        NodeConfig.from_mapping({"min_pionts": 4})  # ROS 1: private names
+    assert str(info.value) == f"ROS parameters: unknown parameter '~min_pionts'; {known}"
+    with pytest.raises(InvalidParamsError) as info:
+        MappingConfig.from_mapping({"mode": "slam", "mape": "x"})
+    known = "known: " + ", ".join(MappingConfig.model_fields)
+    assert str(info.value) == f"ROS 2 parameters: unknown parameter 'mape'; {known}"
+    # the other checks of the mapping modes name the parameter in the same line form
+    with pytest.raises(InvalidParamsError, match=r"^ROS 2 parameters: mount: expected \[x, y"):
+        MappingConfig.from_mapping({"mount": [1.0, 2.0]})
+    with pytest.raises(InvalidParamsError, match=r"^ROS 2 parameters: map: mode localise needs"):
+        MappingConfig.from_mapping({"mode": "localise"})
+    assert MappingConfig().map_period == 5.0 and MappingConfig.from_mapping({}).mode == "slam"

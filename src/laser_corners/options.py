@@ -27,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 
 from laser_corners.errors import InvalidParamsError
 
-__all__ = ["Options"]
+__all__ = ["Options", "unknown_keys"]
 
 
 class Options(BaseModel):
@@ -135,8 +135,7 @@ def parse_assignments(
         field = cls.model_fields.get(head)
         nested = _options_type(field.annotation) if field is not None else None
         if field is None or (rest and nested is None):
-            known = ", ".join(cls.model_fields)
-            raise InvalidParamsError(f"unknown {cls.what} {key!r}; known: {known}")
+            raise InvalidParamsError(unknown_keys(cls, [key]))
         if rest:
             assert nested is not None
             updates.setdefault(head, {}).update(parse_assignments(nested, {rest: value}))
@@ -185,19 +184,46 @@ def _as_tuple(cls: type[Options], key: str, value: Any) -> Any:
     return (value,)
 
 
+def unknown_keys(cls: type[Options], keys: Iterable[str]) -> str:
+    """The one message of unknown keys: ``unknown <what> 'x'; known: a, b, ...`` (the
+    :attr:`Options.what` and fields of ``cls``), for :meth:`Options.with_overrides`, the
+    constructor and :meth:`Options.from_mapping` alike."""
+    names = ", ".join(repr(k) for k in keys)
+    return f"unknown {cls.what} {names}; known: {', '.join(cls.model_fields)}"
+
+
+def _owner(cls: type[Options], loc: list[str]) -> tuple[type[Options], str]:
+    """The options class that holds the unknown key at ``loc`` (nested options fields are
+    followed) and the key as that class names it."""
+    for i, name in enumerate(loc[:-1]):
+        field = cls.model_fields.get(name)
+        nested = _options_type(field.annotation) if field is not None else None
+        if nested is None:
+            return cls, ".".join(loc[i:])
+        cls = nested
+    return cls, loc[-1]
+
+
 def one_line(exc: ValidationError, cls: type[Options]) -> str:
-    """A pydantic validation error as one line: ``field: message, got value; ...``."""
+    """A pydantic validation error as one line: ``field: message, got value; ...``; unknown
+    fields first, as :func:`unknown_keys` says them."""
+    unknown: dict[type[Options], list[str]] = {}
     parts = []
     for error in exc.errors():
         loc = [str(p) for p in error.get("loc", ()) if not isinstance(p, int)]
+        kind = error.get("type", "")
+        if kind == "extra_forbidden" and loc:
+            owner, key = _owner(cls, loc)
+            unknown.setdefault(owner, []).append(key)
+            continue
         field = ".".join(loc)
         where = f"{cls.title}.{field}" if cls.title and field else field or cls.title
         message = str(error.get("msg", "invalid")).removeprefix("Value error, ")
-        kind = error.get("type", "")
         if loc and loc[0] in cls.tuple_hints and kind != "value_error":
             message = f"expected {cls.tuple_hints[loc[0]]} ({message})"
             where = loc[0]
         elif kind not in ("value_error", "missing", "extra_forbidden") and "input" in error:
             message = f"{message[:1].lower()}{message[1:]}, got {error['input']!r}"
         parts.append(f"{where or 'parameters'}: {message}")
-    return "; ".join(dict.fromkeys(parts))
+    first = [unknown_keys(owner, keys) for owner, keys in unknown.items()]
+    return "; ".join(dict.fromkeys([*first, *parts]))

@@ -431,7 +431,8 @@ def test_help_loads_no_numerics() -> None:
     code = (
         "import sys\nsys.argv = ['laser-corners', '--help']\nfrom laser_corners.cli import main\n"
         "try:\n    main()\nexcept SystemExit:\n    pass\n"
-        "print(sorted(m for m in ('numpy', 'numba', 'scipy', 'matplotlib', 'pydantic') "
+        "print(sorted(m for m in ('numpy', 'numba', 'scipy', 'matplotlib', 'pydantic', "
+        "'yaml', 'rich.progress') "
         "if m in sys.modules), file=sys.stderr)"
     )
     process = subprocess.run(

@@ -6,7 +6,14 @@ import numpy as np
 
 from laser_corners.matching import MatchOptions
 from laser_corners.matching.core import VERIFY_CLIQUE
-from laser_corners.matching.kernel_args import KernelOptions, Side, scan_geometry
+from laser_corners.matching.kernel_args import (
+    Bank,
+    KernelOptions,
+    Offsets,
+    ScanArrays,
+    Side,
+    scan_geometry,
+)
 
 
 def test_kernel_options_carry_the_match_option_names() -> None:
@@ -23,4 +30,8 @@ def test_kernel_options_carry_the_match_option_names() -> None:
 def test_scan_geometry_names_the_row() -> None:
     g = scan_geometry(np.array([-1.5, 0.01, 0.1, 30.0]))
     assert (g.angle_min, g.angle_increment, g.range_min, g.range_max) == (-1.5, 0.01, 0.1, 30.0)
-    assert Side._fields[-3:] == ("ranges", "geometry", "points")
+    # one list of names for a scan's arrays: a side's scan, and a bank's rows (a side of all
+    # its scans) with their offsets
+    assert Side._fields[-3:] == ScanArrays._fields == ("ranges", "geometry", "points")
+    assert Bank._fields == ("rows", "offsets")
+    assert Offsets._fields == ("keypoints", "ranges", "points")

@@ -41,21 +41,21 @@ def test_check_accepts_truth_refines_and_rejects(room: World) -> None:
     a = scan_arrays(room.scan(pa, noise_sigma=0.01, rng=rng))
     b = scan_arrays(room.scan(pb, noise_sigma=0.01, rng=rng))
     truth = _relative(pa, pb)
-    agreement, *pose = verify_pose(*a, *b, *truth, VOPT)
+    agreement, pose = verify_pose(a, b, tuple(truth), VOPT)
     assert agreement > 0.6
     assert np.allclose(pose, truth, atol=0.01)
     # a pose 8 cm and 1.5 deg off is pulled back by the alignment
     off = truth + np.array([0.06, -0.05, math.radians(1.5)])
-    agreement, *pose = verify_pose(*a, *b, *off, VOPT)
+    agreement, pose = verify_pose(a, b, tuple(off), VOPT)
     assert agreement > 0.6
     assert np.hypot(*(np.array(pose[:2]) - truth[:2])) < 0.01
     assert abs(pose[2] - truth[2]) < math.radians(0.3)
     # wrong poses: shifted by 1 m, turned by 0.5 rad, or turned around
     shifts = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.5], [0.0, 0.0, math.pi]])
     for wrong in truth + shifts:
-        assert verify_pose(*a, *b, *wrong, VOPT)[0] < 0.0, wrong
+        assert verify_pose(a, b, tuple(wrong), VOPT)[0] < 0.0, wrong
     # disabled: 1.0 and the pose unchanged
-    assert verify_pose(*a, *b, *off, VOPT._replace(verify_scan=False)) == (1.0, *off)
+    assert verify_pose(a, b, tuple(off), VOPT._replace(verify_scan=False)) == (1.0, tuple(off))
 
 
 def test_agreement_counts_agree_and_conflict() -> None:
@@ -65,11 +65,11 @@ def test_agreement_counts_agree_and_conflict() -> None:
     ranges = 2.0 / np.cos(angles)
     geom = np.array([angles[0], angles[1] - angles[0], 0.05, 30.0])
     pts = np.array([[1.0, 0.0], [2.0, 0.1], [2.0, -0.3], [3.0, 0.0], [0.0, 2.0]])
-    tested, agree, conflict = scan_agreement(ranges, geom, pts, 0.0, 0.0, 0.0, 0.1, 10)
+    tested, agree, conflict = scan_agreement(ranges, geom, pts, (0.0, 0.0, 0.0), 0.1, 10)
     assert (tested, agree, conflict) == (4, 2, 1)  # (0, 2) is outside A's field of view
     # one straight wall does not fix the pose (sliding along it): the alignment leaves it
     wall = np.stack([ranges * np.cos(angles), ranges * np.sin(angles)], axis=1)
-    assert align(ranges, geom, wall, 0.15, 0.0, 0.0, 3, 0.4) == (0.15, 0.0, 0.0)
+    assert align(ranges, geom, wall, (0.15, 0.0, 0.0), 3, 0.4) == (0.15, 0.0, 0.0)
 
 
 def test_register_with_scan_check(room: World) -> None:

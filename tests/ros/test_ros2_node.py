@@ -342,7 +342,7 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
     ("arg", "message"),
     [
         ("min_points:=1", "min_points: must be in [2, 10000]"),
-        ("min_pionts:=4", "unknown ROS 2 parameter min_pionts"),
+        ("min_pionts:=4", "ROS 2 parameters: unknown parameter 'min_pionts'"),
         ("preset:=nope", "ROS 2 parameter preset: unknown preset 'nope'"),
     ],
 )

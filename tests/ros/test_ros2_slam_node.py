@@ -454,10 +454,10 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     ("args", "message"),
     [
         (["-p", "mode:=mapping"], "ROS 2 parameter mode: unknown mode 'mapping'"),
-        (["-p", "mode:=slam", "-p", "mape:=x"], "unknown ROS 2 parameter mape"),
+        (["-p", "mode:=slam", "-p", "mape:=x"], "ROS 2 parameters: unknown parameter 'mape'"),
         (["-p", "mode:=localise"], "map: mode localise needs -p map:=DIR"),
         (["-p", "mode:=localise", "-p", "map:=/nonexistent/map"], "/nonexistent/map: no such"),
-        (["-p", "mode:=slam", "-p", "map_period:=-1.0"], "ROS 2 parameter map_period"),
+        (["-p", "mode:=slam", "-p", "map_period:=-1.0"], "ROS 2 parameters: map_period"),
     ],
 )
 def test_mapping_modes_refuse_bad_parameters(ros2: Ros2, args: list[str], message: str) -> None:

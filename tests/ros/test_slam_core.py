@@ -215,7 +215,7 @@ def test_write_map_writes_the_slam_folder(tmp_path) -> None:
 @pytest.mark.parametrize(
     ("values", "message"),
     [
-        ({"mode": "slam", "mape": "x"}, "unknown ROS 2 parameter mape"),
+        ({"mode": "slam", "mape": "x"}, "ROS 2 parameters: unknown parameter 'mape'"),
         ({"mode": "slam", "mount": [1.0, 2.0]}, "mount: expected [x, y, yaw]"),
         ({"mode": "localise"}, "map: mode localise needs -p map:=DIR"),
         ({"mode": "slam", "map_period": 0.0}, "map_period"),

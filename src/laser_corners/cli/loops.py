@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from laser_corners.cli.app import evaluate_app
 from laser_corners.cli.common import InputArg, TopicOption, new_folder, quoted
@@ -108,6 +107,15 @@ class _Phases:
     line per phase on stderr otherwise (a bar off a terminal shows nothing until the end)."""
 
     def __init__(self, console: Console) -> None:
+        # rich.progress only when the command runs (not for --help)
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
+
         self.console = console
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn())
         self.bar = Progress(*columns, TimeElapsedColumn(), console=console, transient=True)

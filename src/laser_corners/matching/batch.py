@@ -18,7 +18,7 @@ thousands of scans is dominated by the pairs that reach the geometry and the sca
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from laser_corners.errors import InvalidScanError
 from laser_corners.keypoints import Keypoints
 from laser_corners.matching.descriptors import Descriptors
-from laser_corners.matching.kernel_args import Bank
+from laser_corners.matching.kernel_args import Bank, Offsets, Side
 from laser_corners.matching.registration import MatchOptions, _check_pair
 from laser_corners.matching.solve import register_batch
 from laser_corners.matching.verify import scan_arrays
@@ -49,50 +49,26 @@ def _offsets(counts: Sequence[int]) -> NDArray[np.int64]:
 class KeypointBank:
     """Keypoints, descriptors and (optionally) scans of many scans in flat arrays.
 
-    Build it once per log with :meth:`from_lists`; scan ``c`` owns keypoint rows
-    ``offsets[c]:offsets[c+1]``, ranges ``range_offsets[c]:...`` and check points
-    ``point_offsets[c]:...``.
+    Build it once per log with :meth:`from_lists`; ``data`` holds the arrays as the kernels
+    read them (:class:`~laser_corners.matching.kernel_args.Bank`: the rows of every scan and
+    where each scan's rows start).
     """
 
     kind: str
     n_bits: int
-    xy: NDArray[np.float64]
-    cov: NDArray[np.float64]
-    orientation: NDArray[np.float64]
-    opening: NDArray[np.float64]
-    bits: NDArray[np.uint64]
-    values: NDArray[np.float64]
-    offsets: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, np.int64))
-    ranges: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
-    range_offsets: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, np.int64))
-    geometry: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
-    points: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
-    point_offsets: NDArray[np.int64] = field(default_factory=lambda: np.zeros(1, np.int64))
+    data: Bank
     has_scans: bool = False
 
     def __len__(self) -> int:
-        return int(self.offsets.shape[0] - 1)
+        return int(self.data.offsets.keypoints.shape[0] - 1)
 
     def counts(self) -> NDArray[np.int64]:
         """Keypoints per scan."""
-        return np.diff(self.offsets)
+        return np.diff(self.data.offsets.keypoints)
 
     def arrays(self) -> Bank:
         """The bank as the kernels' :class:`~laser_corners.matching.kernel_args.Bank`."""
-        return Bank(
-            self.xy,
-            self.cov,
-            self.orientation,
-            self.opening,
-            self.bits,
-            self.values,
-            self.offsets,
-            self.ranges,
-            self.range_offsets,
-            self.geometry,
-            self.points,
-            self.point_offsets,
-        )
+        return self.data
 
     @classmethod
     def from_lists(
@@ -121,23 +97,24 @@ class KeypointBank:
                 )
         n = len(keypoints)
         arr = [scan_arrays(s, scan_points) for s in scans] if scans is not None else []
-        return cls(
-            descriptors[0].kind,
-            descriptors[0].n_bits,
+        rows = Side(
             _flat([k.xy for k in keypoints], (0, 2), np.float64),
             _flat([k.cov for k in keypoints], (0, 2, 2), np.float64),
             _flat([k.orientation for k in keypoints], (0,), np.float64),
             _flat([k.opening_angle_deg for k in keypoints], (0,), np.float64),
             _flat([d.bits for d in descriptors], (0, 0), np.uint64),
             _flat([d.values for d in descriptors], (0, 0), np.float64),
-            _offsets([len(k) for k in keypoints]),
-            _flat([a[0] for a in arr], (0,), np.float64),
-            _offsets([len(a[0]) for a in arr] if arr else [0] * n),
-            _flat([a[1][None, :] for a in arr], (n, 4), np.float64),
-            _flat([a[2] for a in arr], (0, 2), np.float64),
-            _offsets([len(a[2]) for a in arr] if arr else [0] * n),
-            scans is not None,
+            _flat([a.ranges for a in arr], (0,), np.float64),
+            _flat([a.geometry[None, :] for a in arr], (n, 4), np.float64),
+            _flat([a.points for a in arr], (0, 2), np.float64),
         )
+        offsets = Offsets(
+            _offsets([len(k) for k in keypoints]),
+            _offsets([len(a.ranges) for a in arr] if arr else [0] * n),
+            _offsets([len(a.points) for a in arr] if arr else [0] * n),
+        )
+        data = Bank(rows, offsets)
+        return cls(descriptors[0].kind, descriptors[0].n_bits, data, scans is not None)
 
 
 @dataclass(frozen=True)
@@ -191,8 +168,8 @@ def _run(
     register_batch(
         1 if bank_b.kind == "csc" else 0,
         inv_bits,
-        bank_a.arrays(),
-        bank_b.arrays(),
+        *bank_a.data,
+        *bank_b.data,
         qa,
         cb,
         options.kernel_options(bank_b.kind),

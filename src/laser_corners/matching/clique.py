@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.matching.core import _pair_fast, _prepare, cos_tolerance
-from laser_corners.matching.kernel_args import KernelOptions
+from laser_corners.matching.kernel_args import KernelOptions, Side
 from laser_corners.matching.nearest import _popcount
 
 # exact maximum clique up to this many candidate matches (bitsets of one uint64 word)
@@ -19,13 +19,11 @@ CLIQUE_BUDGET = 20000
 
 @nb.njit(cache=True, nogil=True)
 def max_clique(
-    xa: NDArray[np.float64],
-    xb: NDArray[np.float64],
+    a: Side,
+    b: Side,
     m: NDArray[np.int64],
     n: int,
     members: NDArray[np.int64],
-    oa: NDArray[np.float64],
-    ob: NDArray[np.float64],
     options: KernelOptions,
 ) -> int:
     """Largest set of pairwise-consistent matches (FALKO's CCDA); returns its size.
@@ -36,7 +34,7 @@ def max_clique(
     """
     if n == 0:
         return 0
-    da, db, rot = _prepare(xa, xb, m, n, oa, ob)
+    da, db, rot = _prepare(a.xy, b.xy, m, n, a.orientation, b.orientation)
     tol = options.tolerance
     cos_tol = cos_tolerance(options.angle_tolerance)
     if n > CLIQUE_EXACT_MAX:

@@ -15,7 +15,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.matching.kernel_args import KernelOptions
+from laser_corners.matching.kernel_args import KernelOptions, Side
 from laser_corners.pose import wrap_angle
 
 # verification modes
@@ -219,12 +219,10 @@ def _single_point_hypotheses(xa, xb, m, n: int, rot, tol: float, cos_tol: float,
 
 @nb.njit(cache=True, nogil=True)
 def ransac(
-    xa: NDArray[np.float64],
-    xb: NDArray[np.float64],
+    a: Side,
+    b: Side,
     m: NDArray[np.int64],
     n: int,
-    oa: NDArray[np.float64],
-    ob: NDArray[np.float64],
     options: KernelOptions,
     poses: NDArray[np.float64],
     counts: NDArray[np.int64],
@@ -237,13 +235,15 @@ def ransac(
     (two-point alignment): all pairs when there are at most ``options.iterations`` of them,
     else that many pairs drawn by a xorshift generator seeded with ``options.seed``
     (deterministic). ``poses`` (K, 3) and ``counts`` (K) receive the K best distinct ones,
-    best first; returns how many.
+    best first; returns how many. ``a`` and ``b``: the two sides (keypoint positions and
+    orientations), ``m``: the candidate matches, ``n`` of them.
     """
+    xa, xb = a.xy, b.xy
     tol = options.tolerance
     costs = np.empty(counts.shape[0])
     nk = 0
     tol2 = tol * tol
-    da, db, rot = _prepare(xa, xb, m, n, oa, ob)
+    da, db, rot = _prepare(xa, xb, m, n, a.orientation, b.orientation)
     cos_tol = cos_tolerance(options.angle_tolerance)
     if options.single_point:
         kept = (poses, counts, costs)

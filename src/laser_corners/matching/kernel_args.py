@@ -6,7 +6,8 @@ innermost kernel (``options.scan_tolerance``). :meth:`MatchOptions.kernel_option
 <laser_corners.matching.MatchOptions.kernel_options>` is the one conversion into
 :class:`KernelOptions`; :func:`~laser_corners.matching.registration.side_arrays` and
 :meth:`KeypointBank.arrays <laser_corners.matching.KeypointBank.arrays>` build the
-:class:`Side` and :class:`Bank` tuples.
+:class:`Side` and :class:`Bank` tuples (a bank's arrays are a :class:`Side` of all its scans
+with :class:`Offsets`, so the arrays of a scan have one list of names).
 """
 
 from __future__ import annotations
@@ -17,7 +18,16 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Bank", "KernelOptions", "ScanGeometry", "Side", "scan_geometry"]
+__all__ = [
+    "Bank",
+    "KernelOptions",
+    "Offsets",
+    "ScanArrays",
+    "ScanGeometry",
+    "Side",
+    "scan_geometry",
+    "side_scan",
+]
 
 
 class KernelOptions(NamedTuple):
@@ -51,12 +61,21 @@ class KernelOptions(NamedTuple):
     align_iterations: int
 
 
-class Side(NamedTuple):
-    """One scan's keypoints, descriptors and (for the scan check) scan arrays.
+class ScanArrays(NamedTuple):
+    """One scan as the scan check reads it (:func:`~laser_corners.matching.verify.scan_arrays`):
+    ``ranges`` (NaN where a beam has no valid return), ``geometry`` ``(angle_min,
+    angle_increment, range_min, range_max)`` and ``points``, the valid points evenly thinned
+    (sensor frame). Empty arrays without a scan (the check must then be off)."""
 
-    ``ranges``, ``geometry`` and ``points`` are those of
-    :func:`~laser_corners.matching.verify.scan_arrays` (empty without a scan).
-    """
+    ranges: NDArray[np.float64]
+    geometry: NDArray[np.float64]
+    points: NDArray[np.float64]
+
+
+class Side(NamedTuple):
+    """One scan's keypoints, descriptors and (for the scan check) its :class:`ScanArrays`
+    fields, flat (numba's parallel loops take tuples of arrays, not tuples of tuples);
+    :func:`side_scan` gives the scan part."""
 
     xy: NDArray[np.float64]
     cov: NDArray[np.float64]
@@ -67,25 +86,32 @@ class Side(NamedTuple):
     ranges: NDArray[np.float64]
     geometry: NDArray[np.float64]
     points: NDArray[np.float64]
+
+
+class Offsets(NamedTuple):
+    """Where each scan's rows start in a :class:`Bank`: scan ``s`` owns keypoint rows
+    ``keypoints[s]:keypoints[s+1]``, ranges ``ranges[s]:...`` and check points
+    ``points[s]:...`` (its geometry is row ``s``)."""
+
+    keypoints: NDArray[np.int64]
+    ranges: NDArray[np.int64]
+    points: NDArray[np.int64]
 
 
 class Bank(NamedTuple):
-    """Many scans in flat arrays (:class:`~laser_corners.matching.KeypointBank`): scan ``s``
-    owns keypoint rows ``offsets[s]:offsets[s+1]``, ranges ``range_offsets[s]:...``, geometry
-    row ``s`` and check points ``point_offsets[s]:...``."""
+    """Many scans in flat arrays (:class:`~laser_corners.matching.KeypointBank`): ``rows``
+    is a :class:`Side` of every scan's arrays one after the other (geometry one row per
+    scan), ``offsets`` says where each scan's rows are. A parallel kernel takes the two
+    as separate arguments (numba's parallel loops take flat tuples only)."""
 
-    xy: NDArray[np.float64]
-    cov: NDArray[np.float64]
-    orientation: NDArray[np.float64]
-    opening: NDArray[np.float64]
-    bits: NDArray[np.uint64]
-    values: NDArray[np.float64]
-    offsets: NDArray[np.int64]
-    ranges: NDArray[np.float64]
-    range_offsets: NDArray[np.int64]
-    geometry: NDArray[np.float64]
-    points: NDArray[np.float64]
-    point_offsets: NDArray[np.int64]
+    rows: Side
+    offsets: Offsets
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def side_scan(side: Side) -> ScanArrays:
+    """The scan check's arrays of a side."""
+    return ScanArrays(side.ranges, side.geometry, side.points)
 
 
 class ScanGeometry(NamedTuple):

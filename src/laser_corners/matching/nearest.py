@@ -14,6 +14,8 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.matching.kernel_args import KernelOptions, Side
+
 
 @nb.njit(cache=True, nogil=True, inline="always")
 def _popcount(v: np.uint64) -> int:
@@ -67,25 +69,29 @@ def _opening_ok(
     return not d > max_open
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _insert(dd: NDArray[np.float64], idx: NDArray[np.int64], p: int, d: float, j: int) -> None:
+    """Put distance ``d`` of keypoint ``j`` into the ascending list ``dd``/``idx`` at free slot
+    ``p`` or below it (insertion sort: the larger entries above it move up one)."""
+    while p > 0 and dd[p - 1] > d:
+        dd[p] = dd[p - 1]
+        idx[p] = idx[p - 1]
+        p -= 1
+    dd[p] = d
+    idx[p] = j
+
+
 @nb.njit(cache=True, nogil=True)
 def _nearest_stream(
-    kind: int,
-    bits_a: NDArray[np.uint64],
-    vals_a: NDArray[np.float64],
-    bits_b: NDArray[np.uint64],
-    vals_b: NDArray[np.float64],
-    inv_bits: float,
-    open_a: NDArray[np.float64],
-    open_b: NDArray[np.float64],
-    max_open: float,
-    k: int,
-    max_distance: float,
-    na: int,
-    nb_: int,
-    out: NDArray[np.int64],
+    kind: int, inv_bits: float, a: Side, b: Side, options: KernelOptions, out: NDArray[np.int64]
 ) -> int:
     """k nearest within ``max_distance`` without a distance matrix: each distance stops as
     soon as it exceeds the current k-th best (the result is that of exact distances)."""
+    bits_a, vals_a, open_a = a.bits, a.values, a.opening
+    bits_b, vals_b, open_b = b.bits, b.values, b.opening
+    max_open, max_distance = options.max_opening_difference, options.max_distance
+    na, nb_ = _count(a), _count(b)
+    k = min(options.k_nearest, nb_)
     idx = np.empty(k, dtype=np.int64)
     dd = np.empty(k)
     n = 0
@@ -103,12 +109,7 @@ def _nearest_stream(
                 cnt += 1
             else:
                 p = k - 1
-            while p > 0 and dd[p - 1] > d:
-                dd[p] = dd[p - 1]
-                idx[p] = idx[p - 1]
-                p -= 1
-            dd[p] = d
-            idx[p] = j
+            _insert(dd, idx, p, d, j)
         for q in range(cnt):
             out[n, 0] = i
             out[n, 1] = idx[q]
@@ -118,27 +119,17 @@ def _nearest_stream(
 
 @nb.njit(cache=True, nogil=True)
 def _nearest_matrix(
-    kind: int,
-    bits_a: NDArray[np.uint64],
-    vals_a: NDArray[np.float64],
-    bits_b: NDArray[np.uint64],
-    vals_b: NDArray[np.float64],
-    inv_bits: float,
-    open_a: NDArray[np.float64],
-    open_b: NDArray[np.float64],
-    max_open: float,
-    k_nearest: int,
-    ratio: float,
-    mutual: bool,
-    max_distance: float,
-    na: int,
-    nb_: int,
-    out: NDArray[np.int64],
+    kind: int, inv_bits: float, a: Side, b: Side, options: KernelOptions, out: NDArray[np.int64]
 ) -> int:
     """Candidate matches with Lowe's ratio test and/or the mutual check (distance matrix)."""
     # distances above `bound` are never kept, never decide a ratio test (the second nearest
     # is then beyond d1/ratio) and never win a column of the mutual check against a kept
     # match, so their computation may stop early: the result is that of exact distances
+    bits_a, vals_a, open_a = a.bits, a.values, a.opening
+    bits_b, vals_b, open_b = b.bits, b.values, b.opening
+    max_open, max_distance = options.max_opening_difference, options.max_distance
+    ratio, mutual = options.ratio, options.mutual
+    na, nb_ = _count(a), _count(b)
     bound = max_distance / min(ratio, 1.0) if ratio > 0.0 else math.inf
     dist = np.empty((na, nb_))
     for i in range(na):
@@ -155,7 +146,7 @@ def _nearest_matrix(
                 if dist[i, j] < dist[bi, j]:
                     bi = i
             best_a[j] = bi
-    k = min(k_nearest, nb_) if ratio >= 1.0 else 1
+    k = min(options.k_nearest, nb_) if ratio >= 1.0 else 1
     idx = np.empty(k + 1, dtype=np.int64)
     dd = np.empty(k + 1)
     n = 0
@@ -171,12 +162,7 @@ def _nearest_matrix(
                 p = k
             else:
                 continue
-            while p > 0 and dd[p - 1] > d:
-                dd[p] = dd[p - 1]
-                idx[p] = idx[p - 1]
-                p -= 1
-            dd[p] = d
-            idx[p] = j
+            _insert(dd, idx, p, d, j)
         for q in range(min(k, cnt)):
             if dd[q] > max_distance:
                 break
@@ -190,68 +176,28 @@ def _nearest_matrix(
     return n
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _count(side: Side) -> int:
+    """Keypoints of a side (its descriptors: bits for bsc, values for csc)."""
+    return max(side.bits.shape[0], side.values.shape[0])
+
+
 @nb.njit(cache=True, nogil=True)
 def candidate_matches(
-    kind: int,
-    bits_a: NDArray[np.uint64],
-    vals_a: NDArray[np.float64],
-    bits_b: NDArray[np.uint64],
-    vals_b: NDArray[np.float64],
-    inv_bits: float,
-    k_nearest: int,
-    ratio: float,
-    mutual: bool,
-    max_distance: float,
-    out: NDArray[np.int64],
-    open_a: NDArray[np.float64],
-    open_b: NDArray[np.float64],
-    max_open: float,
+    kind: int, inv_bits: float, a: Side, b: Side, options: KernelOptions, out: NDArray[np.int64]
 ) -> int:
     """Candidate matches by nearest neighbours in descriptor space; returns their count.
 
-    For each keypoint of A its ``k_nearest`` nearest keypoints of B with a distance at most
-    ``max_distance`` and an opening angle within ``max_open`` degrees (``open_a``,
-    ``open_b``); with ``ratio < 1`` the nearest is kept only when d1 <= ratio·d2
-    (Lowe's test; then only the nearest), with ``mutual`` only when A's keypoint is also the
-    nearest of B's. ``out`` (at least M_a·k_nearest rows, 2 columns) receives the pairs.
+    For each keypoint of A its ``options.k_nearest`` nearest keypoints of B with a distance
+    at most ``options.max_distance`` and an opening angle within
+    ``options.max_opening_difference`` degrees; with ``options.ratio < 1`` the nearest is
+    kept only when d1 <= ratio·d2 (Lowe's test; then only the nearest), with
+    ``options.mutual`` only when A's keypoint is also the nearest of B's. ``kind`` (0: bsc,
+    1: csc) and ``inv_bits`` (1 / number of bits) as :func:`_distance`. ``out`` (at least
+    M_a·k_nearest rows, 2 columns) receives the pairs.
     """
-    na = max(bits_a.shape[0], vals_a.shape[0])
-    nb_ = max(bits_b.shape[0], vals_b.shape[0])
-    if na == 0 or nb_ == 0:
+    if _count(a) == 0 or _count(b) == 0:
         return 0
-    if ratio >= 1.0 and not mutual:
-        k = min(k_nearest, nb_)
-        return _nearest_stream(
-            kind,
-            bits_a,
-            vals_a,
-            bits_b,
-            vals_b,
-            inv_bits,
-            open_a,
-            open_b,
-            max_open,
-            k,
-            max_distance,
-            na,
-            nb_,
-            out,
-        )
-    return _nearest_matrix(
-        kind,
-        bits_a,
-        vals_a,
-        bits_b,
-        vals_b,
-        inv_bits,
-        open_a,
-        open_b,
-        max_open,
-        k_nearest,
-        ratio,
-        mutual,
-        max_distance,
-        na,
-        nb_,
-        out,
-    )
+    if options.ratio >= 1.0 and not options.mutual:
+        return _nearest_stream(kind, inv_bits, a, b, options, out)
+    return _nearest_matrix(kind, inv_bits, a, b, options, out)

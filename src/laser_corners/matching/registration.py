@@ -237,7 +237,7 @@ def _check_pair(kp: Keypoints, desc: Descriptors, name: str) -> None:
         )
 
 
-NO_SCAN: ScanArrays = (np.zeros(0), np.zeros(4), np.zeros((0, 2)))
+NO_SCAN = ScanArrays(np.zeros(0), np.zeros(4), np.zeros((0, 2)))
 """Scan arrays of a side without a scan (the scan check must be off)."""
 
 

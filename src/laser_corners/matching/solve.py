@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from laser_corners.matching.clique import max_clique
 from laser_corners.matching.core import VERIFY_CLIQUE, ransac
-from laser_corners.matching.kernel_args import Bank, KernelOptions, Side
+from laser_corners.matching.kernel_args import KernelOptions, Offsets, Side, side_scan
 from laser_corners.matching.nearest import candidate_matches
 from laser_corners.matching.verify import precheck, verify_pose
 from laser_corners.pose import wrap_angle
@@ -129,20 +129,20 @@ def wls_pose(
 
 @nb.njit(cache=True, nogil=True)
 def _final_inliers(
-    xa: NDArray[np.float64],
-    xb: NDArray[np.float64],
+    a: Side,
+    b: Side,
     m: NDArray[np.int64],
     n: int,
     tx: float,
     ty: float,
     th: float,
     tol: float,
-    sel: NDArray[np.int64],
-    oa: NDArray[np.float64],
-    ob: NDArray[np.float64],
     angle_tol: float,
+    sel: NDArray[np.int64],
 ) -> int:
-    """Matches within ``tol`` of the pose, one per keypoint of A and of B (smallest residual)."""
+    """Matches within ``tol`` of the pose whose keypoint orientations agree with its rotation
+    within ``angle_tol``, one per keypoint of A and of B (smallest residual), into ``sel``."""
+    xa, xb, oa, ob = a.xy, b.xy, a.orientation, b.orientation
     c = math.cos(th)
     s = math.sin(th)
     res = np.empty(n)
@@ -248,18 +248,18 @@ def _refine(
     hypothesis ``hyp`` (tx, ty, θ); returns ``(n_inliers, tx, ty, θ)`` (``sel`` holds the
     inliers). With one inlier the WLS cannot fix the rotation: the pose stays, ``pose_cov``
     is infinite."""
-    xa, xb, cov_a, cov_b, oa, ob = a.xy, b.xy, a.cov, b.cov, a.orientation, b.orientation
+    xa, xb, cov_a, cov_b = a.xy, b.xy, a.cov, b.cov
     tol, angle_tol = options.tolerance, options.angle_tolerance
     default_var = options.default_sigma**2
     tx, ty, th = hyp[0], hyp[1], hyp[2]
     for _ in range(2):
-        n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
+        n_sel = _final_inliers(a, b, m, n, tx, ty, th, tol, angle_tol, sel)
         if n_sel < need:
             return n_sel, tx, ty, th
         tx, ty, th = wls_pose(
             xa, xb, cov_a, cov_b, m, sel, n_sel, tx, ty, th, default_var, pose_cov
         )
-    n_sel = _final_inliers(xa, xb, m, n, tx, ty, th, tol, sel, oa, ob, angle_tol)
+    n_sel = _final_inliers(a, b, m, n, tx, ty, th, tol, angle_tol, sel)
     return n_sel, tx, ty, th
 
 
@@ -278,7 +278,7 @@ def _hypotheses(
     """The verification's pose hypotheses, best first (RANSAC: up to ``max_hypotheses``;
     clique: one); returns how many."""
     if options.verification == VERIFY_CLIQUE:
-        n_sel = max_clique(a.xy, b.xy, m, n, sel, a.orientation, b.orientation, options)
+        n_sel = max_clique(a, b, m, n, sel, options)
         if n_sel == 0:
             return 0
         tx, ty, th = _clique_pose(
@@ -297,7 +297,7 @@ def _hypotheses(
         hyp[0, 0], hyp[0, 1], hyp[0, 2] = tx, ty, th
         counts[0] = n_sel
         return 1
-    return ransac(a.xy, b.xy, m, n, a.orientation, b.orientation, options, hyp, counts)
+    return ransac(a, b, m, n, options, hyp, counts)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -307,22 +307,7 @@ def _candidates(
     """The candidate matches (descriptor neighbours of A's keypoints among B's): ``m`` and
     how many of its rows are filled."""
     m = np.empty((a.xy.shape[0] * max(options.k_nearest, 1), 2), dtype=np.int64)
-    n = candidate_matches(
-        kind,
-        a.bits,
-        a.values,
-        b.bits,
-        b.values,
-        inv_bits,
-        options.k_nearest,
-        options.ratio,
-        options.mutual,
-        options.max_distance,
-        m,
-        a.opening,
-        b.opening,
-        options.max_opening_difference,
-    )
+    n = candidate_matches(kind, inv_bits, a, b, options, m)
     return m, n
 
 
@@ -370,16 +355,14 @@ def register_pair(
     for h in range(nk):
         if counts[h] < need:
             break
-        if not precheck(a.ranges, a.geometry, b.points, hyp[h, 0], hyp[h, 1], hyp[h, 2], options):
+        if not precheck(side_scan(a), side_scan(b), (hyp[h, 0], hyp[h, 1], hyp[h, 2]), options):
             status = SCAN_DISAGREES  # the cheap look at the scans, before any refinement
             continue
         n_sel, tx, ty, th = _refine(a, b, m, n, hyp[h], options, need, sel, pose_cov)
         best_n = max(best_n, n_sel)
         if n_sel < need:
             continue
-        agreement, tx, ty, th = verify_pose(
-            a.ranges, a.geometry, a.points, b.ranges, b.geometry, b.points, tx, ty, th, options
-        )
+        agreement, (tx, ty, th) = verify_pose(side_scan(a), side_scan(b), (tx, ty, th), options)
         if agreement < 0.0:
             status = SCAN_DISAGREES
             continue
@@ -392,21 +375,21 @@ def register_pair(
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _side(bank: Bank, s: int) -> Side:
-    """Scan ``s`` of a bank as a side."""
-    lo, hi = bank.offsets[s], bank.offsets[s + 1]
-    r0, r1 = bank.range_offsets[s], bank.range_offsets[s + 1]
-    p0, p1 = bank.point_offsets[s], bank.point_offsets[s + 1]
+def _side(rows: Side, offsets: Offsets, s: int) -> Side:
+    """Scan ``s`` of a bank (its ``rows`` and ``offsets``) as a side."""
+    lo, hi = offsets.keypoints[s], offsets.keypoints[s + 1]
+    r0, r1 = offsets.ranges[s], offsets.ranges[s + 1]
+    p0, p1 = offsets.points[s], offsets.points[s + 1]
     return Side(
-        bank.xy[lo:hi],
-        bank.cov[lo:hi],
-        bank.orientation[lo:hi],
-        bank.opening[lo:hi],
-        bank.bits[lo:hi],
-        bank.values[lo:hi],
-        bank.ranges[r0:r1],
-        bank.geometry[s],
-        bank.points[p0:p1],
+        rows.xy[lo:hi],
+        rows.cov[lo:hi],
+        rows.orientation[lo:hi],
+        rows.opening[lo:hi],
+        rows.bits[lo:hi],
+        rows.values[lo:hi],
+        rows.ranges[r0:r1],
+        rows.geometry[s],
+        rows.points[p0:p1],
     )
 
 
@@ -414,8 +397,10 @@ def _side(bank: Bank, s: int) -> Side:
 def register_batch(
     kind: int,
     inv_bits: float,
-    bank_a: Bank,
-    bank_b: Bank,
+    rows_a: Side,
+    offsets_a: Offsets,
+    rows_b: Side,
+    offsets_b: Offsets,
     qa: NDArray[np.int64],
     cb: NDArray[np.int64],
     options: KernelOptions,
@@ -425,11 +410,13 @@ def register_batch(
     pose_covs: NDArray[np.float64],
     agreement: NDArray[np.float64],
 ) -> None:
-    """:func:`register_pair` of scan ``qa[t]`` of ``bank_a`` (A) and scan ``cb[t]`` of
-    ``bank_b`` (B) for every t, in parallel; outputs are indexed by t."""
+    """:func:`register_pair` of scan ``qa[t]`` of bank A and scan ``cb[t]`` of bank B for
+    every t, in parallel; outputs are indexed by t. A bank comes as its
+    :class:`~laser_corners.matching.kernel_args.Bank` ``rows`` and ``offsets`` (numba's
+    parallel loops take flat tuples only)."""
     for t in nb.prange(qa.shape[0]):
-        a = _side(bank_a, qa[t])
-        b = _side(bank_b, cb[t])
+        a = _side(rows_a, offsets_a, qa[t])
+        b = _side(rows_b, offsets_b, cb[t])
         inl = np.empty((max(min(a.xy.shape[0], b.xy.shape[0]), 1), 2), dtype=np.int64)
         st, k, _, agr = register_pair(kind, inv_bits, a, b, options, poses[t], pose_covs[t], inl)
         status[t] = st

@@ -31,7 +31,7 @@ import numba as nb
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.matching.kernel_args import KernelOptions, scan_geometry
+from laser_corners.matching.kernel_args import KernelOptions, ScanArrays, scan_geometry
 from laser_corners.scan import LaserScan
 
 __all__ = [
@@ -49,9 +49,6 @@ PRECHECK = 16
 PRECHECK_CONFLICTS = 2
 """Conflicts allowed among them (with the first look's loose tolerance)."""
 
-ScanArrays = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
-"""``(ranges, geometry, points)`` of one scan, as :func:`scan_arrays` returns them."""
-
 
 def scan_arrays(scan: LaserScan, max_points: int = 90) -> ScanArrays:
     """Flat arrays of ``scan`` for the verification kernels.
@@ -65,12 +62,10 @@ def scan_arrays(scan: LaserScan, max_points: int = 90) -> ScanArrays:
 
     Returns
     -------
-    ranges : ndarray, shape (N,)
-        Ranges, NaN where the beam has no valid return.
-    geometry : ndarray, shape (4,)
-        ``angle_min, angle_increment, range_min, range_max``.
-    points : ndarray, shape (P, 2)
-        Valid points (sensor frame), at most ``max_points``.
+    ScanArrays
+        ``ranges`` (N,), NaN where the beam has no valid return; ``geometry`` (4,),
+        ``angle_min, angle_increment, range_min, range_max``; ``points`` (P, 2), the valid
+        points (sensor frame), at most ``max_points``.
     """
     xy, valid = scan.to_cartesian()
     pts = xy[valid]
@@ -83,7 +78,7 @@ def scan_arrays(scan: LaserScan, max_points: int = 90) -> ScanArrays:
     geom = np.array(
         [scan.angle_min, scan.angle_increment, scan.range_min, scan.range_max], dtype=np.float64
     )
-    return ranges, geom, np.ascontiguousarray(pts, dtype=np.float64)
+    return ScanArrays(ranges, geom, np.ascontiguousarray(pts, dtype=np.float64))
 
 
 @nb.njit(cache=True, nogil=True)
@@ -101,17 +96,17 @@ def scan_agreement(
     ranges: NDArray[np.float64],
     geom: NDArray[np.float64],
     pts: NDArray[np.float64],
-    tx: float,
-    ty: float,
-    th: float,
+    pose: tuple[float, float, float],
     tol: float,
     max_conflicts: int,
 ) -> tuple[int, int, int]:
-    """Points ``pts`` (another scan's frame), moved by ``p' = R(th)·p + t``, looked up along
-    the beams of the scan ``(ranges, geom)``; returns ``(tested, agree, conflict)``.
+    """Points ``pts`` (another scan's frame), moved by ``pose`` (tx, ty, th: ``p' = R(th)·p +
+    t``), looked up along the beams of the scan ``(ranges, geom)``; returns ``(tested, agree,
+    conflict)``.
 
     Stops early (returning what it counted) once ``conflict`` exceeds ``max_conflicts``.
     """
+    tx, ty, th = pose
     n = ranges.shape[0]
     g = scan_geometry(geom)
     amin, ainc = g.angle_min, g.angle_increment
@@ -153,16 +148,16 @@ def align(
     ranges: NDArray[np.float64],
     geom: NDArray[np.float64],
     pts: NDArray[np.float64],
-    tx: float,
-    ty: float,
-    th: float,
+    pose: tuple[float, float, float],
     iterations: int,
     max_d: float,
 ) -> tuple[float, float, float]:
-    """Refine ``p' = R(th)·p + t`` of ``pts`` onto the scan ``(ranges, geom)``: Gauss-Newton
-    on point-to-line distances, each moved point paired with the return on its beam (the
-    line through the two neighbouring returns), pairs farther than ``max_d`` (halved at each
-    iteration, not below 0.05 m) left out. Returns the pose unchanged when under-determined."""
+    """Refine ``pose`` (tx, ty, th: ``p' = R(th)·p + t``) of ``pts`` onto the scan ``(ranges,
+    geom)``: Gauss-Newton on point-to-line distances, each moved point paired with the return
+    on its beam (the line through the two neighbouring returns), pairs farther than ``max_d``
+    (halved at each iteration, not below 0.05 m) left out. Returns the pose unchanged when
+    under-determined."""
+    tx, ty, th = pose
     n = ranges.shape[0]
     g = scan_geometry(geom)
     amin, ainc = g.angle_min, g.angle_increment
@@ -220,18 +215,14 @@ def align(
 
 @nb.njit(cache=True, nogil=True)
 def _one_way(
-    ranges: NDArray[np.float64],
-    geom: NDArray[np.float64],
-    pts: NDArray[np.float64],
-    tx: float,
-    ty: float,
-    th: float,
-    options: KernelOptions,
+    a: ScanArrays, b: ScanArrays, pose: tuple[float, float, float], options: KernelOptions
 ) -> float:
-    """Share of ``pts`` that agree with the scan ``(ranges, geom)``; -1 when the check fails."""
+    """Share of B's points (moved by ``pose``) that agree with A's scan; -1 when the check
+    fails (:class:`~laser_corners.matching.kernel_args.KernelOptions` ``options``)."""
+    pts = b.points
     max_conflict = options.max_scan_conflict
     tested, agree, conflict = scan_agreement(
-        ranges, geom, pts, tx, ty, th, options.scan_tolerance, int(max_conflict * pts.shape[0])
+        a.ranges, a.geometry, pts, pose, options.scan_tolerance, int(max_conflict * pts.shape[0])
     )
     share = agree / max(pts.shape[0], 1)
     if (
@@ -245,13 +236,7 @@ def _one_way(
 
 @nb.njit(cache=True, nogil=True)
 def precheck(
-    ranges_a: NDArray[np.float64],
-    geom_a: NDArray[np.float64],
-    pts_b: NDArray[np.float64],
-    tx: float,
-    ty: float,
-    th: float,
-    options: KernelOptions,
+    a: ScanArrays, b: ScanArrays, pose: tuple[float, float, float], options: KernelOptions
 ) -> bool:
     """The cheap first look of :func:`verify_pose`: the first ``PRECHECK`` points of B
     (stored evenly spread) with a tolerance of ``3·scan_tolerance``; fails when fewer than
@@ -259,51 +244,42 @@ def precheck(
     when the check is off (``options.verify_scan`` false)."""
     if not options.verify_scan:
         return True
-    pre = pts_b[:PRECHECK]
+    pre = b.points[:PRECHECK]
     _, agree, conflict = scan_agreement(
-        ranges_a, geom_a, pre, tx, ty, th, 3.0 * options.scan_tolerance, PRECHECK_CONFLICTS
+        a.ranges, a.geometry, pre, pose, 3.0 * options.scan_tolerance, PRECHECK_CONFLICTS
     )
     return agree >= options.min_scan_agreement * pre.shape[0] and conflict <= PRECHECK_CONFLICTS
 
 
 @nb.njit(cache=True, nogil=True)
 def verify_pose(
-    ranges_a: NDArray[np.float64],
-    geom_a: NDArray[np.float64],
-    pts_a: NDArray[np.float64],
-    ranges_b: NDArray[np.float64],
-    geom_b: NDArray[np.float64],
-    pts_b: NDArray[np.float64],
-    tx: float,
-    ty: float,
-    th: float,
-    options: KernelOptions,
-) -> tuple[float, float, float, float]:
-    """Both-way scan check of the pose of B in A (``p_A = R·p_B + t``).
+    a: ScanArrays, b: ScanArrays, pose: tuple[float, float, float], options: KernelOptions
+) -> tuple[float, tuple[float, float, float]]:
+    """Both-way scan check of the pose (tx, ty, θ) of B in A (``p_A = R·p_B + t``).
 
     ``options``: the ``verify_scan``, ``scan_tolerance``, ``min_scan_agreement``,
     ``max_scan_conflict``, ``min_scan_points`` and ``align_iterations`` fields of
     :class:`~laser_corners.matching.kernel_args.KernelOptions`. First the cheap
-    :func:`precheck`, then the
-    pose is refined on A's scan (:func:`align`) and checked both ways. Returns
-    ``(agreement, tx, ty, θ)``: the smaller share of agreeing points of the two directions
-    and the refined pose, or agreement -1 when the check fails; 1.0 and the pose unchanged
-    when the check is disabled.
+    :func:`precheck`, then the pose is refined on A's scan (:func:`align`) and checked both
+    ways. Returns ``(agreement, pose)``: the smaller share of agreeing points of the two
+    directions and the refined pose, or agreement -1 when the check fails; 1.0 and the pose
+    unchanged when the check is disabled.
     """
     if not options.verify_scan:
-        return 1.0, tx, ty, th
-    if not precheck(ranges_a, geom_a, pts_b, tx, ty, th, options):
-        return -1.0, tx, ty, th
-    tx, ty, th = align(
-        ranges_a, geom_a, pts_b, tx, ty, th, options.align_iterations, 4.0 * options.scan_tolerance
+        return 1.0, pose
+    if not precheck(a, b, pose, options):
+        return -1.0, pose
+    pose = align(
+        a.ranges, a.geometry, b.points, pose, options.align_iterations, 4.0 * options.scan_tolerance
     )
-    ab = _one_way(ranges_a, geom_a, pts_b, tx, ty, th, options)
+    ab = _one_way(a, b, pose, options)
     if ab < 0.0:
-        return -1.0, tx, ty, th
+        return -1.0, pose
     # the inverse pose: p_B = Rᵀ·(p_A - t)
+    tx, ty, th = pose
     c = math.cos(th)
     s = math.sin(th)
-    ba = _one_way(ranges_b, geom_b, pts_a, -(c * tx + s * ty), s * tx - c * ty, -th, options)
+    ba = _one_way(b, a, (-(c * tx + s * ty), s * tx - c * ty, -th), options)
     if ba < 0.0:
-        return -1.0, tx, ty, th
-    return min(ab, ba), tx, ty, th
+        return -1.0, pose
+    return min(ab, ba), pose

@@ -91,9 +91,9 @@ class NodeConfig:
         known = set(parameter_names())
         unknown = sorted(str(k) for k in values if k not in known)
         if unknown:
+            names = ", ".join(repr(prefix + k) for k in unknown)
             raise InvalidParamsError(
-                f"unknown {source} {', '.join(prefix + k for k in unknown)}; "
-                f"known: {', '.join(parameter_names())}"
+                f"{source}s: unknown parameter {names}; known: {', '.join(parameter_names())}"
             )
         preset = values.get("preset", "paper")
         if not isinstance(preset, str) or preset not in PRESETS:

@@ -22,20 +22,21 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import Field, ValidationInfo, field_validator
 
-from laser_corners.errors import InvalidParamsError, OutputError
+from laser_corners.errors import OutputError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.options import Options
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.scan import LaserScan
 from laser_corners.slam.grid import occupancy_grid
@@ -53,25 +54,8 @@ __all__ = [
     "map_to_odom",
 ]
 
-MAPPING_OPTIONS: dict[str, Any] = {
-    "mode": "slam",
-    "map": "",
-    "output": "",
-    "mount": [],
-    "odom_topic": "",
-    "map_frame": "map",
-    "odom_frame": "",
-    "base_frame": "",
-    "map_period": 5.0,
-    "resolution": 0.05,
-    "slam_config": "",
-    "queue_size": 50,
-    "tf_wait": 1.0,
-}
-"""Parameters of the ``slam`` and ``localise`` modes, with their defaults (see docs/ros.md)."""
 
-
-class MappingConfig(BaseModel):
+class MappingConfig(Options):
     """Validated parameters of the ``slam`` / ``localise`` node modes.
 
     Attributes
@@ -101,7 +85,7 @@ class MappingConfig(BaseModel):
         odometry.
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    what: ClassVar[str] = "parameter"
 
     mode: Literal["slam", "localise"] = "slam"
     map: str = ""
@@ -117,31 +101,41 @@ class MappingConfig(BaseModel):
     queue_size: int = Field(50, ge=1, le=100_000)
     tf_wait: float = Field(1.0, gt=0.0, le=60.0)
 
+    @field_validator("mount")
     @classmethod
-    def from_mapping(cls, values: dict[str, Any], source: str = "ROS 2 parameter") -> MappingConfig:
-        """Check parameter name -> value; one :class:`InvalidParamsError` line when invalid."""
-        try:
-            config = cls(**values)
-        except ValidationError as exc:
-            error = exc.errors()[0]
-            name = ".".join(str(p) for p in error["loc"]) or "?"
-            if error["type"] == "extra_forbidden":
-                known = ", ".join(MAPPING_OPTIONS)
-                raise InvalidParamsError(f"unknown {source} {name}; known: {known}") from None
-            raise InvalidParamsError(f"{source} {name}: {error['msg']}") from None
-        if config.mount and (
-            len(config.mount) != 3 or not all(math.isfinite(v) for v in config.mount)
-        ):
-            raise InvalidParamsError(f"{source} mount: expected [x, y, yaw], got {config.mount}")
-        if config.mode == "localise" and not config.map:
-            raise InvalidParamsError(f"{source} map: mode localise needs -p map:=DIR")
-        return config
+    def _mount(cls, mount: list[float]) -> list[float]:
+        if mount and (len(mount) != 3 or not all(math.isfinite(v) for v in mount)):
+            raise ValueError(f"expected [x, y, yaw], got {mount}")
+        return mount
+
+    @field_validator("map")
+    @classmethod
+    def _map(cls, folder: str, info: ValidationInfo) -> str:
+        if info.data.get("mode") == "localise" and not folder:
+            raise ValueError("mode localise needs -p map:=DIR")
+        return folder
+
+    @classmethod
+    def from_mapping(
+        cls, data: Mapping[str, Any], source: str = "ROS 2 parameters"
+    ) -> MappingConfig:
+        """Check parameter name -> value; one :class:`InvalidParamsError` line when invalid
+        (``ROS 2 parameters: map_period: ...``, ``ROS 2 parameters: unknown parameter 'x';
+        known: ...``, as every :class:`~laser_corners.options.Options` says it)."""
+        return super().from_mapping(data, source)
 
     def slam_options(self) -> SlamOptions:
         """The SLAM options (``slam_config`` YAML, or the defaults)."""
         if not self.slam_config:
             return SlamOptions()
         return SlamOptions.from_file(self.slam_config)
+
+
+MAPPING_OPTIONS: dict[str, Any] = {
+    name: field.get_default(call_default_factory=True)
+    for name, field in MappingConfig.model_fields.items()
+}
+"""Parameters of the ``slam`` and ``localise`` modes, with their defaults (see docs/ros.md)."""
 
 
 def map_to_odom(pose: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -73,20 +74,28 @@ class PointMap:
     def __len__(self) -> int:
         return int(self.xy.shape[0])
 
+    def buckets(self) -> Buckets:
+        """The points and their grid as the kernels take them."""
+        nx, ny = self.shape
+        return Buckets(self.xy, self.origin, nx, ny, self.start, self.order)
+
+
+class Buckets(NamedTuple):
+    """A :class:`PointMap`'s points and grid as the kernels read them
+    (:meth:`PointMap.buckets`)."""
+
+    xy: NDArray[np.float64]
+    origin: NDArray[np.float64]
+    nx: int
+    ny: int
+    start: NDArray[np.int64]
+    order: NDArray[np.int64]
+
 
 @numba.njit(cache=True)
-def _nearest(
-    px: float,
-    py: float,
-    xy: NDArray,
-    origin: NDArray,
-    nx: int,
-    ny: int,
-    start: NDArray,
-    order: NDArray,
-    max_d: float,
-) -> int:
+def _nearest(px: float, py: float, grid: Buckets, max_d: float) -> int:
     """Index of the nearest map point within ``max_d`` of (px, py), or -1."""
+    xy, origin, nx, ny, start, order = grid
     reach = min(math.ceil(max_d / CELL), 3)
     cx = math.floor((px - origin[0]) / CELL)
     cy = math.floor((py - origin[1]) / CELL)
@@ -109,19 +118,15 @@ def _nearest(
 @numba.njit(cache=True)
 def _icp(
     src: NDArray,
-    xy: NDArray,
+    grid: Buckets,
     nrm: NDArray,
-    origin: NDArray,
-    nx: int,
-    ny: int,
-    start: NDArray,
-    order: NDArray,
     guess: NDArray,
     prior: NDArray,
     max_d: float,
     sigma: float,
     iterations: int,
 ) -> tuple[NDArray, NDArray]:
+    xy = grid.xy
     pose = guess.copy()
     info = np.zeros((3, 3))
     scale = 1.0 / (sigma * sigma)
@@ -137,7 +142,7 @@ def _icp(
             ry = s * src[i, 0] + c * src[i, 1]
             px = rx + pose[0]
             py = ry + pose[1]
-            j = _nearest(px, py, xy, origin, nx, ny, start, order, max_d)
+            j = _nearest(px, py, grid, max_d)
             if j < 0:
                 continue
             r = nrm[j, 0] * (px - xy[j, 0]) + nrm[j, 1] * (py - xy[j, 1])
@@ -161,24 +166,14 @@ def _icp(
 
 
 @numba.njit(cache=True)
-def _share(
-    src: NDArray,
-    xy: NDArray,
-    origin: NDArray,
-    nx: int,
-    ny: int,
-    start: NDArray,
-    order: NDArray,
-    pose: NDArray,
-    max_d: float,
-) -> float:
+def _share(src: NDArray, grid: Buckets, pose: NDArray, max_d: float) -> float:
     c = math.cos(pose[2])
     s = math.sin(pose[2])
     hit = 0
     for i in range(src.shape[0]):
         px = c * src[i, 0] - s * src[i, 1] + pose[0]
         py = s * src[i, 0] + c * src[i, 1] + pose[1]
-        if _nearest(px, py, xy, origin, nx, ny, start, order, max_d) >= 0:
+        if _nearest(px, py, grid, max_d) >= 0:
             hit += 1
     return hit / max(src.shape[0], 1)
 
@@ -206,20 +201,8 @@ def match_share(
     """Share of ``points`` (moved by ``pose``) within ``distance`` of a map point."""
     if len(pointmap) == 0 or points.shape[0] == 0:
         return 0.0
-    nx, ny = pointmap.shape
-    return float(
-        _share(
-            np.ascontiguousarray(points),
-            pointmap.xy,
-            pointmap.origin,
-            nx,
-            ny,
-            pointmap.start,
-            pointmap.order,
-            np.asarray(pose, dtype=np.float64),
-            distance,
-        )
-    )
+    pose = np.asarray(pose, dtype=np.float64)
+    return float(_share(np.ascontiguousarray(points), pointmap.buckets(), pose, distance))
 
 
 def icp(
@@ -244,17 +227,11 @@ def icp(
     src = np.ascontiguousarray(points, dtype=np.float64)
     if src.shape[0] == 0 or len(pointmap) == 0:
         return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))
-    nx, ny = pointmap.shape
     try:
         pose, info = _icp(
             src,
-            pointmap.xy,
+            pointmap.buckets(),
             pointmap.normals,
-            pointmap.origin,
-            nx,
-            ny,
-            pointmap.start,
-            pointmap.order,
             guess,
             np.asarray(prior_info, dtype=np.float64),
             max_distance,

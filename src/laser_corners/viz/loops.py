@@ -20,7 +20,7 @@ def plot_precision_recall(
     Parameters
     ----------
     ax : matplotlib.axes.Axes
-        Where to draw.
+        Where to draw (the legend goes to its lower left).
     curves : mapping of str to mapping
         Per method, arrays ``min_inliers``, ``precision`` and ``recall`` (as
         :func:`laser_corners.eval.loops.precision_recall` returns); points without detections
