@@ -192,6 +192,7 @@ def candidates(
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
     start, stop, inv, screened, passed, res = _buffers(n, n_scales)
     px, py = padded(x, y, valid)
+    lk = (next_valid, prev_valid, px, py)  # the dense walk's links and padded points
     m, top = cfg.min_consecutive_scales, n_scales - 1
     st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop = _sentinels(r2, m, n)
     n_sent = r2_sent.shape[0]
@@ -204,8 +205,8 @@ def candidates(
         if not valid[j]:
             continue
         if dense:  # the sentinel scales only, for now
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
+            walk(j, -1, x, y, valid, lk, box, r2_sent, gap, s_start)
+            walk(j, 1, x, y, valid, lk, box, r2_sent, gap, s_stop)
             for i in range(n_sent):
                 start[st - (n_sent - 1 - i) * m] = s_start[i]
                 stop[st - (n_sent - 1 - i) * m] = s_stop[i]
@@ -236,8 +237,8 @@ def candidates(
         if not hit:
             continue
         if dense:  # again, every scale
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, gap, stop)
+            walk(j, -1, x, y, valid, lk, box, r2, gap, start)
+            walk(j, 1, x, y, valid, lk, box, r2, gap, stop)
         # the other scales' bounds (the modes of _screen_rest)
         mode = 0 if dense else (1 if many else 2)
         if mode == 1 and st < top:  # again, to the largest scale, storing the running maxima
@@ -286,8 +287,8 @@ def _sentinels(r2, m: int, n: int) -> tuple:
     rm_d = np.empty(n + PAD if many else 0)
     n_sent = st // m + 1
     r2_sent = r2[st - (n_sent - 1) * m :: m].copy()
-    s_start = np.empty(n_sent, dtype=np.int64)
-    s_stop = np.empty(n_sent, dtype=np.int64)
+    s_start = np.full(n_sent, -1, dtype=np.int64)  # also the guesses of the dense walk
+    s_stop = np.full(n_sent, -1, dtype=np.int64)
     return st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop
 
 
@@ -295,8 +296,8 @@ def _sentinels(r2, m: int, n: int) -> tuple:
 def _buffers(n: int, n_scales: int) -> tuple:
     """Per-point work buffers: start, stop (bounds per scale), 1/count table, screened,
     passed, res (per scale: ix, iy, worst rmse, opening, bisector x, y)."""
-    start = np.empty(n_scales, dtype=np.int64)
-    stop = np.empty(n_scales, dtype=np.int64)
+    start = np.full(n_scales, -1, dtype=np.int64)  # also the guesses of the dense walk
+    stop = np.full(n_scales, -1, dtype=np.int64)
     inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
     screened = np.zeros(n_scales, dtype=np.bool_)
     passed = np.zeros(n_scales, dtype=np.bool_)
