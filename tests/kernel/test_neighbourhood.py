@@ -35,7 +35,7 @@ def both_walks(x: np.ndarray, y: np.ndarray, radii: tuple[float, float, float]) 
     far = px.shape[0]
     for j in np.flatnonzero(valid):
         for step in (-1, 1):
-            expected = reach(int(j), step, px, py, r2_max, r2_a, r2_b, running_max, True)
+            expected = reach(int(j), step, px, py, (r2_max, r2_a, r2_b), running_max, True)
             got = counts(int(j), step, px, py, r2_max, r2_a, r2_b)
             assert got == expected, (int(j), step, got, expected)
             # extend: the count of the middle radius from those of the smaller and larger one

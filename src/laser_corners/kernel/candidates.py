@@ -212,8 +212,8 @@ def candidates(
                 stop[st - (n_sent - 1 - i) * m] = s_stop[i]
         else:
             if many:  # store the running maxima, for within()
-                na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
-                nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, True)
+                na, na_a, na_b = reach(j, -1, px, py, (r2[st], r2_a, r2_b), rm_a, True)
+                nd, nd_a, nd_b = reach(j, 1, px, py, (r2[st], r2_a, r2_b), rm_d, True)
             else:  # the walks of p_j+1 now, overlapping the screens of p_j
                 if not ahead:
                     cur = _walks(j, px, py, r2[st], r2_a, r2_b)
@@ -242,8 +242,8 @@ def candidates(
         # the other scales' bounds (the modes of _screen_rest)
         mode = 0 if dense else (1 if many else 2)
         if mode == 1 and st < top:  # again, to the largest scale, storing the running maxima
-            na = reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)[0]
-            nd = reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)[0]
+            na = reach(j, -1, px, py, (r2[top], -1.0, -1.0), rm_a, True)[0]
+            nd = reach(j, 1, px, py, (r2[top], -1.0, -1.0), rm_d, True)[0]
         rm = (rm_a, rm_d, na, nd, px, py, mode)
         _screen_rest(ps, inv, j, start, stop, screened, r2, m, st, gate, rm)
         if not want_table and not keep_runs(screened, m):

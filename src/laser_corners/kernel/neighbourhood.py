@@ -349,9 +349,7 @@ def reach(
     step: int,
     px: NDArray[np.float64],
     py: NDArray[np.float64],
-    r2_max: float,
-    r2_a: float,
-    r2_b: float,
+    radii: tuple,
     running_max: NDArray[np.float64],
     store: bool,
 ) -> tuple:
@@ -360,11 +358,13 @@ def reach(
     Follows the running maximum of the squared distance to p_j (a gap, or the scan's end, is
     infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``; returns
     the number of steps within and the numbers of leading steps within sqrt(``r2_a``) and
-    sqrt(``r2_b``) (two more sentinel scales, counted on the way). With ``store`` the running
+    sqrt(``r2_b``) (two more sentinel scales, counted on the way); ``radii`` is
+    (``r2_max``, ``r2_a``, ``r2_b``). With ``store`` the running
     maximum of every step goes to ``running_max`` (for :func:`within`). Four steps per
     iteration, whose running maxima are all computed from the previous one (a short
     dependency chain, no branch per point). For dense scans :func:`walk` is used instead.
     """
+    r2_max, r2_a, r2_b = radii
     c = j + PAD
     xj = px[c]
     yj = py[c]
