@@ -12,8 +12,10 @@ exactly, for all scales in one pass per side:
 * :func:`reach`, with more sentinels: point by point, four steps per iteration,
   branch-free; it stores the running maximum of the squared distance, counted per scale
   afterwards (:func:`within`);
-* :func:`walk`, for dense scans and gap bridging: skips aligned blocks of 8, 64, 512 or 4096
-  beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
+* :func:`walk`, for dense scans and gap bridging: jumps to near the previous point's bound
+  when the boxes of the blocks on the way lie within the radius (a sparse table of block
+  boxes, :func:`block_boxes`), skips aligned blocks of 8, 64, 512 or 4096 beams whose box
+  lies within it, and checks the beams up to a block boundary 16 at a time, so it costs
   O(blocks + points near the radii) instead of O(points within R).
 
 :func:`prepare` makes the per-scan tables (validity, prefix sums), :func:`links` the
