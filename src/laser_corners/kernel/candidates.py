@@ -188,11 +188,10 @@ def candidates(
     want_table = table.shape[0] == n
     valid, ox, oy, ps = prepare(x, y)
     r2 = scales * scales
-    dense, box, next_valid, prev_valid = _walk_structures(x, y, valid, scales, cfg.max_gap_beams)
+    px, py = padded(x, y, valid)
+    dense, box, lk = _walk_structures(x, y, valid, px, py, scales, cfg.max_gap_beams)
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
     start, stop, inv, screened, passed, res = _buffers(n, n_scales)
-    px, py = padded(x, y, valid)
-    lk = (next_valid, prev_valid, px, py)  # the dense walk's links and padded points
     m, top = cfg.min_consecutive_scales, n_scales - 1
     st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop = _sentinels(r2, m, n)
     n_sent = r2_sent.shape[0]
@@ -253,12 +252,13 @@ def candidates(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
+def _walk_structures(x, y, valid, px, py, scales, max_gap_beams: int) -> tuple:
     """Which neighbourhood walk a scan gets, and its structures: (dense, boxes, links).
 
     Dense scans (many points within the largest scale) and gap bridging take the
-    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes, next/previous
-    valid point); the others the short branch-free walk, counted per scale on demand.
+    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes; its links:
+    next/previous valid point and the padded points ``px``, ``py``); the others the short
+    branch-free walk, counted per scale on demand.
     """
     dense = max_gap_beams > 0 or points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
     box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
@@ -266,7 +266,7 @@ def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
         next_valid, prev_valid = links(valid)
     else:
         next_valid = prev_valid = np.empty(0, dtype=np.int64)
-    return dense, box, next_valid, prev_valid
+    return dense, box, (next_valid, prev_valid, px, py)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
