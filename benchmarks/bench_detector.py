@@ -32,13 +32,16 @@ figures (:data:`OLD_MS_UNLOADED`; a fair yardstick when other processes slow thi
 Then the scaling in beam count: a synthetic 360-degree scan of a polygonal room (the demo
 world) with 100,000, 400,000 and 1,000,000 beams at range noise 0.001 m, time(400k)/time(100k)
 and time(1M)/time(400k), in CPU time of the thread (these calls take seconds, long enough for
-other processes on a shared machine to distort wall-clock times).
+other processes on a shared machine to distort wall-clock times), and whether the keypoints
+at each size are those of main at 08b9988, before the jumping walk
+(``dense_keypoints_08b9988.json``).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import os
 import platform
 import sys
@@ -54,6 +57,7 @@ from laser_corners.sim import UST_10LX
 
 HERE = Path(__file__).resolve().parent
 REAL = HERE.parent / ".." / "shared" / "data" / "real"
+DENSE_REFERENCE = HERE / "dense_keypoints_08b9988.json"  # see same_as_stored
 REAL_SETS = [
     ("aces.bag", "/scan"),
     ("intel.bag", "/scan"),
@@ -215,12 +219,28 @@ def covariance_cost(new: CornerDetector, scans: list[LaserScan], repeats: int) -
     return float(np.median(best)) * 1e6, float(best.sum() / max(n_kp.sum(), 1)) * 1e6
 
 
+def same_as_stored(keypoints: object, n_beams: int) -> str:
+    """Whether ``keypoints`` of :func:`dense_scan` are those of the kernel at 08b9988 (count,
+    beam index, position to 1e-9 m), stored in :data:`DENSE_REFERENCE` (its 1,000,000-beam
+    scan takes the frozen kernel minutes)."""
+    stored = json.loads(DENSE_REFERENCE.read_text(encoding="utf-8"))["keypoints"].get(str(n_beams))
+    if stored is None:
+        return "-"
+    xy = np.asarray(stored["xy"], dtype=np.float64).reshape(-1, 2)
+    same = len(keypoints) == xy.shape[0] and bool(  # type: ignore[arg-type]
+        np.array_equal(keypoints.beam_index, stored["beam_index"])  # type: ignore[attr-defined]
+        and np.allclose(keypoints.xy, xy, atol=1e-9, rtol=0)  # type: ignore[attr-defined]
+    )
+    return "yes" if same else "NO"
+
+
 def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
     print("\nScaling, synthetic 360-degree scan of the demo world, noise 0.001 m, best of 3,")
     print("CPU time of the calling thread (time.thread_time: robust to other processes);")
     print("the frozen kernel at 100,000 and 400,000 beams only (it takes minutes at 1,000,000):")
-    print("| beams | keypoints | new s | old s |")
-    print("|---:|---:|---:|---:|")
+    print(f"same kp 08b9988: the keypoints of main at 08b9988 ({DENSE_REFERENCE.name})")
+    print("| beams | keypoints | new s | old s | same kp 08b9988 |")
+    print("|---:|---:|---:|---:|---|")
     times: dict[str, list[float]] = {"new": [], "old": []}
     for n in (100_000, 400_000, 1_000_000):
         scan = dense_scan(n)
@@ -236,9 +256,10 @@ def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
                 best = min(best, time.thread_time() - t0)
             times[label].append(best)
         old_s = f"{times['old'][-1]:.3f}" if "old" in runs else "-"
-        print(f"| {n:,} | {len(kp['new'])} | {times['new'][-1]:.3f} | {old_s} |")
+        same = same_as_stored(kp["new"], n)
+        print(f"| {n:,} | {len(kp['new'])} | {times['new'][-1]:.3f} | {old_s} | {same} |")
         if "old" in kp and not same_keypoints(kp["old"], kp["new"]):
-            print(f"  WARNING: keypoints differ at {n} beams")
+            print(f"  WARNING: keypoints differ from the frozen kernel's at {n} beams")
     new_t = times["new"]
     print(f"\ntime(400k)/time(100k): new {new_t[1] / new_t[0]:.1f}", end="")
     if with_old:

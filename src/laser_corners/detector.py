@@ -300,12 +300,20 @@ class CornerDetector:
             key = (scan.ranges.shape[0], scan.angle_min, scan.angle_increment)
             key += (scan.range_min, scan.range_max)
         geometry = cached[1] if key == cached[0] else self._geometry_of(scan)
+        work = self._checkout(scan.ranges.shape[0] * OUT_PER_BEAM)
+        keypoints = self._detect_on(scan, geometry, work)
+        self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
+        return keypoints
+
+    def _detect_on(
+        self, scan: LaserScan, geometry: NDArray[np.float64], work: NDArray[np.float64]
+    ) -> Keypoints:
+        """:meth:`detect` of a scan whose kernel geometry array is known, in a work buffer
+        of >= N · OUT_PER_BEAM floats (the scan's points, then its keypoint rows)."""
         ranges = scan.ranges
         n = ranges.shape[0]
-        work = self._checkout(n * OUT_PER_BEAM)  # the scan's points, then its keypoint rows
         count = detect_scan(ranges, geometry, self._config, work)
         rows = work[2 * n : 2 * n + count * NM].reshape(count, NM).copy() if count else None
-        self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
         if rows is None:
             return Keypoints._deferred(scan.stamp, scan.frame_id, 0, _no_keypoints)
         cov_args = (abs(scan.angle_increment), self._config)
@@ -351,20 +359,30 @@ class CornerDetector:
         scans = list(scans)
         if not scans:
             return []
-        first = scans[0]
-        geometry = first.geometry if isinstance(first, LaserScan) else None
-        for i, scan in enumerate(scans):
-            if not isinstance(scan, LaserScan):
+        first = None
+        for i, scan in enumerate(scans):  # as cheap per scan as detect's own geometry check
+            if type(scan) is LaserScan:
+                key = (scan.ranges.shape[0], scan.angle_min, scan.angle_increment)
+                key += (scan.range_min, scan.range_max)
+            elif isinstance(scan, LaserScan):
+                key = scan.geometry
+            else:
                 raise InvalidScanError(f"detect_many: item {i} is a {type(scan).__name__}")
-            if scan.geometry != geometry:
+            if first is None:
+                first = key
+            elif key != first:
                 raise InvalidScanError(
                     f"detect_many: scan {i} has a different geometry from scan 0; "
                     "call detect() per scan instead"
                 )
-        if numba.get_num_threads() == 1:  # nothing to run in parallel: detect's path
-            return [self.detect(scan) for scan in scans]
+        first = scans[0]
         geometry = self._geometry_of(first)
         n, size = first.n_beams, len(scans)
+        if numba.get_num_threads() == 1:  # nothing to run in parallel: detect's path
+            work = self._checkout(n * OUT_PER_BEAM)  # one checkout for the batch
+            out_kp = [self._detect_on(scan, geometry, work) for scan in scans]
+            self._work = work if work.shape[0] <= _KEEP_WORK else None  # _checkout
+            return out_kp
         work = self._checkout(size * n * (1 + OUT_PER_BEAM))  # the ranges, then the outputs
         ranges = np.stack([scan.ranges for scan in scans], out=work[: size * n].reshape(size, n))
         out = work[size * n : size * n * (1 + OUT_PER_BEAM)].reshape(size, n * OUT_PER_BEAM)

@@ -16,8 +16,9 @@ import pytest
 from typer.testing import CliRunner
 
 from conftest import default_sigint
-from laser_corners.batch import MANIFEST_NAME, Manifest, run_batch
+from laser_corners.batch import MANIFEST_NAME, BatchJob, Manifest, run_batch, run_job, worker
 from laser_corners.cli import app
+from laser_corners.io import KeypointWriter
 
 CLI = [str(Path(sys.executable).with_name("laser-corners"))]
 
@@ -151,3 +152,34 @@ def test_ctrl_c_keeps_every_finished_output_in_the_manifest(tmp_path: Path) -> N
     finished = {p.name for p in outdir.glob("*.parquet")}
     assert finished and finished <= recorded  # no finished output missing from the manifest
     assert list(outdir.glob("*.partial")) == []
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, RuntimeError], ids=["ctrl-c", "error"])
+def test_stopped_job_removes_its_partial_even_when_the_writer_fails_to_close(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, stop: type[BaseException]
+) -> None:
+    """A writer stopped mid-write may raise on close; the partial output must go anyway
+    (issue 21: a Ctrl-C'd process-pool batch sometimes left ``*.partial``)."""
+
+    class Stuck(KeypointWriter):
+        def close(self) -> None:
+            raise OSError("close of a writer stopped mid-write")
+
+    def opened(recording: object, partial: Path, job: object) -> KeypointWriter:
+        partial.write_bytes(b"PAR1 half a file")  # what the writer had written so far
+        return Stuck()
+
+    def detect(*args: object, **kwargs: object) -> None:
+        raise stop("stopped")
+
+    monkeypatch.setattr(worker, "_open_writer", opened)
+    monkeypatch.setattr(worker, "detect_recording", detect)
+    job = BatchJob(str(_room_log(tmp_path / "room.log", 3)), None, "room.parquet")
+    out = tmp_path / "out"
+    out.mkdir()
+    if stop is KeyboardInterrupt:
+        with pytest.raises(KeyboardInterrupt):
+            run_job(job, out, threads=1)
+    else:
+        assert run_job(job, out, threads=1).status == "failed"
+    assert sorted(p.name for p in out.iterdir() if p.name != "errors") == []

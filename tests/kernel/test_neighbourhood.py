@@ -6,10 +6,21 @@ point's distance."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from laser_corners.kernel.neighbourhood import PAD, counts, extend, padded, reach, within
+from laser_corners.kernel.neighbourhood import (
+    PAD,
+    block_boxes,
+    counts,
+    extend,
+    links,
+    padded,
+    reach,
+    walk,
+    within,
+)
 from laser_corners.kernel.simd import W
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -24,7 +35,7 @@ def both_walks(x: np.ndarray, y: np.ndarray, radii: tuple[float, float, float]) 
     far = px.shape[0]
     for j in np.flatnonzero(valid):
         for step in (-1, 1):
-            expected = reach(int(j), step, px, py, r2_max, r2_a, r2_b, running_max, True)
+            expected = reach(int(j), step, px, py, (r2_max, r2_a, r2_b), running_max, True)
             got = counts(int(j), step, px, py, r2_max, r2_a, r2_b)
             assert got == expected, (int(j), step, got, expected)
             # extend: the count of the middle radius from those of the smaller and larger one
@@ -58,3 +69,53 @@ def test_counts_equal_reach_on_ties_and_long_runs() -> None:
     both_walks(x, y, (0.25, 0.5, 2.0))
     both_walks(x, y, (0.0, 0.0, 100.0))  # no smaller sentinels; every point within
     both_walks(np.array([1.0]), np.array([2.0]), (0.1, 0.2, 0.3))  # one point
+
+
+def plain_walk(x, y, j: int, step: int, r2: np.ndarray, max_gap: int) -> list[int]:
+    """The dense walk's bounds point by point, from its definition (no blocks, no guesses)."""
+    n = x.shape[0]
+    bounds, k, last, i = [], 0, j, j + step
+    while k < len(r2) and 0 <= i < n:
+        if not np.isfinite(x[i]):
+            g = i
+            while 0 <= g < n and not np.isfinite(x[g]):
+                g += step
+            if not 0 <= g < n or abs(g - i) >= max_gap + 1:
+                break
+            i = g
+            continue
+        d2 = (x[i] - x[j]) ** 2 + (y[i] - y[j]) ** 2
+        while k < len(r2) and d2 > r2[k]:
+            bounds.append(last)
+            k += 1
+        last, i = i, i + step
+    return bounds + [last] * (len(r2) - k)
+
+
+@pytest.mark.parametrize("max_gap", [0, 2])
+def test_dense_walk_bounds_do_not_depend_on_its_guesses(max_gap: int) -> None:
+    """:func:`walk` with the previous point's bounds as guesses (its jumps), with wrong and
+    absurd guesses, equals the plain point-by-point walk: on a noisy polyline with a corner,
+    a loop back, gaps and thousands of points within the largest radius."""
+    rng = np.random.default_rng(7)
+    t = np.arange(6000) * 0.0004
+    x = np.where(t < 1.2, t, 1.2 - 0.3 * (t - 1.2)) + rng.normal(0.0, 0.001, t.size)
+    y = np.where(t < 1.2, 0.0, t - 1.2) + rng.normal(0.0, 0.001, t.size)
+    x[rng.random(t.size) < 0.002] = np.nan  # dropouts: bridged with max_gap > 0, else ends
+    x[3000:3004] = np.nan
+    y[np.isnan(x)] = np.nan
+    valid = np.isfinite(x)
+    lk = (*links(valid), *padded(x, y, valid))
+    box = block_boxes(x, y, valid)
+    r2 = np.array([0.05, 0.2, 0.21, 0.5, 0.9]) ** 2
+    guesses = {step: np.full(r2.size, -1, dtype=np.int64) for step in (-1, 1)}
+    for j in np.flatnonzero(valid)[::7]:
+        for step in (-1, 1):
+            expected = plain_walk(x, y, int(j), step, r2, max_gap)
+            bound = guesses[step]  # the previous point's bounds, as in the kernel
+            walk(int(j), step, x, y, valid, lk, box, r2, max_gap, bound)
+            assert bound.tolist() == expected, (int(j), step)
+            for wrong in (bound + rng.integers(-50, 50, r2.size), np.full(r2.size, 10**9)):
+                bad = wrong.astype(np.int64)
+                walk(int(j), step, x, y, valid, lk, box, r2, max_gap, bad)
+                assert bad.tolist() == expected, (int(j), step, wrong.tolist())

@@ -7,6 +7,7 @@ parent's process id, so a batch killed with SIGKILL leaves no worker running.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
@@ -89,6 +90,17 @@ def _open_writer(recording: Recording, partial: Path, job: BatchJob) -> Keypoint
     )
 
 
+def _abandon(writer: KeypointWriter, output: PartialOutput) -> None:
+    """Close the writer of a stopped or failed job and remove its partial output, even when
+    closing fails: a writer stopped mid-write (Ctrl-C inside a flush) may raise on close, and
+    the partial file must go all the same."""
+    try:
+        with contextlib.suppress(Exception):  # its file is removed below: nothing is kept
+            writer.close()
+    finally:  # also on a second Ctrl-C during the close
+        output.discard()
+
+
 def run_job(
     job: BatchJob,
     outdir: str | Path,
@@ -147,16 +159,13 @@ def run_job(
         output.publish()
         result.status = "done"
     except KeyboardInterrupt:
-        writer.close()
-        output.discard()
+        _abandon(writer, output)
         raise
     except LaserCornersError as exc:
-        writer.close()
-        output.discard()
+        _abandon(writer, output)
         result.error = first_line(exc)
     except Exception as exc:  # a surprise: keep the traceback next to the results
-        writer.close()
-        output.discard()
+        _abandon(writer, output)
         result.error = f"{type(exc).__name__}: {first_line(exc)} (traceback in errors/)"
         errors = outdir / "errors"
         errors.mkdir(exist_ok=True)

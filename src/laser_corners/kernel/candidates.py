@@ -188,10 +188,10 @@ def candidates(
     want_table = table.shape[0] == n
     valid, ox, oy, ps = prepare(x, y)
     r2 = scales * scales
-    dense, box, next_valid, prev_valid = _walk_structures(x, y, valid, scales, cfg.max_gap_beams)
+    px, py = padded(x, y, valid)
+    dense, box, lk = _walk_structures(x, y, valid, px, py, scales, cfg.max_gap_beams)
     limits, loose_mse, max_cos2, max_cd2 = _limits(cfg)
     start, stop, inv, screened, passed, res = _buffers(n, n_scales)
-    px, py = padded(x, y, valid)
     m, top = cfg.min_consecutive_scales, n_scales - 1
     st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop = _sentinels(r2, m, n)
     n_sent = r2_sent.shape[0]
@@ -204,15 +204,15 @@ def candidates(
         if not valid[j]:
             continue
         if dense:  # the sentinel scales only, for now
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2_sent, gap, s_stop)
+            walk(j, -1, x, y, valid, lk, box, r2_sent, gap, s_start)
+            walk(j, 1, x, y, valid, lk, box, r2_sent, gap, s_stop)
             for i in range(n_sent):
                 start[st - (n_sent - 1 - i) * m] = s_start[i]
                 stop[st - (n_sent - 1 - i) * m] = s_stop[i]
         else:
             if many:  # store the running maxima, for within()
-                na, na_a, na_b = reach(j, -1, px, py, r2[st], r2_a, r2_b, rm_a, True)
-                nd, nd_a, nd_b = reach(j, 1, px, py, r2[st], r2_a, r2_b, rm_d, True)
+                na, na_a, na_b = reach(j, -1, px, py, (r2[st], r2_a, r2_b), rm_a, True)
+                nd, nd_a, nd_b = reach(j, 1, px, py, (r2[st], r2_a, r2_b), rm_d, True)
             else:  # the walks of p_j+1 now, overlapping the screens of p_j
                 if not ahead:
                     cur = _walks(j, px, py, r2[st], r2_a, r2_b)
@@ -236,13 +236,13 @@ def candidates(
         if not hit:
             continue
         if dense:  # again, every scale
-            walk(j, -1, x, y, valid, next_valid, prev_valid, box, r2, gap, start)
-            walk(j, 1, x, y, valid, next_valid, prev_valid, box, r2, gap, stop)
+            walk(j, -1, x, y, valid, lk, box, r2, gap, start)
+            walk(j, 1, x, y, valid, lk, box, r2, gap, stop)
         # the other scales' bounds (the modes of _screen_rest)
         mode = 0 if dense else (1 if many else 2)
         if mode == 1 and st < top:  # again, to the largest scale, storing the running maxima
-            na = reach(j, -1, px, py, r2[top], -1.0, -1.0, rm_a, True)[0]
-            nd = reach(j, 1, px, py, r2[top], -1.0, -1.0, rm_d, True)[0]
+            na = reach(j, -1, px, py, (r2[top], -1.0, -1.0), rm_a, True)[0]
+            nd = reach(j, 1, px, py, (r2[top], -1.0, -1.0), rm_d, True)[0]
         rm = (rm_a, rm_d, na, nd, px, py, mode)
         _screen_rest(ps, inv, j, start, stop, screened, r2, m, st, gate, rm)
         if not want_table and not keep_runs(screened, m):
@@ -252,12 +252,13 @@ def candidates(
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
+def _walk_structures(x, y, valid, px, py, scales, max_gap_beams: int) -> tuple:
     """Which neighbourhood walk a scan gets, and its structures: (dense, boxes, links).
 
     Dense scans (many points within the largest scale) and gap bridging take the
-    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes, next/previous
-    valid point); the others the short branch-free walk, counted per scale on demand.
+    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes; its links:
+    next/previous valid point and the padded points ``px``, ``py``); the others the short
+    branch-free walk, counted per scale on demand.
     """
     dense = max_gap_beams > 0 or points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
     box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
@@ -265,7 +266,7 @@ def _walk_structures(x, y, valid, scales, max_gap_beams: int) -> tuple:
         next_valid, prev_valid = links(valid)
     else:
         next_valid = prev_valid = np.empty(0, dtype=np.int64)
-    return dense, box, next_valid, prev_valid
+    return dense, box, (next_valid, prev_valid, px, py)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -286,8 +287,8 @@ def _sentinels(r2, m: int, n: int) -> tuple:
     rm_d = np.empty(n + PAD if many else 0)
     n_sent = st // m + 1
     r2_sent = r2[st - (n_sent - 1) * m :: m].copy()
-    s_start = np.empty(n_sent, dtype=np.int64)
-    s_stop = np.empty(n_sent, dtype=np.int64)
+    s_start = np.full(n_sent, -1, dtype=np.int64)  # also the guesses of the dense walk
+    s_stop = np.full(n_sent, -1, dtype=np.int64)
     return st, r2_a, r2_b, many, rm_a, rm_d, r2_sent, s_start, s_stop
 
 
@@ -295,8 +296,8 @@ def _sentinels(r2, m: int, n: int) -> tuple:
 def _buffers(n: int, n_scales: int) -> tuple:
     """Per-point work buffers: start, stop (bounds per scale), 1/count table, screened,
     passed, res (per scale: ix, iy, worst rmse, opening, bisector x, y)."""
-    start = np.empty(n_scales, dtype=np.int64)
-    stop = np.empty(n_scales, dtype=np.int64)
+    start = np.full(n_scales, -1, dtype=np.int64)  # also the guesses of the dense walk
+    stop = np.full(n_scales, -1, dtype=np.int64)
     inv = 1.0 / np.arange(n + 2)  # 1/count, a table (inv[0] = inf is never used)
     screened = np.zeros(n_scales, dtype=np.bool_)
     passed = np.zeros(n_scales, dtype=np.bool_)

@@ -183,13 +183,11 @@ def keypoint_covariances(
         :data:`APEX_FACTOR`, :data:`COV_FLOOR`, :data:`SCALE_RUN_FACTOR`.
     """
     cfg = unpack.py_func(config)  # read in Python: unpacked inside numba it cost 10x more
+    keypoints = (xy, beam_index, scale_index, n_scales)
     return _covariances(
         x,
         y,
-        xy,
-        beam_index,
-        scale_index,
-        n_scales,
+        keypoints,
         cfg.scales,
         angle_increment,
         apex_factor,
@@ -207,10 +205,7 @@ def keypoint_covariances(
 def _covariances(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
-    xy: NDArray[np.float64],
-    beam_index: NDArray[np.int64],
-    scale_index: NDArray[np.int64],
-    n_scales: NDArray[np.int64],
+    keypoints: tuple,
     scales: NDArray[np.float64],
     angle_increment: float,
     apex_factor: float,
@@ -222,7 +217,9 @@ def _covariances(
     max_rmse: float,
     max_gap: int,
 ) -> NDArray[np.float64]:
-    """:func:`keypoint_covariances` on the unpacked parameters."""
+    """:func:`keypoint_covariances` on the unpacked parameters; ``keypoints``: their xy,
+    beam_index, scale_index and n_scales."""
+    xy, beam_index, scale_index, n_scales = keypoints
     m = xy.shape[0]
     cov = np.zeros((m, 2, 2))
     acc = np.zeros(3)

@@ -12,8 +12,10 @@ exactly, for all scales in one pass per side:
 * :func:`reach`, with more sentinels: point by point, four steps per iteration,
   branch-free; it stores the running maximum of the squared distance, counted per scale
   afterwards (:func:`within`);
-* :func:`walk`, for dense scans and gap bridging: skips aligned blocks of 8, 64, 512 or 4096
-  beams whose bounding box lies within the radius (:func:`block_boxes`), so it costs
+* :func:`walk`, for dense scans and gap bridging: jumps to near the previous point's bound
+  when the boxes of the blocks on the way lie within the radius (a sparse table of block
+  boxes, :func:`block_boxes`), skips aligned blocks of 8, 64, 512 or 4096 beams whose box
+  lies within it, and checks the beams up to a block boundary 16 at a time, so it costs
   O(blocks + points near the radii) instead of O(points within R).
 
 :func:`prepare` makes the per-scan tables (validity, prefix sums), :func:`links` the
@@ -45,8 +47,10 @@ __all__ = [
     "within",
 ]
 
-_LEVELS = 4  # block sizes 8, 64, 512, 4096 beams
+_LEVELS = 4  # aligned block sizes of :func:`walk`: 8, 64, 512, 4096 beams
 _SHIFT = 3  # log2 of the block size ratio
+_SPAN = 3 * (_LEVELS - 1) + 1  # levels of the sparse table of boxes: runs of 1 to 512 blocks
+_BACKOFF = 24  # tries of :func:`_jump`: 0, 1, 3, 7, ... blocks short of the guess
 ROW = 6  # values per index in the flat prefix sums of :func:`prepare`
 PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
 
@@ -110,11 +114,14 @@ def links(valid: NDArray[np.bool_]) -> tuple:
 def block_boxes(
     x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_]
 ) -> NDArray[np.float64]:
-    """Bounding boxes (xmin, xmax, ymin, ymax) of the aligned full blocks of 8**(l+1) beams,
-    shape (levels, N // 8, 4); a block holding a gap gets an infinite box (never skipped)."""
+    """Bounding boxes (xmin, xmax, ymin, ymax) of runs of 2**l consecutive blocks of 8 beams, a
+    sparse table of shape (:data:`_SPAN`, N // 8, 4): entry (l, b) bounds beams 8b to
+    8(b + 2**l) - 1 (filled for b + 2**l <= N // 8); a run holding a gap gets an infinite box
+    (never skipped). The aligned blocks of 8**(a+1) beams of :func:`walk` are entries
+    (3a, 8**a · b), any run of blocks is two overlapping entries (:func:`_run_within`)."""
     n = x.shape[0]
     nb0 = n >> _SHIFT
-    box = np.empty((_LEVELS, max(nb0, 1), 4))
+    box = np.empty((_SPAN, max(nb0, 1), 4))
     for b in range(nb0):
         x0 = math.inf
         x1 = -math.inf
@@ -135,25 +142,21 @@ def block_boxes(
         box[0, b, 1] = x1
         box[0, b, 2] = y0
         box[0, b, 3] = y1
-    for lev in range(1, _LEVELS):
-        for b in range(n >> (_SHIFT * (lev + 1))):
-            c0 = b << _SHIFT
-            box[lev, b, 0] = box[lev - 1, c0, 0]
-            box[lev, b, 1] = box[lev - 1, c0, 1]
-            box[lev, b, 2] = box[lev - 1, c0, 2]
-            box[lev, b, 3] = box[lev - 1, c0, 3]
-            for c in range(c0 + 1, c0 + (1 << _SHIFT)):
-                box[lev, b, 0] = min(box[lev, b, 0], box[lev - 1, c, 0])
-                box[lev, b, 1] = max(box[lev, b, 1], box[lev - 1, c, 1])
-                box[lev, b, 2] = min(box[lev, b, 2], box[lev - 1, c, 2])
-                box[lev, b, 3] = max(box[lev, b, 3], box[lev - 1, c, 3])
+    for lev in range(1, _SPAN):
+        half = 1 << (lev - 1)
+        for b in range(nb0 - (1 << lev) + 1):
+            c = b + half
+            box[lev, b, 0] = min(box[lev - 1, b, 0], box[lev - 1, c, 0])
+            box[lev, b, 1] = max(box[lev - 1, b, 1], box[lev - 1, c, 1])
+            box[lev, b, 2] = min(box[lev - 1, b, 2], box[lev - 1, c, 2])
+            box[lev, b, 3] = max(box[lev - 1, b, 3], box[lev - 1, c, 3])
     return box
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _box_d2(box: NDArray[np.float64], lev: int, b: int, xj: float, yj: float) -> float:
-    """Squared distance from (xj, yj) to the farthest corner of a block's box: an upper
-    bound of the kernel's d2 of every point in the block (monotone rounding)."""
+    """Squared distance from (xj, yj) to the farthest corner of a box: an upper bound of the
+    kernel's d2 of every point in it (monotone rounding)."""
     dx = max(abs(box[lev, b, 0] - xj), abs(box[lev, b, 1] - xj))
     dy = max(abs(box[lev, b, 2] - yj), abs(box[lev, b, 3] - yj))
     return dx * dx + dy * dy
@@ -163,19 +166,94 @@ def _box_d2(box: NDArray[np.float64], lev: int, b: int, xj: float, yj: float) ->
 def _skip(
     box: NDArray[np.float64], i: int, step: int, n: int, xj: float, yj: float, r2: float
 ) -> int:
-    """Size of the largest aligned block starting at ``i`` (towards ``step``) that lies
-    within ``r2`` of (xj, yj), or 0."""
+    """Size of the largest aligned block of 8**(a+1) beams starting at ``i`` (towards
+    ``step``) that lies within ``r2`` of (xj, yj), or 0."""
     edge = i if step > 0 else i + 1  # aligned block boundary at the walk's near side
     for lev in range(_LEVELS - 1, -1, -1):
-        size = 1 << (_SHIFT * (lev + 1))
+        shift = _SHIFT * (lev + 1)
+        size = 1 << shift
         if edge & (size - 1) != 0:
             continue
-        b = (edge >> (_SHIFT * (lev + 1))) - (0 if step > 0 else 1)
+        b = (edge >> shift) - (0 if step > 0 else 1)
         if b < 0 or (b + 1) * size > n:
             continue
-        if _box_d2(box, lev, b, xj, yj) <= r2:
+        if _box_d2(box, _SHIFT * lev, b << (_SHIFT * lev), xj, yj) <= r2:
             return size
     return 0
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _run_within(
+    box: NDArray[np.float64], b0: int, b1: int, xj: float, yj: float, r2: float
+) -> bool:
+    """Whether blocks ``b0`` to ``b1 - 1`` (of 8 beams) all lie within ``r2`` of (xj, yj), by
+    their boxes: two overlapping sparse-table entries per 2**:data:`_SPAN` - 1 blocks."""
+    while b0 < b1:  # from the far end, where a point beyond the radius would be
+        length = min(b1 - b0, (1 << _SPAN) - 1)
+        lev = 63 - leading_zeros(length)  # floor(log2(length))
+        if _box_d2(box, lev, b1 - (1 << lev), xj, yj) > r2:
+            return False
+        if _box_d2(box, lev, b1 - length, xj, yj) > r2:
+            return False
+        b1 -= length
+    return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _jump(
+    box: NDArray[np.float64], i: int, step: int, n: int, xj: float, yj: float, r2: float, g: int
+) -> int:
+    """Where a walk at block boundary ``i`` can go on, its whole way to near ``g`` (a guess
+    of the bound, the previous point's) lying within ``r2``: the first of the block
+    boundaries 0, 1, 3, 7, ..., 2**t - 1 blocks short of ``g`` (t < :data:`_BACKOFF`) whose
+    run from ``i`` passes :func:`_run_within`; ``i`` if none does. (In a dense noisy scan the
+    bound moves by hundreds of beams from one point to the next: the range noise along a
+    wall spans that many beams.)"""
+    if step > 0:
+        b0 = i >> _SHIFT
+        end = min((g + 1) >> _SHIFT, n >> _SHIFT)  # blocks wholly at or before g
+        for t in range(_BACKOFF):
+            e = end - ((1 << t) - 1)
+            if e <= b0:
+                return i
+            if _run_within(box, b0, e, xj, yj, r2):
+                return e << _SHIFT
+        return i
+    b1 = (i + 1) >> _SHIFT
+    first = (max(g, 0) + 7) >> _SHIFT  # blocks wholly at or after g
+    for t in range(_BACKOFF):
+        s = first + ((1 << t) - 1)
+        if s >= b1:
+            return i
+        if _run_within(box, s, b1, xj, yj, r2):
+            return (s << _SHIFT) - 1
+    return i
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _leading_within(
+    px: NDArray[np.float64],
+    py: NDArray[np.float64],
+    i: int,
+    step: int,
+    xj: float,
+    yj: float,
+    r2: float,
+) -> int:
+    """Number of leading beams from ``i`` towards ``step``, up to the next block boundary (up
+    to :data:`W` beams when ``i`` is on one), within ``r2`` of (xj, yj): one
+    :func:`~laser_corners.kernel.simd.far_masks` on the padded coordinates (a gap is +inf)."""
+    if step > 0:
+        room = (8 - (i & 7)) & 7
+        room = room if room > 0 else W
+        mask = far_masks(px, py, i + PAD, xj, yj, r2, r2, r2)[0] | (1 << room)
+        return trailing_zeros(mask)
+    room = (i + 1) & 7
+    room = room if room > 0 else W
+    mask = far_masks(px, py, i + PAD - (W - 1), xj, yj, r2, r2, r2)[0]
+    if room < W:
+        mask |= 1 << (W - 1 - room)
+    return leading_zeros(mask) - (64 - W)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -185,8 +263,7 @@ def walk(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
     valid: NDArray[np.bool_],
-    next_valid: NDArray[np.int64],
-    prev_valid: NDArray[np.int64],
+    links: tuple,
     box: NDArray[np.float64],
     r2: NDArray[np.float64],
     max_gap: int,
@@ -196,8 +273,17 @@ def walk(
 
     Walks from ``j`` towards ``step`` (-1 arrival, +1 departure) up to the first point
     farther than R_k from p_j, the first run of more than ``max_gap`` invalid beams, or the
-    scan's end; ``bound[k]`` is the last valid index before that point.
+    scan's end; ``bound[k]`` is the last valid index before that point. ``links``: the
+    next/previous valid index (:func:`links`) and the padded coordinates (:func:`padded`).
+
+    On entry ``bound[k]`` is a guess (any integer; the previous point's bound is a good one):
+    at the first block boundary within R_k the walk jumps to near it when every box on the
+    way lies within R_k (:func:`_jump`). Whole blocks within R_k are skipped
+    (:func:`_skip`), the beams up to the next block boundary are checked :data:`W` at a time
+    (:func:`_leading_within`), and only the first beam farther than R_k (or a gap) point by
+    point. The result does not depend on the guess.
     """
+    next_valid, prev_valid, px, py = links
     n = x.shape[0]
     n_scales = r2.shape[0]
     xj = x[j]
@@ -205,6 +291,7 @@ def walk(
     k = 0
     last = j
     i = j + step
+    tried = -1  # the last scale whose guess was tried
     while k < n_scales and 0 <= i < n:
         if not valid[i]:  # a run of gaps: bridge it if short and a point follows
             g = next_valid[i] if step > 0 else prev_valid[i]
@@ -212,12 +299,24 @@ def walk(
                 break
             i = g
             continue
+        if tried < k and ((i if step > 0 else i + 1) & 7) == 0:
+            tried = k
+            to = _jump(box, i, step, n, xj, yj, r2[k], bound[k])
+            if to != i:  # every beam up to ``to`` lies within R_k (and every larger scale)
+                i = to
+                last = i - step
+                continue
         size = _skip(box, i, step, n, xj, yj, r2[k])
         if size > 0:  # a whole block within R_k (and every larger scale)
             i += step * size
             last = i - step
             continue
-        d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2
+        ahead = _leading_within(px, py, i, step, xj, yj, r2[k])
+        if ahead > 0:  # valid beams within R_k
+            i += step * ahead
+            last = i - step
+            continue
+        d2 = (x[i] - xj) ** 2 + (y[i] - yj) ** 2  # farther than R_k: which scales end here
         while k < n_scales and d2 > r2[k]:
             bound[k] = last
             k += 1
@@ -252,9 +351,7 @@ def reach(
     step: int,
     px: NDArray[np.float64],
     py: NDArray[np.float64],
-    r2_max: float,
-    r2_a: float,
-    r2_b: float,
+    radii: tuple,
     running_max: NDArray[np.float64],
     store: bool,
 ) -> tuple:
@@ -263,11 +360,13 @@ def reach(
     Follows the running maximum of the squared distance to p_j (a gap, or the scan's end, is
     infinitely far: ``px``, ``py`` from :func:`padded`) until it exceeds ``r2_max``; returns
     the number of steps within and the numbers of leading steps within sqrt(``r2_a``) and
-    sqrt(``r2_b``) (two more sentinel scales, counted on the way). With ``store`` the running
+    sqrt(``r2_b``) (two more sentinel scales, counted on the way); ``radii`` is
+    (``r2_max``, ``r2_a``, ``r2_b``). With ``store`` the running
     maximum of every step goes to ``running_max`` (for :func:`within`). Four steps per
     iteration, whose running maxima are all computed from the previous one (a short
     dependency chain, no branch per point). For dense scans :func:`walk` is used instead.
     """
+    r2_max, r2_a, r2_b = radii
     c = j + PAD
     xj = px[c]
     yj = py[c]
