@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import between_many, compose, compose_many, relative_pose, wrap_angle
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import Alignment, PointMap, icp
+from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.corners import CornerRegistrar
 from laser_corners.slam.keyframes import KeyframeStore
@@ -48,6 +48,8 @@ COUNT_KEYS = (
     "skipped_no_odometry",
     "time_jumps",
     "alignment_failures",
+    "second_guesses",
+    "second_guesses_used",
     "closures_proposed",
     "closures_accepted",
     "closures_rejected",
@@ -108,6 +110,7 @@ class Slam:
         )
         self._aligned_since_kf = True
         self._jump = False
+        self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -137,7 +140,9 @@ class Slam:
                 self._jump = True
             delta = np.array(relative_pose(self._last_odom, odo))
             pred = np.array(compose(self.pose, delta))
+            last = self.pose
             self.pose = self._track(pts.xy, pred, delta, jump, self._corner_guess(scan, kp, pred))
+            self._step = np.array(relative_pose(last, self.pose))
             moved = relative_pose(self._anchor, self.pose)
             if (
                 self._jump
@@ -202,10 +207,40 @@ class Slam:
             sxy = opt.odometry_sigma_xy * (dist + 0.1)
             syaw = opt.odometry_sigma_yaw * (abs(float(delta[2])) + dist + 0.1)
             sig = np.array([sxy, sxy, syaw])
-        aligned = self._icp(xy, pred, np.diag(1.0 / sig**2))
+        prior = np.diag(1.0 / sig**2)
+        aligned = self._icp(xy, pred, prior)
+        if not jump and self._disagrees(aligned, pred, sig):
+            aligned = self._second_guess(
+                xy, aligned, np.array(compose(self.pose, self._step)), prior
+            )
         if aligned.overlap >= opt.min_overlap:
             return aligned.pose
         return self._failed(pred)
+
+    @staticmethod
+    def _disagrees(aligned: Alignment, pred: NDArray, sig: NDArray) -> bool:
+        """Whether the alignment left the odometry prediction by more than 3 of its standard
+        deviations (or did not fit): the odometry may be wrong for this scan."""
+        off = np.abs(np.array(relative_pose(pred, aligned.pose))) / sig
+        return bool(off.max() > 3.0)
+
+    def _second_guess(
+        self, xy: NDArray, first: Alignment, guess: NDArray, prior: NDArray
+    ) -> Alignment:
+        """ICP from a second start, the estimate's own last motion repeated (constant velocity),
+        kept when more of the scan lies on the map (within half the inlier distance) than
+        from the odometry prediction. Odometry can be wrong in ways a prior cannot absorb:
+        fr079's wheel odometry counts a reverse drive as forward motion."""
+        self.counts["second_guesses"] += 1
+        second = self._icp(xy, guess, prior)
+        assert self._local_all is not None
+        tight = 0.5 * self.options.loop_inlier_distance
+        a = match_share(xy, self._local_all, first.pose, tight)
+        b = match_share(xy, self._local_all, second.pose, tight)
+        if b > a + 0.02 and second.overlap >= first.overlap:
+            self.counts["second_guesses_used"] += 1
+            return second
+        return first
 
     def _covariance(self) -> NDArray[np.float64]:
         """The last keyframe's iSAM2 marginal (body frame) plus the scan-alignment noise since
