@@ -22,6 +22,7 @@ from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.corners import CornerRegistrar
+from laser_corners.slam.correlative import ScoreGrid, search
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.landmarks import LandmarkTracker, make_detector
 from laser_corners.slam.loops import (
@@ -42,6 +43,16 @@ FULL_ESTIMATE_EVERY = 50
 """Every this many keyframes (and after every loop closure) all keyframe estimates are read
 back from iSAM2; in between only the recent ones."""
 
+RESCUE_SHARE = 0.5
+"""Share of a scan's points within half the inlier distance of the local map below which the
+tracking tries a correlative search (:meth:`Slam._rescue`)."""
+RESCUE_GAIN = 0.15
+"""How much larger that share must be after the correlative search to replace ICP's pose."""
+RESCUE_WINDOW = (0.3, 0.7)
+"""Half-widths (m, rad) of the rescue's correlative search around the odometry prediction."""
+RESCUE_RESOLUTION = 0.05
+"""Cell (m) of the rescue's likelihood grid."""
+
 COUNT_KEYS = (
     "scans",
     "keyframes",
@@ -50,6 +61,8 @@ COUNT_KEYS = (
     "alignment_failures",
     "second_guesses",
     "second_guesses_used",
+    "rescues",
+    "rescues_used",
     "closures_proposed",
     "closures_accepted",
     "closures_rejected",
@@ -101,6 +114,7 @@ class Slam:
         self._links: list[NDArray | None] = [None]  # tracked pose of keyframe k in k - 1's
         self._local: PointMap | None = None  # line points with normals, for ICP
         self._local_all: PointMap | None = None  # every point, for the overlap
+        self._local_grid: ScoreGrid | None = None  # likelihood grid of _local_all, when needed
         self._cov = np.diag([1e-6, 1e-6, 1e-8])
         self._since_closure = 0.0
         self._closed_recently = False
@@ -213,9 +227,36 @@ class Slam:
             aligned = self._second_guess(
                 xy, aligned, np.array(compose(self.pose, self._step)), prior
             )
+        if not jump:
+            aligned = self._rescue(xy, aligned, pred, sig)
         if aligned.overlap >= opt.min_overlap:
             return aligned.pose
         return self._failed(pred)
+
+    def _rescue(self, xy: NDArray, aligned: Alignment, pred: NDArray, sig: NDArray) -> Alignment:
+        """When less than :data:`RESCUE_SHARE` of the scan lies within half the inlier
+        distance of the local map after ICP, a correlative search (:func:`search`, window
+        :data:`RESCUE_WINDOW`) around the prediction, refined by ICP, replaces the alignment
+        if it puts :data:`RESCUE_GAIN` more of the scan on the map: odometry that is wrong by
+        more than ICP's reach (intel.bag's scans whose stamps are out of order) is recovered,
+        and a match that is not clearly better is not taken."""
+        assert self._local_all is not None
+        tight = 0.5 * self.options.loop_inlier_distance
+        share = match_share(xy, self._local_all, aligned.pose, tight)
+        if share >= RESCUE_SHARE or len(self._local_all) < 20:
+            return aligned
+        self.counts["rescues"] += 1
+        if self._local_grid is None:
+            self._local_grid = ScoreGrid.build(
+                self._local_all.xy, RESCUE_RESOLUTION, RESCUE_RESOLUTION, RESCUE_WINDOW[0] + 1.0
+            )
+        thin = xy[:: max(1, xy.shape[0] // 200)]
+        _, found = search(self._local_grid, thin, pred, *RESCUE_WINDOW)
+        found = self._icp(xy, found, np.diag(1.0 / np.array([0.1, 0.1, 0.05]) ** 2))
+        if match_share(xy, self._local_all, found.pose, tight) > share + RESCUE_GAIN:
+            self.counts["rescues_used"] += 1
+            return found
+        return aligned
 
     @staticmethod
     def _disagrees(aligned: Alignment, pred: NDArray, sig: NDArray) -> bool:
@@ -319,6 +360,7 @@ class Slam:
         self._aligned_since_kf = True
         self._jump = False
         self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
+        self._local_grid = None
         self.counts["keyframes"] = len(self.kf)
         self._cov = self.backend.covariance(k)
 
