@@ -101,6 +101,7 @@ class Slam:
         self._detector = None
         self.kf = KeyframeStore()
         self.closures: list[LoopClosure] = []
+        self._in_graph: list[LoopClosure] = []  # accepted closures, in the back end's order
         self.counts = dict.fromkeys(COUNT_KEYS, 0)
         self._stamps: list[float] = []
         self._odom: list[NDArray] = []
@@ -406,6 +407,9 @@ class Slam:
                 continue
             for good in self.gate.offer(closure, estimate):
                 good.accepted = True
+                if good.reason == "pending confirmation":
+                    good.reason = "confirmed by a later closure"
+                self._in_graph.append(good)
                 sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
                 self.backend.add_between(
                     good.match, good.query, np.array(good.relative), sig, robust=True
@@ -451,9 +455,8 @@ class Slam:
         if len(self.kf):
             if self.options.final_optimisation:
                 graph, values = self.backend.optimise()
-                accepted = [c for c in self.closures if c.accepted]
-                for i in self.backend.pruned:
-                    self._prune(accepted[i])
+                for i in self.backend.pruned:  # indices in the order added to the graph
+                    self._prune(self._in_graph[i])
             else:
                 self.backend.update(full=True)
                 graph, values = self.backend.graph, self.backend.values
