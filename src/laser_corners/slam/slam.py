@@ -406,19 +406,26 @@ class Slam:
             if not closure.accepted:
                 continue
             for good in self.gate.offer(closure, estimate):
-                good.accepted = True
-                if good.reason == "pending confirmation":
-                    good.reason = "confirmed by a later closure"
-                self._in_graph.append(good)
-                sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
-                self.backend.add_between(
-                    good.match, good.query, np.array(good.relative), sig, robust=True
-                )
+                self._accept(good)
                 closed = True
         self._closed_recently = closed
         if closed:
             self._since_closure = 0.0
         return closed
+
+    def _accept(self, closure: LoopClosure) -> None:
+        """Put a verified closure into the graph (robust factor); the back end's list of
+        closures and ``_in_graph`` keep the same order, which :meth:`result` relies on to
+        mark the ones the final optimisation drops."""
+        opt = self.options
+        closure.accepted = True
+        if closure.reason == "pending confirmation":
+            closure.reason = "confirmed by a later closure"
+        self._in_graph.append(closure)
+        sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
+        self.backend.add_between(
+            closure.match, closure.query, np.array(closure.relative), sig, robust=True
+        )
 
     def _scan_poses(self) -> NDArray[np.float64]:
         """Final pose of every scan: its pose relative to the keyframe before it, moved with
