@@ -224,10 +224,11 @@ class Slam:
             sig = np.array([sxy, sxy, syaw])
         prior = np.diag(1.0 / sig**2)
         aligned = self._icp(xy, pred, prior)
-        if not jump and self._disagrees(aligned, pred, sig):
-            aligned = self._second_guess(
-                xy, aligned, np.array(compose(self.pose, self._step)), prior
-            )
+        steady = np.array(compose(self.pose, self._step))
+        if not jump and (
+            self._disagrees(aligned.pose, pred, sig) or self._disagrees(steady, pred, sig)
+        ):
+            aligned = self._second_guess(xy, aligned, steady, prior)
         if not jump:
             aligned = self._rescue(xy, aligned, pred, sig)
         if aligned.overlap >= opt.min_overlap:
@@ -260,10 +261,11 @@ class Slam:
         return aligned
 
     @staticmethod
-    def _disagrees(aligned: Alignment, pred: NDArray, sig: NDArray) -> bool:
-        """Whether the alignment left the odometry prediction by more than 3 of its standard
-        deviations (or did not fit): the odometry may be wrong for this scan."""
-        off = np.abs(np.array(relative_pose(pred, aligned.pose))) / sig
+    def _disagrees(pose: NDArray, pred: NDArray, sig: NDArray) -> bool:
+        """Whether ``pose`` (the alignment's result, or the constant-velocity prediction) is
+        more than 3 standard deviations of the odometry from the odometry prediction: the
+        odometry may be wrong for this scan."""
+        off = np.abs(np.array(relative_pose(pred, pose))) / sig
         return bool(off.max() > 3.0)
 
     def _second_guess(
