@@ -24,6 +24,8 @@ HUBER_K = 1.345
 PRUNE_CHI = 3.0
 """A loop closure whose whitened residual after the batch optimisation exceeds this many
 standard deviations contradicts the rest of the graph: it is dropped and the graph re-solved."""
+PRUNE_ROUNDS = 3
+"""Rounds of pruning and re-solving at most."""
 
 
 def require_gtsam() -> None:
@@ -198,25 +200,34 @@ class Backend:
     def optimise(self) -> tuple[object, object]:
         """Batch Levenberg-Marquardt from the iSAM2 estimate, then the loop closures that the
         result contradicts (residual > :data:`PRUNE_CHI` sigmas) dropped and the graph solved
-        again: (graph, values)."""
+        again, up to :data:`PRUNE_ROUNDS` times (a dropped closure can have hidden another):
+        (graph, values)."""
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(50)
-        start = self.isam.calculateEstimate()
-        values = gtsam.LevenbergMarquardtOptimizer(self.graph, start, params).optimize()
-        bad = []
-        for i, (a, b, rel, noise, _) in enumerate(self.loops):
-            plain = gtsam.BetweenFactorPose2(X(a), X(b), rel, noise)
-            if np.sqrt(2.0 * plain.error(values)) > PRUNE_CHI:
-                bad.append(i)
-        if bad:
-            drop = {self.loops[i][4] for i in bad}
+        values = gtsam.LevenbergMarquardtOptimizer(
+            self.graph, self.isam.calculateEstimate(), params
+        ).optimize()
+        dropped: set[int] = set()
+        for _ in range(PRUNE_ROUNDS):
+            bad = [
+                i
+                for i, (a, b, rel, noise, _) in enumerate(self.loops)
+                if i not in dropped
+                and np.sqrt(2.0 * gtsam.BetweenFactorPose2(X(a), X(b), rel, noise).error(values))
+                > PRUNE_CHI
+            ]
+            if not bad:
+                break
+            dropped.update(bad)
+            drop = {self.loops[i][4] for i in dropped}
             kept = gtsam.NonlinearFactorGraph()
             for f in range(self.graph.size()):
                 if f not in drop:
                     kept.add(self.graph.at(f))
-            self.graph = kept
-            self.pruned = bad
             values = gtsam.LevenbergMarquardtOptimizer(kept, values, params).optimize()
+        if dropped:
+            self.graph = kept
+            self.pruned = sorted(dropped)
         self._values = values
         self._estimate = gtsam.utilities.extractPose2(values)
         return self.graph, values

@@ -81,8 +81,10 @@ class SlamOptions(Options):
     """Beams shorter than this (m) are not used (the robot itself)."""
     point_spacing: float = Field(0.05, ge=0.0, le=1.0)
     """Minimum spacing (m) between the points kept from one scan (voxel thinning)."""
-    icp_max_distance: float = Field(0.3, ge=0.01, le=5.0)
-    """Largest point-to-map distance (m) of a correspondence in the last ICP iterations."""
+    icp_max_distance: float = Field(0.15, ge=0.01, le=5.0)
+    """Largest point-to-map distance (m) of a correspondence in the last ICP iterations
+    (five times the 3 cm point noise; a prediction farther off is caught by the second
+    start and the correlative rescue of the front end, not by a wider gate)."""
     icp_iterations: int = Field(20, ge=1, le=200)
     """Maximum point-to-line ICP iterations per alignment."""
     min_overlap: float = Field(0.4, ge=0.0, le=1.0)
@@ -122,9 +124,9 @@ class SlamOptions(Options):
     correction needs a second closure implying the same correction within this distance."""
     loop_agree_yaw: float = Field(0.035, ge=0.0, le=3.2)
     """As ``loop_agree_xy``, for the rotation (rad, 2 degrees)."""
-    loop_sigma_xy: float = Field(0.05, ge=1e-4, le=10.0)
+    loop_sigma_xy: float = Field(0.03, ge=1e-4, le=10.0)
     """Noise (m) of a loop closure factor (under a Cauchy kernel)."""
-    loop_sigma_yaw: float = Field(0.01, ge=1e-5, le=1.0)
+    loop_sigma_yaw: float = Field(0.005, ge=1e-5, le=1.0)
     """Noise (rad) of a loop closure factor (under a Cauchy kernel)."""
     time_jump: float = Field(5.0, ge=0.1, le=1e6)
     """A gap (s) between scan stamps (either way) longer than this is a time jump: the scan

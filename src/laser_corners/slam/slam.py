@@ -19,9 +19,10 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import between_many, compose, compose_many, relative_pose, wrap_angle
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import Alignment, PointMap, icp
+from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.corners import CornerRegistrar
+from laser_corners.slam.correlative import ScoreGrid, search
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.landmarks import LandmarkTracker, make_detector
 from laser_corners.slam.loops import (
@@ -42,12 +43,26 @@ FULL_ESTIMATE_EVERY = 50
 """Every this many keyframes (and after every loop closure) all keyframe estimates are read
 back from iSAM2; in between only the recent ones."""
 
+RESCUE_SHARE = 0.5
+"""Share of a scan's points within half the inlier distance of the local map below which the
+tracking tries a correlative search (:meth:`Slam._rescue`)."""
+RESCUE_GAIN = 0.15
+"""How much larger that share must be after the correlative search to replace ICP's pose."""
+RESCUE_WINDOW = (0.3, 0.7)
+"""Half-widths (m, rad) of the rescue's correlative search around the odometry prediction."""
+RESCUE_RESOLUTION = 0.05
+"""Cell (m) of the rescue's likelihood grid."""
+
 COUNT_KEYS = (
     "scans",
     "keyframes",
     "skipped_no_odometry",
     "time_jumps",
     "alignment_failures",
+    "second_guesses",
+    "second_guesses_used",
+    "rescues",
+    "rescues_used",
     "closures_proposed",
     "closures_accepted",
     "closures_rejected",
@@ -86,6 +101,7 @@ class Slam:
         self._detector = None
         self.kf = KeyframeStore()
         self.closures: list[LoopClosure] = []
+        self._in_graph: list[LoopClosure] = []  # accepted closures, in the back end's order
         self.counts = dict.fromkeys(COUNT_KEYS, 0)
         self._stamps: list[float] = []
         self._odom: list[NDArray] = []
@@ -99,6 +115,7 @@ class Slam:
         self._links: list[NDArray | None] = [None]  # tracked pose of keyframe k in k - 1's
         self._local: PointMap | None = None  # line points with normals, for ICP
         self._local_all: PointMap | None = None  # every point, for the overlap
+        self._local_grid: ScoreGrid | None = None  # likelihood grid of _local_all, when needed
         self._cov = np.diag([1e-6, 1e-6, 1e-8])
         self._since_closure = 0.0
         self._closed_recently = False
@@ -108,6 +125,7 @@ class Slam:
         )
         self._aligned_since_kf = True
         self._jump = False
+        self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -137,7 +155,9 @@ class Slam:
                 self._jump = True
             delta = np.array(relative_pose(self._last_odom, odo))
             pred = np.array(compose(self.pose, delta))
+            last = self.pose
             self.pose = self._track(pts.xy, pred, delta, jump, self._corner_guess(scan, kp, pred))
+            self._step = np.array(relative_pose(last, self.pose))
             moved = relative_pose(self._anchor, self.pose)
             if (
                 self._jump
@@ -202,10 +222,69 @@ class Slam:
             sxy = opt.odometry_sigma_xy * (dist + 0.1)
             syaw = opt.odometry_sigma_yaw * (abs(float(delta[2])) + dist + 0.1)
             sig = np.array([sxy, sxy, syaw])
-        aligned = self._icp(xy, pred, np.diag(1.0 / sig**2))
+        prior = np.diag(1.0 / sig**2)
+        aligned = self._icp(xy, pred, prior)
+        steady = np.array(compose(self.pose, self._step))
+        if not jump and (
+            self._disagrees(aligned.pose, pred, sig) or self._disagrees(steady, pred, sig)
+        ):
+            aligned = self._second_guess(xy, aligned, steady, prior)
+        if not jump:
+            aligned = self._rescue(xy, aligned, pred, sig)
         if aligned.overlap >= opt.min_overlap:
             return aligned.pose
         return self._failed(pred)
+
+    def _rescue(self, xy: NDArray, aligned: Alignment, pred: NDArray, sig: NDArray) -> Alignment:
+        """When less than :data:`RESCUE_SHARE` of the scan lies within half the inlier
+        distance of the local map after ICP, a correlative search (:func:`search`, window
+        :data:`RESCUE_WINDOW`) around the prediction, refined by ICP, replaces the alignment
+        if it puts :data:`RESCUE_GAIN` more of the scan on the map: odometry that is wrong by
+        more than ICP's reach (intel.bag's scans whose stamps are out of order) is recovered,
+        and a match that is not clearly better is not taken."""
+        assert self._local_all is not None
+        tight = 0.5 * self.options.loop_inlier_distance
+        share = match_share(xy, self._local_all, aligned.pose, tight)
+        if share >= RESCUE_SHARE or len(self._local_all) < 20:
+            return aligned
+        self.counts["rescues"] += 1
+        if self._local_grid is None:
+            self._local_grid = ScoreGrid.build(
+                self._local_all.xy, RESCUE_RESOLUTION, RESCUE_RESOLUTION, RESCUE_WINDOW[0] + 1.0
+            )
+        thin = xy[:: max(1, xy.shape[0] // 200)]
+        _, found = search(self._local_grid, thin, pred, *RESCUE_WINDOW)
+        found = self._icp(xy, found, np.diag(1.0 / np.array([0.1, 0.1, 0.05]) ** 2))
+        if match_share(xy, self._local_all, found.pose, tight) > share + RESCUE_GAIN:
+            self.counts["rescues_used"] += 1
+            return found
+        return aligned
+
+    @staticmethod
+    def _disagrees(pose: NDArray, pred: NDArray, sig: NDArray) -> bool:
+        """Whether ``pose`` (the alignment's result, or the constant-velocity prediction) is
+        more than 3 standard deviations of the odometry from the odometry prediction: the
+        odometry may be wrong for this scan."""
+        off = np.abs(np.array(relative_pose(pred, pose))) / sig
+        return bool(off.max() > 3.0)
+
+    def _second_guess(
+        self, xy: NDArray, first: Alignment, guess: NDArray, prior: NDArray
+    ) -> Alignment:
+        """ICP from a second start, the estimate's own last motion repeated (constant velocity),
+        kept when more of the scan lies on the map (within half the inlier distance) than
+        from the odometry prediction. Odometry can be wrong in ways a prior cannot absorb:
+        fr079's wheel odometry counts a reverse drive as forward motion."""
+        self.counts["second_guesses"] += 1
+        second = self._icp(xy, guess, prior)
+        assert self._local_all is not None
+        tight = 0.5 * self.options.loop_inlier_distance
+        a = match_share(xy, self._local_all, first.pose, tight)
+        b = match_share(xy, self._local_all, second.pose, tight)
+        if b > a + 0.02 and second.overlap >= first.overlap:
+            self.counts["second_guesses_used"] += 1
+            return second
+        return first
 
     def _covariance(self) -> NDArray[np.float64]:
         """The last keyframe's iSAM2 marginal (body frame) plus the scan-alignment noise since
@@ -284,6 +363,7 @@ class Slam:
         self._aligned_since_kf = True
         self._jump = False
         self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
+        self._local_grid = None
         self.counts["keyframes"] = len(self.kf)
         self._cov = self.backend.covariance(k)
 
@@ -328,16 +408,26 @@ class Slam:
             if not closure.accepted:
                 continue
             for good in self.gate.offer(closure, estimate):
-                good.accepted = True
-                sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
-                self.backend.add_between(
-                    good.match, good.query, np.array(good.relative), sig, robust=True
-                )
+                self._accept(good)
                 closed = True
         self._closed_recently = closed
         if closed:
             self._since_closure = 0.0
         return closed
+
+    def _accept(self, closure: LoopClosure) -> None:
+        """Put a verified closure into the graph (robust factor); the back end's list of
+        closures and ``_in_graph`` keep the same order, which :meth:`result` relies on to
+        mark the ones the final optimisation drops."""
+        opt = self.options
+        closure.accepted = True
+        if closure.reason == "pending confirmation":
+            closure.reason = "confirmed by a later closure"
+        self._in_graph.append(closure)
+        sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
+        self.backend.add_between(
+            closure.match, closure.query, np.array(closure.relative), sig, robust=True
+        )
 
     def _scan_poses(self) -> NDArray[np.float64]:
         """Final pose of every scan: its pose relative to the keyframe before it, moved with
@@ -374,9 +464,8 @@ class Slam:
         if len(self.kf):
             if self.options.final_optimisation:
                 graph, values = self.backend.optimise()
-                accepted = [c for c in self.closures if c.accepted]
-                for i in self.backend.pruned:
-                    self._prune(accepted[i])
+                for i in self.backend.pruned:  # indices in the order added to the graph
+                    self._prune(self._in_graph[i])
             else:
                 self.backend.update(full=True)
                 graph, values = self.backend.graph, self.backend.values
