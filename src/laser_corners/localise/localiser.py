@@ -21,8 +21,10 @@ Three states (:attr:`Localiser.status`):
 ``tracking``
     Odometry predicts, ICP against the map corrects (the odometry noise is the prior), the
     covariance is the inverse of the ICP information plus the prior's (with a floor for the
-    map's own error). A scan agreeing less than ``track_agreement``, or with more than
-    ``max_outside`` of its beams outside the map, gives no estimate.
+    map's own error). A scan agreeing less than ``track_agreement``, with more than
+    ``max_outside`` of its beams outside the map, or whose last ``conflict_scans`` contradict
+    the map's free space on more than ``max_conflict`` of the beams on average (the track
+    slid to a look-alike place, or the robot left the map), gives no estimate.
 ``lost``
     ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
     (a kidnapped robot); the next fix is reported as ``relocalised``.
@@ -62,6 +64,8 @@ RECOVER_YAW = 0.3
 """Half-width (rad) of the recovery search window."""
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
+HISTORY_STEP = 0.2
+"""Odometry travel (m, turns 0.5 m per radian) between two scans kept for the history check."""
 
 
 @dataclass
@@ -169,7 +173,9 @@ class Localiser:
         self.counts = {"scans": 0, "estimates": 0, "lost": 0, "searches": 0, "no_agreement": 0}
         self.counts["recoveries"] = 0
         self.counts["refused_free_space"] = 0
+        self.counts["refused_history"] = 0
         self._recent: deque = deque(maxlen=self.options.recent_scans)
+        self._conflicts: deque = deque(maxlen=self.options.conflict_scans)
         self.ms_per_scan: list[float] = []
         self.pose: NDArray[np.float64] | None = None
         self._cov = np.diag([1.0, 1.0, 0.5])
@@ -179,6 +185,8 @@ class Localiser:
         self._last_stamp = -math.inf
         self._since_search = 0
         self._search_travel = 0.0
+        self._history: deque = deque()
+        """Scans of the current search kept for the history check: (travel, points, odometry)."""
 
     @property
     def status(self) -> str:
@@ -193,6 +201,7 @@ class Localiser:
         self.hypotheses = []
         self._bad = 0
         self._recent.clear()
+        self._conflicts.clear()
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -264,8 +273,12 @@ class Localiser:
         usual = float(np.mean(self._recent)) if self._recent else 1.0
         if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
             aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
-        if agreement < max(opt.track_agreement, usual - opt.track_drop) or (
-            self._support(aligned.pose, pts.xy).outside > opt.max_outside
+        support = self._support(aligned.pose, pts.xy)
+        self._conflicts.append(support.conflict)
+        if (
+            agreement < max(opt.track_agreement, usual - opt.track_drop)
+            or support.outside > opt.max_outside
+            or float(np.mean(self._conflicts)) > opt.max_conflict
         ):
             self.pose = pred
             self._bad += 1
@@ -332,6 +345,7 @@ class Localiser:
         self.hypotheses = []
         self._since_search = 0
         self._search_travel = 0.0
+        self._history.clear()
         self.counts["lost"] += 1
 
     # ------------------------------------------------------------------ global search
@@ -342,17 +356,24 @@ class Localiser:
         if jump:
             self.hypotheses = []
             self._since_search = 0
+            self._history.clear()
         step = math.hypot(delta[0], delta[1]) + 0.5 * abs(delta[2])
         self._search_travel += step
+        self._remember(pts.xy, odo)
         self._follow(pts.xy, delta, step)
         if self._since_search % opt.global_every == 0:
             self._propose(scan, pts.xy, index)
         self._since_search += 1
         winner = self._winner()
+        if winner is not None and not self._history_fits(winner, odo):
+            self.hypotheses.remove(winner)
+            self.counts["refused_history"] += 1
+            winner = None
         if winner is None:
             return None
         self.pose = winner.pose.copy()
         self.hypotheses = []
+        self._conflicts.clear()
         self.fixes.append(Fix(index, stamp, self._search_travel, tuple(winner.pose.tolist())))
         self._cov = np.diag([0.05, 0.05, 0.02]) ** 2
         agreement = winner.recent[-1]
@@ -374,6 +395,38 @@ class Localiser:
             if h.score() >= opt.hypothesis_agreement and np.mean(h.conflict) <= opt.max_conflict
         ]
         self.hypotheses = self._merged(alive)
+
+    def _remember(self, xy: NDArray, odo: NDArray) -> None:
+        """Keep this scan for the history check when the robot moved ``HISTORY_STEP`` since
+        the last one kept; forget those more than ``history_travel`` back."""
+        h = self._history
+        if h and self._search_travel - h[-1][0] < HISTORY_STEP:
+            return
+        h.append((self._search_travel, xy, odo))
+        while self._search_travel - h[0][0] > self.options.history_travel:
+            h.popleft()
+
+    def _history_fits(self, winner: Hypothesis, odo: NDArray) -> bool:
+        """Whether the search's past scans, chained back from ``winner`` by odometry (each
+        aligned to the map under the odometry prior), never contradict the map's free space
+        on more than ``max_conflict`` of the beams over ``conflict_scans`` kept scans: what
+        tracking would have required had the winner been followed from the search's start.
+        A look-alike of an unmapped place often fits the map only from where the robot is
+        now (issue 20, later visit); past scans seen from outside the map do not count."""
+        opt = self.options
+        pose, last = winner.pose, odo
+        conflicts: list[float] = []
+        for _, xy, past in reversed(self._history):
+            delta = between_many(last, past)
+            guess = compose_many(pose, delta)
+            aligned, agreement = self._align(xy, guess, self._prior(delta, False))
+            pose = aligned.pose if agreement >= opt.hypothesis_agreement else guess
+            conflicts.append(self._support(pose, xy).conflict)
+            last = past
+        if len(conflicts) < opt.conflict_scans:
+            return float(np.mean(conflicts)) <= opt.max_conflict if conflicts else True
+        window = np.convolve(conflicts, np.ones(opt.conflict_scans) / opt.conflict_scans, "valid")
+        return float(window.max()) <= opt.max_conflict
 
     def _merged(self, hypotheses: list[Hypothesis]) -> list[Hypothesis]:
         """Oldest first; a hypothesis meeting an older one is dropped; at most
