@@ -30,7 +30,9 @@ the two SLAM maps agree locally but can bend differently, aces by metres). The r
 metric interpolates the joined trajectory across the scans without an estimate, so a gap
 (the robot outside the half map, or not found yet) counts as error; ``posed`` scores only
 the relations whose two stamps have a pose (within 0.1 s), with ``posed``/``relations``
-their share.
+their share; ``held`` fills every scan from the first fix on with the last estimate's
+map -> odom applied to the odometry (the pose a robot would use, as the ROS node's ``/tf``
+gives it) and leaves out the relations with a stamp before the first fix.
 
 Timings are of this machine under whatever else runs on it (2 cores shared).
 """
@@ -198,12 +200,18 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
     est_t, est_p, est_i = [], [], []
+    held_t, held_p = [], []  # every scan from the first fix on: the estimate, else the
+    map_to_odom = None  # last map -> odom applied to the odometry (what a robot would use)
     for i in range(half, len(scans)):
         e = loc.add(scans[i], odo[i], stamps[i])
         if e is not None:
             est_t.append(stamps[i])
             est_p.append(e.pose)
             est_i.append(i)
+            map_to_odom = e.map_to_odom
+        if map_to_odom is not None:
+            held_t.append(stamps[i])
+            held_p.append(compose_many(map_to_odom, odo[i]))
     est_p = np.array(est_p).reshape(-1, 3)
     truth, anchor = anchored_truth(map_t, map_p, *full_traj, stamps[np.array(est_i, int)])
     err = np.array([pose_error(e, t)[0] for e, t in zip(est_p, truth, strict=True)])
@@ -226,6 +234,14 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     both = posed(rel[:, 0]) & posed(rel[:, 1]) if len(have) > 1 else np.zeros(len(rel), bool)
     ours_posed = relation_metrics(joined_t, joined_p, rel[both])
     full_posed = relation_metrics(full_traj[0], full_traj[1], rel[both])
+    # held: the first half's poses, then every scan from the first fix on; the relations
+    # with a stamp between the two (before the first fix) are left out
+    held_tt = np.r_[map_t[first], np.array(held_t)]
+    held_pp = np.vstack([map_p[first], np.array(held_p).reshape(-1, 3)])
+    gap = (rel[:, :2] >= t_half) & (rel[:, :2] < (held_t[0] if held_t else np.inf))
+    kept = rel[~gap.any(axis=1)]
+    ours_held = relation_metrics(held_tt, held_pp, kept)
+    full_held = relation_metrics(full_traj[0], full_traj[1], kept)
     return {
         "relations": len(rel),
         "spanning": int(spanning.sum()),
@@ -239,6 +255,9 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "posed_spanning": int((both & spanning).sum()),
         "posed_trans": ours_posed.trans_mean,
         "posed_full_trans": full_posed.trans_mean,
+        "held": len(kept),
+        "held_trans": ours_held.trans_mean,
+        "held_full_trans": full_held.trans_mean,
         "first_fix_travel": loc.fixes[0].travel if loc.fixes else None,
         "fixes": [
             {"scan": half + f.scan_index, "travel": f.travel, "error": float(e)}
@@ -335,8 +354,9 @@ def table(results: list[dict]) -> list[str]:
         "",
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
         "| ratio | spanning m | posed relations (spanning) | posed: joined / full m, ratio "
+        "| held relations: joined / full m, ratio "
         "| first fix travel m | estimates / scans | lost | wrong | error median / p95 m |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         if "later" not in r:
@@ -351,6 +371,8 @@ def table(results: list[dict]) -> list[str]:
             f"| {v['spanning_trans']:.4f} | {v['posed']} ({v['posed_spanning']}) "
             f"| {v['posed_trans']:.4f} / {v['posed_full_trans']:.4f}, "
             f"{v['posed_trans'] / v['posed_full_trans']:.2f} "
+            f"| {v['held']}: {v['held_trans']:.4f} / {v['held_full_trans']:.4f}, "
+            f"{v['held_trans'] / v['held_full_trans']:.2f} "
             f"| {fix} | {v['estimates']} / {v['scans']} | {v['lost']} "
             f"| {v['wrong']} | {v['error_median']:.3f} / {v['error_p95']:.3f} |"
         )

@@ -40,7 +40,7 @@ from laser_corners.slam.mapfile import SavedMap
 
 __all__ = ["FreeSpace", "Support"]
 
-KNOWN, HIT, FREE, WALL = 1, 2, 4, 8
+KNOWN, HIT, FREE, WALL, OCCUPIED = 1, 2, 4, 8, 16
 """Bit flags of a cell of :attr:`FreeSpace.state` (0: unknown)."""
 CELL = 0.1
 """Cell (m) of the free-space grid."""
@@ -52,6 +52,9 @@ FREE_MISSES = 5
 WALL_HITS = 3
 """Rays that must end in a cell, and at least as many as cross it, for a wall: what a person
 walking by or a door open once leaves in the map (hit once, crossed by many rays) is not."""
+OCCUPIED_RATIO = 0.3
+"""The *any-evidence* test: a cell is occupied when the rays ending in it are at least this
+share of those crossing it, else free when any ray crossed it."""
 BEAMS = 90
 """Beams tested per pose at most (evenly subsampled)."""
 
@@ -88,18 +91,21 @@ def _carve(
 
 
 @numba.njit(cache=True)
-def _around(state: NDArray[np.int8], ix: int, iy: int) -> tuple[bool, bool]:
-    """Whether the 3 x 3 cells around ``(ix, iy)`` hold a known cell and a cell hit by a ray."""
+def _around(state: NDArray[np.int8], ix: int, iy: int) -> tuple[bool, bool, bool]:
+    """Whether the 3 x 3 cells around ``(ix, iy)`` hold a known cell, a cell hit by a ray
+    and an occupied cell (any evidence)."""
     ny, nx = state.shape
     known = False
     hit = False
+    occupied = False
     for y in range(iy - 1, iy + 2):
         for x in range(ix - 1, ix + 2):
             if 0 <= x < nx and 0 <= y < ny:
                 v = state[y, x]
                 known = known or (v & KNOWN) != 0
                 hit = hit or (v & HIT) != 0
-    return known, hit
+                occupied = occupied or (v & OCCUPIED) != 0
+    return known, hit, occupied
 
 
 @numba.njit(cache=True)
@@ -110,31 +116,36 @@ def _support(
     sensor: NDArray[np.float64],
     ends: NDArray[np.float64],
     clear: float,
-) -> tuple[int, int]:
-    """Beams ending outside the known map, and beams contradicting it (see the module)."""
+) -> tuple[int, int, int]:
+    """Beams ending outside the known map, beams contradicting what it is sure of, and beams
+    contradicting any of its evidence (see the module)."""
     outside = 0
     conflict = 0
+    loose = 0
     ny, nx = state.shape
     for k in range(ends.shape[0]):
         ex, ey = ends[k, 0], ends[k, 1]
         ix, iy = math.floor((ex - origin[0]) / res), math.floor((ey - origin[1]) / res)
-        known, hit = _around(state, ix, iy)
+        known, hit, occupied = _around(state, ix, iy)
         bad = not hit and 0 <= ix < nx and 0 <= iy < ny and (state[iy, ix] & FREE) != 0
+        bad_any = known and not occupied
         if not known:
             outside += 1
         dx, dy = ex - sensor[0], ey - sensor[1]
         length = math.hypot(dx, dy)
         steps = int(max(length - clear, 0.0) / (0.5 * res))
         for j in range(steps):
+            if bad and bad_any:
+                break
             t = j * 0.5 * res / max(length, 1e-9)
             ix = math.floor((sensor[0] + t * dx - origin[0]) / res)
             iy = math.floor((sensor[1] + t * dy - origin[1]) / res)
-            if bad:
-                break
-            if 0 <= ix < nx and 0 <= iy < ny and (state[iy, ix] & WALL) != 0:
-                bad = True
+            if 0 <= ix < nx and 0 <= iy < ny:
+                bad = bad or (state[iy, ix] & WALL) != 0
+                bad_any = bad_any or (state[iy, ix] & OCCUPIED) != 0
         conflict += bad
-    return outside, conflict
+        loose += bad_any
+    return outside, conflict, loose
 
 
 @dataclass(frozen=True)
@@ -144,7 +155,11 @@ class Support:
     outside: float
     """Share of beams ending where the map saw nothing."""
     conflict: float
-    """Share of beams ending in the map's free space or seeing through its walls."""
+    """Share of beams ending in the map's sure free space or seeing through its sure walls."""
+    loose: float = 0.0
+    """The same on any evidence (a cell crossed by one ray is free, hit by one ray for three
+    crossings occupied): more false conflicts at right poses (clutter, double walls), but
+    it also sees the look-alikes the sure test misses."""
 
 
 @dataclass
@@ -182,6 +197,7 @@ class FreeSpace:
         state |= np.where(hits > 0, HIT, 0)
         state |= np.where((misses >= FREE_MISSES) & (hits == 0), FREE, 0)
         state |= np.where((hits >= WALL_HITS) & (hits >= misses), WALL, 0)
+        state |= np.where((hits > 0) & (hits >= OCCUPIED_RATIO * misses), OCCUPIED, 0)
         return cls(state.astype(np.int8), lo, resolution, mount)
 
     def support(
@@ -190,7 +206,7 @@ class FreeSpace:
         """Outside and conflict shares of ``points`` (base frame) seen from base ``pose`` by a
         sensor at ``mount`` (base -> laser)."""
         if len(points) == 0:
-            return Support(1.0, 0.0)
+            return Support(1.0, 0.0, 0.0)
         if len(points) > BEAMS:
             points = points[np.linspace(0, len(points) - 1, BEAMS).astype(int)]
         c, s = math.cos(pose[2]), math.sin(pose[2])
@@ -202,5 +218,8 @@ class FreeSpace:
         )
         m = mount
         sensor = np.array([pose[0] + c * m[0] - s * m[1], pose[1] + s * m[0] + c * m[1]])
-        outside, conflict = _support(self.state, self.origin, self.resolution, sensor, ends, CLEAR)
-        return Support(outside / len(points), conflict / len(points))
+        outside, conflict, loose = _support(
+            self.state, self.origin, self.resolution, sensor, ends, CLEAR
+        )
+        n = len(points)
+        return Support(outside / n, conflict / n, loose / n)

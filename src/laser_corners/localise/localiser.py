@@ -16,14 +16,16 @@ Three states (:attr:`Localiser.status`):
     fix is given (no estimate is better than a confident wrong one).
     A hypothesis, and the fix, must also not contradict the map's free space (beams ending
     where the map saw free space, or seeing through its walls: :mod:`.freespace`) on more
-    than ``max_conflict`` of the beams; a winner whose scans partly end outside the map
+    than ``max_conflict`` of the beams (what the map is sure of) nor ``max_loose_conflict``
+    (any evidence), nor over the history since the search started (the search's past scans
+    chained back from the winner by odometry); a winner whose scans partly end outside the map
     needs ``outside_travel`` times the travel.
 ``tracking``
     Odometry predicts, ICP against the map corrects (the odometry noise is the prior), the
     covariance is the inverse of the ICP information plus the prior's (with a floor for the
     map's own error). A scan agreeing less than ``track_agreement``, with more than
     ``max_outside`` of its beams outside the map, or whose last ``conflict_scans`` contradict
-    the map's free space on more than ``max_conflict`` of the beams on average (the track
+    the map's free space on more than ``track_conflict`` of the beams on average (the track
     slid to a look-alike place, or the robot left the map), gives no estimate.
 ``lost``
     ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
@@ -111,6 +113,8 @@ class Hypothesis:
     """Recent shares of beams contradicting the map's free space (``freespace``)."""
     outside: deque = field(default_factory=deque)
     """Recent shares of beams ending where the map saw nothing."""
+    loose: deque = field(default_factory=deque)
+    """Recent shares of beams contradicting any evidence of the map (``Support.loose``)."""
 
     def score(self) -> float:
         """Mean recent agreement."""
@@ -122,6 +126,7 @@ class Hypothesis:
             (self.recent, agreement),
             (self.conflict, support.conflict),
             (self.outside, support.outside),
+            (self.loose, support.loose),
         ):
             queue.append(value)
             while len(queue) > window:
@@ -278,13 +283,13 @@ class Localiser:
         if (
             agreement < max(opt.track_agreement, usual - opt.track_drop)
             or support.outside > opt.max_outside
-            or float(np.mean(self._conflicts)) > opt.max_conflict
+            or float(np.mean(self._conflicts)) > opt.track_conflict
         ):
             self.pose = pred
             self._bad += 1
             self.counts["no_agreement"] += 1
             if self._bad >= opt.lost_scans:
-                self._lose()
+                self._lose(index)
             return None
         self._bad = 0
         self._recent.append(agreement)
@@ -304,7 +309,12 @@ class Localiser:
         """Whether the scan at ``pose`` neither contradicts the map's free space nor lies
         mostly outside the map (counted in ``refused_free_space`` when not)."""
         s = self._support(pose, xy)
-        ok = s.conflict <= self.options.max_conflict and s.outside <= self.options.max_outside
+        opt = self.options
+        ok = (
+            s.conflict <= opt.max_conflict
+            and s.loose <= opt.max_loose_conflict
+            and s.outside <= opt.max_outside
+        )
         self.counts["refused_free_space"] += not ok
         return ok
 
@@ -337,12 +347,15 @@ class Localiser:
             agreement=float(agreement),
         )
 
-    def _lose(self) -> None:
-        """Drop the fix: back to the global search."""
+    def _lose(self, index: int) -> None:
+        """Drop the fix: back to the global search, with the predicted pose as the first
+        hypothesis (a robot that stops agreeing with the map is most often still where the
+        odometry says: a look-alike elsewhere must then beat it by ``fix_margin``)."""
+        assert self.pose is not None
+        self.hypotheses = [Hypothesis(self.pose.copy(), index)]
         self.pose = None
         self._searching = "lost"
         self._bad = 0
-        self.hypotheses = []
         self._since_search = 0
         self._search_travel = 0.0
         self._history.clear()
@@ -392,7 +405,9 @@ class Localiser:
         alive = [
             h
             for h in self.hypotheses
-            if h.score() >= opt.hypothesis_agreement and np.mean(h.conflict) <= opt.max_conflict
+            if h.score() >= opt.hypothesis_agreement
+            and np.mean(h.conflict) <= opt.max_conflict
+            and np.mean(h.loose) <= opt.max_loose_conflict
         ]
         self.hypotheses = self._merged(alive)
 
@@ -468,6 +483,8 @@ class Localiser:
             best.travel < travel
             or float(np.mean(best.conflict)) > opt.max_conflict
             or best.conflict[-1] > opt.max_conflict
+            or float(np.mean(best.loose)) > opt.max_loose_conflict
+            or best.loose[-1] > opt.max_loose_conflict
             or best.scans < opt.fix_scans
             or best.score() < opt.fix_agreement
         ):

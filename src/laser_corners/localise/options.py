@@ -77,9 +77,22 @@ class LocaliseOptions(Options):
     max_conflict: float = Field(0.2, ge=0.0, le=1.0)
     """Share of the tested beams (at most, on average over the recent scans) that may
     contradict the map's free space (end in space the map surely saw free, or see through
-    one of its walls: ``localise.freespace``) at a hypothesis, a fix or a tracked pose; above
-    it the pose is refused. Right poses of the later visits of aces and intel: median
-    0.04-0.07, 95th percentile 0.13-0.14 per scan."""
+    one of its walls: ``localise.freespace``) at a hypothesis or a fix (and over the fix's
+    history); above it the pose is refused (tracking: ``track_conflict``). Right poses of
+    the later visits of aces and intel: median 0.04-0.07, 95th percentile 0.13-0.14 per
+    scan."""
+    max_loose_conflict: float = Field(0.4, ge=0.0, le=1.0)
+    """The same on any evidence of the map (a cell crossed by one ray is free, one hit per
+    three crossings is occupied): right poses of fr079 and intel median 0.17-0.19, 95th
+    percentile 0.40-0.52 per scan, but look-alikes that the sure test passes (0.05-0.2)
+    contradict it on 0.4-0.7 (intel's later visit)."""
+    track_conflict: float = Field(0.3, ge=0.0, le=1.0)
+    """While tracking, scans whose last ``conflict_scans`` contradict the map's free space on
+    more than this share of the beams on average give no estimate and count towards lost
+    (the track slid to a look-alike place, or the robot left the map). Higher than
+    ``max_conflict``: where the map itself is wrong (a room drawn twice on fr079) the right
+    pose contradicts it on 0.2-0.26 for dozens of scans; better no new fix there than
+    losing the track."""
     conflict_scans: int = Field(10, ge=1, le=1000)
     """Window (scans) of the mean conflict of a tracked pose."""
     history_travel: float = Field(15.0, ge=0.0, le=1000.0)
