@@ -126,25 +126,3 @@ def test_no_wrong_pose_in_the_unmapped_half_and_a_fix_back_in_the_map(half_map) 
     assert drive[loc.fixes[0].scan_index, 0] < 10.0
     in_left = np.flatnonzero(drive[:, 0] < 9.5)
     assert len(got) >= 0.8 * (len(drive) - max(loc.fixes[0].scan_index, in_left[0]))
-
-
-def test_a_track_sliding_against_the_odometry_is_refused(half_map) -> None:
-    """The slide check (``max_slide`` over ``slide_travel``): poses that follow the odometry
-    pass; poses held back while the odometry drives on 1 m (a scan pulled back onto the
-    mapped part of a corridor) are refused."""
-    loc = Localiser(half_map)
-    step = np.array([0.1, 0.0, 0.0])
-    pose, odo = np.array([2.0, 4.0, 0.0]), np.zeros(3)
-    for _ in range(40):  # 4 m along the odometry, the pose with it (a 1 cm wobble)
-        odo, pose = odo + step, pose + step + np.array([0.0, 0.01 * np.sin(odo[0]), 0.0])
-        assert not loc._slides(pose, odo, step, jump=False)
-    refused = []
-    for _ in range(10):  # 1 m of odometry, the pose held back
-        odo = odo + step
-        refused.append(loc._slides(pose, odo, step, jump=False))
-    assert not refused[0] and any(refused)
-    assert loc.counts["refused_slide"] == sum(refused)
-    # an odometry jump (a kidnap, a gap) starts the comparison again
-    assert not loc._slides(
-        pose, odo + np.array([5.0, 0.0, 0.0]), np.array([5.0, 0.0, 0.0]), jump=True
-    )
