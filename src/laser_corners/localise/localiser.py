@@ -179,10 +179,8 @@ class Localiser:
         self.counts["recoveries"] = 0
         self.counts["refused_free_space"] = 0
         self.counts["refused_history"] = 0
-        self.counts["refused_slide"] = 0
         self._recent: deque = deque(maxlen=self.options.recent_scans)
         self._conflicts: deque = deque(maxlen=self.options.conflict_scans)
-        self._slide: deque = deque()
         self.ms_per_scan: list[float] = []
         self.pose: NDArray[np.float64] | None = None
         self._cov = np.diag([1.0, 1.0, 0.5])
@@ -209,7 +207,6 @@ class Localiser:
         self._bad = 0
         self._recent.clear()
         self._conflicts.clear()
-        self._slide.clear()
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -287,7 +284,6 @@ class Localiser:
             agreement < max(opt.track_agreement, usual - opt.track_drop)
             or support.outside > opt.max_outside
             or float(np.mean(self._conflicts)) > opt.track_conflict
-            or self._slides(aligned.pose, odo, delta, jump)
         ):
             self.pose = pred
             self._bad += 1
@@ -304,29 +300,6 @@ class Localiser:
             cov = np.linalg.inv(prior)
         self._cov = cov + COVARIANCE_FLOOR
         return self._estimate(odo, index, stamp, "tracking", agreement)
-
-    def _slides(self, pose: NDArray, odo: NDArray, delta: NDArray, jump: bool) -> bool:
-        """Whether the tracked ``pose`` has moved, over the last ``slide_travel`` metres of
-        odometry, a distance that differs from the odometry's by more than ``max_slide`` plus
-        a tenth of the travel: the track slides along a corridor (the robot drove on out of
-        the map, and the scan is pulled back onto the mapped part). Kept (travel, pose,
-        odometry) of the accepted scans in :attr:`_slide`; a jump starts them again."""
-        opt = self.options
-        h = self._slide
-        if jump:
-            h.clear()
-        travel = (h[-1][0] if h else 0.0) + math.hypot(delta[0], delta[1])
-        if h:
-            d_pose = between_many(h[0][1], pose)
-            d_odo = between_many(h[0][2], odo)
-            moved = abs(math.hypot(d_pose[0], d_pose[1]) - math.hypot(d_odo[0], d_odo[1]))
-            if moved > opt.max_slide + 0.1 * (travel - h[0][0]):
-                self.counts["refused_slide"] += 1
-                return True
-        h.append((travel, pose, odo))
-        while travel - h[0][0] > opt.slide_travel:
-            h.popleft()
-        return False
 
     def _support(self, pose: NDArray, xy: NDArray) -> Support:
         """Outside / conflict shares of the scan ``xy`` at ``pose`` (``freespace``)."""
@@ -414,7 +387,6 @@ class Localiser:
         self.pose = winner.pose.copy()
         self.hypotheses = []
         self._conflicts.clear()
-        self._slide.clear()
         self.fixes.append(Fix(index, stamp, self._search_travel, tuple(winner.pose.tolist())))
         self._cov = np.diag([0.05, 0.05, 0.02]) ** 2
         agreement = winner.recent[-1]

@@ -93,14 +93,6 @@ class LocaliseOptions(Options):
     ``max_conflict``: where the map itself is wrong the right pose contradicts it for dozens
     of scans (fr079, a room drawn twice: 0.2-0.26; the last 80 scans of intel: 0.42-0.49),
     and losing a right track there costs more than a new fix there would."""
-    slide_travel: float = Field(3.0, ge=0.1, le=100.0)
-    """Odometry travel (m) over which a tracked pose's displacement is compared with the
-    odometry's (``max_slide``)."""
-    max_slide: float = Field(0.3, ge=0.0, le=100.0)
-    """A tracked pose whose distance moved over ``slide_travel`` differs from the odometry's
-    by more than this (m) plus a tenth of the travel gives no estimate and counts towards
-    lost: the track slides along a corridor (aces' later visit: a robot driving out of the
-    map was pulled back along the corridor by 6 m in 60 scans)."""
     conflict_scans: int = Field(10, ge=1, le=1000)
     """Window (scans) of the mean conflict of a tracked pose."""
     history_travel: float = Field(15.0, ge=0.0, le=1000.0)
