@@ -20,11 +20,14 @@ door open once or a wall drawn twice does not make a right pose look wrong:
   one cell, or its ray passes through a wall cell more than ``clear`` before its end (the
   scan sees through a wall of the map).
 
-Both are shares of the tested beams. A pose where the map and the scan contradict each other
-is not the robot's pose, however many points agree. Measured on the later-visit runs of aces
-and intel (issue 20), the right poses' conflict per scan was median 0.17-0.22, 95th
-percentile 0.36 with a cell free or occupied on any evidence (hits at least 0.3 of the
-misses); median 0.04-0.07, 95th percentile 0.13-0.14 with these rules.
+The same pass also gives the **loose** conflict, on any evidence: a cell is *occupied* when
+the rays ending in it are at least ``OCCUPIED_RATIO`` of those crossing it, else free when
+crossed. Every sure conflict is a loose one. Both are shares of the tested beams. A pose where
+the map and the scan contradict each other is not the robot's pose, however many points
+agree. Measured on the later-visit runs of aces and intel (issue 20), the right poses'
+conflict per scan was median 0.17-0.22, 95th percentile 0.36 on any evidence, median
+0.04-0.07, 95th percentile 0.13-0.14 on the sure rules; but two 180° look-alikes of intel
+had a sure conflict of 0.05-0.2 and a loose one of 0.4-0.7, so the localiser uses both.
 """
 
 from __future__ import annotations
