@@ -74,12 +74,31 @@ class LocaliseOptions(Options):
     fix_margin: float = Field(0.04, ge=0.0, le=1.0)
     """Every other hypothesis must agree less than the winner by this much on average over
     the recent scans both were scored on (at least 3): a share of the scan's points."""
-    max_conflict: float = Field(0.4, ge=0.0, le=1.0)
+    max_conflict: float = Field(0.2, ge=0.0, le=1.0)
     """Share of the tested beams (at most, on average over the recent scans) that may
-    contradict the map's free space (end in space the map saw free, or see through its
-    walls) at a hypothesis, a fix or a tracked pose; above it the pose is refused
-    (``localise.freespace``). Right poses on fr079 (clutter, people, doors): median 0.19,
-    95th percentile 0.52 per scan; its wrong fixes 0.83 and 0.92."""
+    contradict the map's free space (end in space the map surely saw free, or see through
+    one of its walls: ``localise.freespace``) at a hypothesis or a fix (and over the fix's
+    history); above it the pose is refused (tracking: ``track_conflict``). Right poses of
+    the later visits of aces and intel: median 0.04-0.07, 95th percentile 0.13-0.14 per
+    scan."""
+    max_loose_conflict: float = Field(0.4, ge=0.0, le=1.0)
+    """The same on any evidence of the map (a cell crossed by one ray is free, one hit per
+    three crossings is occupied): right poses of fr079 and intel median 0.17-0.19, 95th
+    percentile 0.40-0.52 per scan, but look-alikes that the sure test passes (0.05-0.2)
+    contradict it on 0.4-0.7 (intel's later visit)."""
+    track_conflict: float = Field(0.5, ge=0.0, le=1.0)
+    """While tracking, scans whose last ``conflict_scans`` contradict the map's free space on
+    more than this share of the beams on average give no estimate and count towards lost
+    (the track slid to a look-alike place, or the robot left the map). Higher than
+    ``max_conflict``: where the map itself is wrong the right pose contradicts it for dozens
+    of scans (fr079, a room drawn twice: 0.2-0.26; the last 80 scans of intel: 0.42-0.49),
+    and losing a right track there costs more than a new fix there would."""
+    conflict_scans: int = Field(10, ge=1, le=1000)
+    """Window (scans) of the mean conflict of a tracked pose."""
+    history_travel: float = Field(15.0, ge=0.0, le=1000.0)
+    """Odometry travel (m) of the search's past scans (one per 0.2 m) that a fix is checked
+    against: chained back from the winner by odometry, they must not contradict the map's
+    free space (``max_conflict`` over ``conflict_scans``) either."""
     max_outside: float = Field(0.5, ge=0.0, le=1.0)
     """A scan with more of its beams ending where the map saw nothing is *outside* the map:
     no estimate, no fix attempt."""
