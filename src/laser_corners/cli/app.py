@@ -12,8 +12,6 @@ Commands raise; they do not catch (:class:`ErrorLineGroup` does, once for every 
 from __future__ import annotations
 
 import errno
-import os
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -111,12 +109,6 @@ class ErrorLineGroup(typer.core.TyperGroup):
             raise typer.Exit(2) from None
 
 
-if not os.environ.get("TERMINAL_WIDTH"):  # typer's rich help ignores click's width
-    import typer.rich_utils
-
-    _columns = shutil.get_terminal_size((HELP_WIDTH, 24)).columns
-    typer.rich_utils.MAX_WIDTH = max(_columns, HELP_WIDTH)
-
 _CONTEXT = {"max_content_width": HELP_WIDTH, "terminal_width": HELP_WIDTH}
 
 app = typer.Typer(
@@ -127,6 +119,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
     context_settings=_CONTEXT,
 )
 
@@ -135,6 +128,7 @@ evaluate_app = typer.Typer(
     "place recognition on a log with corrected poses (loops); SLAM trajectories against "
     "relations (slam).",
     no_args_is_help=True,
+    rich_markup_mode=None,
     context_settings=_CONTEXT,
 )
 app.add_typer(evaluate_app, name="evaluate")
