@@ -445,9 +445,10 @@ class Localiser:
                 break  # the robot came from outside the map: further back is dead reckoning
             conflicts.append(support.conflict)
             last = past
-        if len(conflicts) < opt.conflict_scans:
-            return float(np.mean(conflicts)) <= opt.track_conflict if conflicts else True
-        window = np.convolve(conflicts, np.ones(opt.conflict_scans) / opt.conflict_scans, "valid")
+        if not conflicts:
+            return True
+        n = min(len(conflicts), opt.conflict_scans)  # fewer scans: their mean
+        window = np.convolve(conflicts, np.ones(n) / n, "valid")
         return float(window.max()) <= opt.track_conflict
 
     def _merged(self, hypotheses: list[Hypothesis]) -> list[Hypothesis]:

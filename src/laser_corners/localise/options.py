@@ -98,7 +98,7 @@ class LocaliseOptions(Options):
     history_travel: float = Field(15.0, ge=0.0, le=1000.0)
     """Odometry travel (m) of the search's past scans (one per 0.2 m) that a fix is checked
     against: chained back from the winner by odometry, they must not contradict the map's
-    free space (``max_conflict`` over ``conflict_scans``) either."""
+    free space (``track_conflict`` over ``conflict_scans``) either."""
     max_outside: float = Field(0.5, ge=0.0, le=1.0)
     """A scan with more of its beams ending where the map saw nothing is *outside* the map:
     no estimate, no fix attempt."""

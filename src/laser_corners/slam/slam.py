@@ -205,9 +205,9 @@ class Slam:
         """The pose of a scan: ICP against the local map from the corner registration
         (``corner``, when there is one) or the odometry prediction; when it fails (too little
         overlap), the prediction (counted). ``front_end=corners``: the corner registration,
-        no ICP. (A recovery by a correlative search around the last pose was tried: on
-        intel.bag's out-of-order scans it locked onto wrong rotations and broke the map, so
-        it is not used.)"""
+        no ICP. Unless the odometry jumped, ICP from a second start when the odometry looks
+        wrong (:meth:`_second_guess`), then a correlative search around the prediction when
+        the scan still does not fit (:meth:`_rescue`)."""
         opt = self.options
         if opt.front_end == "corners":
             return corner if corner is not None else self._failed(pred)
@@ -224,27 +224,30 @@ class Slam:
             sig = np.array([sxy, sxy, syaw])
         prior = np.diag(1.0 / sig**2)
         aligned = self._icp(xy, pred, prior)
-        steady = np.array(compose(self.pose, self._step))
-        if not jump and (
-            self._disagrees(aligned.pose, pred, sig) or self._disagrees(steady, pred, sig)
-        ):
-            aligned = self._second_guess(xy, aligned, steady, prior)
         if not jump:
-            aligned = self._rescue(xy, aligned, pred, sig)
+            share = self._fit_share(xy, aligned.pose)
+            steady = np.array(compose(self.pose, self._step))
+            if self._disagrees(aligned.pose, pred, sig) or self._disagrees(steady, pred, sig):
+                aligned, share = self._second_guess(xy, aligned, share, steady, prior)
+            aligned = self._rescue(xy, aligned, share, pred)
         if aligned.overlap >= opt.min_overlap:
             return aligned.pose
         return self._failed(pred)
 
-    def _rescue(self, xy: NDArray, aligned: Alignment, pred: NDArray, sig: NDArray) -> Alignment:
+    def _fit_share(self, xy: NDArray, pose: NDArray) -> float:
+        """Share of the scan's points within half the inlier distance of the local map at
+        ``pose``: how the front end compares its candidate alignments."""
+        assert self._local_all is not None
+        return match_share(xy, self._local_all, pose, 0.5 * self.options.loop_inlier_distance)
+
+    def _rescue(self, xy: NDArray, aligned: Alignment, share: float, pred: NDArray) -> Alignment:
         """When less than :data:`RESCUE_SHARE` of the scan lies within half the inlier
-        distance of the local map after ICP, a correlative search (:func:`search`, window
-        :data:`RESCUE_WINDOW`) around the prediction, refined by ICP, replaces the alignment
-        if it puts :data:`RESCUE_GAIN` more of the scan on the map: odometry that is wrong by
+        distance of the local map after ICP (``share``), a correlative search (:func:`search`,
+        window :data:`RESCUE_WINDOW`) around the prediction, refined by ICP, replaces the
+        alignment if it puts :data:`RESCUE_GAIN` more of the scan on the map: odometry wrong by
         more than ICP's reach (intel.bag's scans whose stamps are out of order) is recovered,
         and a match that is not clearly better is not taken."""
         assert self._local_all is not None
-        tight = 0.5 * self.options.loop_inlier_distance
-        share = match_share(xy, self._local_all, aligned.pose, tight)
         if share >= RESCUE_SHARE or len(self._local_all) < 20:
             return aligned
         self.counts["rescues"] += 1
@@ -255,7 +258,7 @@ class Slam:
         thin = xy[:: max(1, xy.shape[0] // 200)]
         _, found = search(self._local_grid, thin, pred, *RESCUE_WINDOW)
         found = self._icp(xy, found, np.diag(1.0 / np.array([0.1, 0.1, 0.05]) ** 2))
-        if match_share(xy, self._local_all, found.pose, tight) > share + RESCUE_GAIN:
+        if self._fit_share(xy, found.pose) > share + RESCUE_GAIN:
             self.counts["rescues_used"] += 1
             return found
         return aligned
@@ -269,22 +272,20 @@ class Slam:
         return bool(off.max() > 3.0)
 
     def _second_guess(
-        self, xy: NDArray, first: Alignment, guess: NDArray, prior: NDArray
-    ) -> Alignment:
+        self, xy: NDArray, first: Alignment, share: float, guess: NDArray, prior: NDArray
+    ) -> tuple[Alignment, float]:
         """ICP from a second start, the estimate's own last motion repeated (constant velocity),
-        kept when more of the scan lies on the map (within half the inlier distance) than
-        from the odometry prediction. Odometry can be wrong in ways a prior cannot absorb:
-        fr079's wheel odometry counts a reverse drive as forward motion."""
+        kept when more of the scan lies on the map (:meth:`_fit_share`; ``share`` is the
+        first alignment's) than from the odometry prediction: the kept alignment and its
+        share. Odometry can be wrong in ways a prior cannot absorb: fr079's wheel odometry
+        counts a reverse drive as forward motion."""
         self.counts["second_guesses"] += 1
         second = self._icp(xy, guess, prior)
-        assert self._local_all is not None
-        tight = 0.5 * self.options.loop_inlier_distance
-        a = match_share(xy, self._local_all, first.pose, tight)
-        b = match_share(xy, self._local_all, second.pose, tight)
-        if b > a + 0.02 and second.overlap >= first.overlap:
+        second_share = self._fit_share(xy, second.pose)
+        if second_share > share + 0.02 and second.overlap >= first.overlap:
             self.counts["second_guesses_used"] += 1
-            return second
-        return first
+            return second, second_share
+        return first, share
 
     def _covariance(self) -> NDArray[np.float64]:
         """The last keyframe's iSAM2 marginal (body frame) plus the scan-alignment noise since
