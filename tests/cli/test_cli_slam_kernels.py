@@ -3,6 +3,7 @@ their kernels is cold, and ``warmup`` compiles those kernels too."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -40,6 +41,8 @@ def test_slam_and_localise_announce_cold_slam_kernels_once(
     result = runner.invoke(app, ["slam", str(log), "-o", str(tmp_path / "map")])
     assert result.exit_code == 0, result.output
     assert result.stderr.count(kernels.COMPILING_SLAM) == 1
+    counts = json.loads((tmp_path / "map" / "summary.json").read_text())["counts"]
+    assert counts["relocalisations_attempted"] == counts["relocalisations_accepted"] == 0
     out = tmp_path / "loc"
     result = runner.invoke(app, ["localise", str(tmp_path / "map"), str(log), "-o", str(out)])
     assert result.stderr.count(kernels.COMPILING_SLAM) == 1, result.output
