@@ -71,7 +71,7 @@ QUERY_POINTS = 150
 """Points of the query used by the global search at most."""
 CANDIDATES = 3
 """Distinct best poses of the global search that are verified."""
-MIN_SHARE = 0.6
+MIN_SHARE = 0.8
 """Share of the query's points within the inlier distance of the old map to accept a pose."""
 MAX_CONFLICT = 0.05
 """Share of the query's beams that may pass through an old wall."""
