@@ -16,6 +16,7 @@ import typer
 
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import InputArg, TopicOption, new_folder
+from laser_corners.cli.kernels import SlamKernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.localise import LocaliseOptions
@@ -72,7 +73,7 @@ def localise_options(
     return options
 
 
-@app.command("localise")
+@app.command("localise", cls=SlamKernelCommand)
 def localise_command(
     map_folder: _MapArg,
     input_path: InputArg,

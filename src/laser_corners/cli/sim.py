@@ -10,7 +10,7 @@ import typer
 
 from laser_corners.cli.app import app
 from laser_corners.cli.common import check_number, image_file, new_folder
-from laser_corners.cli.kernels import KernelCommand
+from laser_corners.cli.kernels import KernelCommand, warm_slam_kernels
 
 __all__ = ["demo", "simulate", "warmup"]
 
@@ -78,7 +78,8 @@ def simulate(
 
 @app.command(cls=KernelCommand)
 def warmup() -> None:
-    """Compile (or load) the detector's kernels now, so the first real run starts at once."""
+    """Compile (or load) the kernels of the detector, then of the SLAM, the localiser and the
+    matching, now, so the first real run starts at once."""
     import numpy as np
 
     from laser_corners import CornerDetector, LaserScan
@@ -93,4 +94,7 @@ def warmup() -> None:
     _ = keypoints.cov  # the covariance kernels are lazy
     many = detector.detect_many([scan, scan])
     _ = [k.cov for k in many]
-    typer.echo(f"kernels ready in {time.perf_counter() - start:.1f} s")
+    typer.echo(f"detector kernels ready in {time.perf_counter() - start:.1f} s")
+    start = time.perf_counter()
+    warm_slam_kernels()
+    typer.echo(f"SLAM, localiser and matching kernels ready in {time.perf_counter() - start:.1f} s")

@@ -16,6 +16,7 @@ import typer
 
 from laser_corners.cli.app import app, evaluate_app, fail
 from laser_corners.cli.common import InputArg, TopicOption, check_number, new_folder
+from laser_corners.cli.kernels import SlamKernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.slam import SlamOptions, SlamResult
@@ -156,7 +157,7 @@ def _summary_table(summary: dict[str, Any], folder: Path) -> Any:
     return table
 
 
-@app.command("slam")
+@app.command("slam", cls=SlamKernelCommand)
 def slam_command(
     input_path: InputArg,
     output: Annotated[

@@ -7,6 +7,9 @@ is read from its chunk records (:mod:`laser_corners.io.ros1.chunks`).
 
 Sensor pose (:mod:`laser_corners.io.poses`): when the bag has a ``nav_msgs/msg/Odometry``
 topic, each scan gets the pose of its frame in the odometry frame, interpolated at its stamp.
+Without one, the odometry is read from ``/tf`` (:func:`tf_odometry`): the transform that
+changes over the bag nearest above the scan frame in the tf tree (``odom -> base_link`` under
+a ``map -> odom``), whose parent is the odometry frame.
 
 Speed: the bag is read in one pass (scans, odometry and tf in log-time order, each chunk
 decompressed once); a scan waits in a small look-ahead buffer until an odometry sample stamped
@@ -40,11 +43,13 @@ from laser_corners.io.bagfile import (
 )
 from laser_corners.io.base import ScanSource, SourceKind, TopicChoiceError
 from laser_corners.io.poses import (
+    OdomSample,
     PoseTrack,
     StreamingTrack,
     add_transforms,
     frame_name,
     track_from,
+    yaw_from_quaternion,
 )
 from laser_corners.io.ros1.decode import (
     LASERSCAN,
@@ -70,7 +75,81 @@ from laser_corners.io.ros1.runs import (
 )
 from laser_corners.scan import LaserScan, Pose2D
 
-__all__ = ["BagSource"]
+__all__ = ["TF_ODOMETRY", "BagSource", "tf_odometry"]
+
+TF_ODOMETRY = "/tf"
+"""``BagSource.odom_topic`` when the odometry is read from ``/tf`` (no Odometry topic)."""
+
+Edge = tuple[str, str]
+"""A tf edge: parent frame, child frame."""
+
+
+def _stamped_transforms(msg: Any) -> list[tuple[Edge, OdomSample]]:
+    """``((parent, child), (stamp, x, y, yaw))`` of each transform of a ``TFMessage``."""
+    found = []
+    for transform in msg.transforms:
+        stamp = transform.header.stamp.sec + 1e-9 * transform.header.stamp.nanosec
+        t, q = transform.transform.translation, transform.transform.rotation
+        edge = (frame_name(transform.header.frame_id), frame_name(transform.child_frame_id))
+        found.append((edge, (stamp, t.x, t.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))))
+    return found
+
+
+def tf_odometry(
+    laser: str,
+    static: dict[str, str],
+    moving: dict[Edge, list[OdomSample]],
+    where: Path,
+) -> tuple[Edge, list[OdomSample]] | None:
+    """The odometry edge of a bag's ``/tf`` and its samples (sorted), or None.
+
+    Parameters
+    ----------
+    laser : str
+        The scan frame.
+    static : dict of str to str
+        Child -> parent of every transform (``/tf_static`` first, then ``/tf``).
+    moving : dict of Edge to list of OdomSample
+        Samples of every ``/tf`` edge (not in ``/tf_static``).
+    where : Path
+        The bag (for the error).
+
+    Returns
+    -------
+    tuple or None
+        Of the edges whose value changes, the one nearest above ``laser`` in the tree (the
+        robot's ``odom -> base``, not a ``map -> odom`` above it); with none above the
+        laser, the only one; None when no edge changes.
+
+    Raises
+    ------
+    InputError
+        Several changing edges and none above the laser frame.
+    """
+    dynamic = {
+        edge: samples
+        for edge, samples in moving.items()
+        if len({s[1:] for s in samples}) > 1  # the transform changes: a moving robot
+    }
+    if not dynamic:
+        return None
+    chain, frame = [], frame_name(laser)
+    while frame in static and frame not in chain:
+        chain.append(frame)
+        frame = static[frame]
+    for child in chain:
+        found = [edge for edge in dynamic if edge[1] == child]
+        if found:
+            return found[0], sorted(dynamic[found[0]])
+    if len(dynamic) == 1:
+        edge = next(iter(dynamic))
+        return edge, sorted(dynamic[edge])
+    listed = ", ".join(f"{p} -> {c}" for p, c in sorted(dynamic))
+    raise InputError(
+        f"{where}: no nav_msgs/Odometry topic, and /tf has several moving transforms "
+        f"({listed}) none of which is above the scan frame {laser!r}: add an Odometry topic "
+        "or the missing /tf_static link"
+    )
 
 
 class BagSource(ScanSource):
@@ -95,7 +174,10 @@ class BagSource(ScanSource):
     laser_topics : list of str
         The ``sensor_msgs/msg/LaserScan`` topics.
     odom_topic : str or None
-        The odometry topic used for poses.
+        The odometry topic used for poses; :data:`TF_ODOMETRY` when the odometry comes from
+        ``/tf`` (set to None on the first read when ``/tf`` has no moving transform).
+    tf_odometry : tuple of (str, str) or None
+        ``(odometry frame, base frame)`` of the ``/tf`` odometry, once read.
     mounts : dict of str to Pose2D or None
         Base -> laser transform of each scan frame read so far (what scan poses composed).
     stamps_ns : list of int
@@ -139,6 +221,51 @@ class BagSource(ScanSource):
         self.tf_topics = [
             t for t in ("/tf_static", "/tf") if self.topics.get(t, ("",))[0] == TFMESSAGE
         ]
+        self.tf_odometry: Edge | None = None
+        self._tf_samples: list[OdomSample] | None = None
+        if self.odom_topic is None and TF_ODOMETRY in self.tf_topics:
+            self.odom_topic = TF_ODOMETRY  # resolved (or dropped) by _read_tf_odometry
+
+    def _read_tf_odometry(self, reader: Any) -> None:
+        """With the odometry from ``/tf``: read the tf topics once for :func:`tf_odometry`
+        (the scan frame from the first scan message); no moving transform: no odometry."""
+        if self.odom_topic != TF_ODOMETRY or self._tf_samples is not None:
+            return
+        laser = ""
+        self.position = f"reading {self.topic} for its frame"
+        for connection, _, raw in self.messages(reader, [self.topic]):  # type: ignore[list-item]
+            fields = decode_ros1_laserscan(raw) if not reader.is2 else None
+            if fields is None:
+                try:
+                    fields = laserscan_fields(reader.deserialize(raw, connection.msgtype))
+                except CORRUPT_ERRORS:
+                    continue
+            laser = fields[1]
+            break
+        static: dict[str, str] = {}
+        moving: dict[Edge, list[OdomSample]] = {}
+        fixed: set[str] = set()  # children of /tf_static transforms
+        self.position = "reading /tf for odometry"
+        for connection, _, raw in self.messages(reader, self.tf_topics):
+            try:
+                msg = reader.deserialize(raw, connection.msgtype)
+            except CORRUPT_ERRORS:
+                continue  # counted when the scans are read
+            is_static = connection.topic == "/tf_static"
+            for (parent, child), sample in _stamped_transforms(msg):
+                if is_static:
+                    static[child] = parent
+                    fixed.add(child)
+                else:
+                    static.setdefault(child, parent)
+                    moving.setdefault((parent, child), []).append(sample)
+        moving = {edge: samples for edge, samples in moving.items() if edge[1] not in fixed}
+        chosen = tf_odometry(laser, static, moving, self.path)
+        if chosen is None:
+            self.odom_topic = None
+            self._tf_samples = []
+            return
+        self.tf_odometry, self._tf_samples = chosen
 
     def _choose_topic(self, topic: str | None) -> str:
         found = ", ".join(self.laser_topics) or "none"
@@ -178,10 +305,11 @@ class BagSource(ScanSource):
 
     def pose_track(self, reader: Any) -> PoseTrack | None:
         """Read odometry and tf (one pass over those topics) into a pose track, or None."""
+        self._read_tf_odometry(reader)
         if self.odom_topic is None:
             return None
-        samples = []
-        odom_frame = base_frame = ""
+        samples = list(self._tf_samples or [])
+        odom_frame, base_frame = self.tf_odometry or ("", "")
         transforms: dict[str, tuple[str, Pose2D, bool]] = {}
         self.position = f"reading {self.odom_topic} and tf"
         for connection, _, raw in self.messages(reader, [self.odom_topic, *self.tf_topics]):
@@ -234,8 +362,13 @@ class BagSource(ScanSource):
                 for c in reader.connections
                 if not reader.is2 and ROS1_DIGESTS.get(c.msgtype) == c.digest
             }
+            self._read_tf_odometry(reader)
             track = StreamingTrack() if self.odom_topic is not None else None
             topics = [self.topic, *([self.odom_topic, *self.tf_topics] if track else [])]
+            topics = list(dict.fromkeys(topics))  # /tf once when it is the odometry
+            if track is not None and self.tf_odometry is not None:
+                for sample in self._tf_samples or []:  # the odometry from /tf, read first
+                    track.add_odometry(*self.tf_odometry, sample)
             if self.lean and lean_readable(reader, topics, fast):
                 yield from self._lean_scans(reader, topics, track)
                 return
@@ -386,5 +519,7 @@ class BagSource(ScanSource):
         info["topics"] = {t: {"type": m, "count": n} for t, (m, n) in sorted(self.topics.items())}
         info["duration_s"] = round((self.end_ns - self.start_ns) * 1e-9, 3)
         info["odometry"] = self.odom_topic
+        if self.tf_odometry is not None:
+            info["odometry"] = f"/tf {self.tf_odometry[0]} -> {self.tf_odometry[1]}"
         info["index"] = "unreadable; read from its chunks" if self.from_chunks else "ok"
         return info

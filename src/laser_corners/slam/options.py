@@ -68,6 +68,10 @@ class SlamOptions(Options):
     detector's covariance leaves out a corner's shape seen from different places)."""
     loop_closure: bool = True
     """Search and verify loop closures against older keyframes."""
+    relocalisation: bool = True
+    """When a scan fits nothing of the local map (kidnapped, an odometry jump) or a time jump
+    is not bridged: cut the graph there and search the whole map with no prior until the new
+    segment is found in it (:mod:`~laser_corners.slam.relocalise`)."""
     final_optimisation: bool = True
     """Run a batch Levenberg-Marquardt optimisation of the whole graph at the end."""
     mount: tuple[float, float, float] | None = None

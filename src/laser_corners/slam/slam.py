@@ -35,6 +35,12 @@ from laser_corners.slam.loops import (
 )
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import scan_points
+from laser_corners.slam.relocalise import (
+    LOST_CONFLICT,
+    Relocaliser,
+    occupancy_keys,
+    scan_conflict,
+)
 from laser_corners.slam.result import Landmarks, LoopClosure, SlamResult
 
 __all__ = ["Slam"]
@@ -71,6 +77,9 @@ COUNT_KEYS = (
     "landmark_observations",
     "corner_registrations",
     "corner_registrations_used",
+    "lost",
+    "relocalisations_attempted",
+    "relocalisations_accepted",
 )
 
 
@@ -126,6 +135,10 @@ class Slam:
         self._aligned_since_kf = True
         self._jump = False
         self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
+        self._lost = False  # the last scan contradicts the local map: cut the graph
+        self._pts = None  # the points of the scan being added
+        self._local_occupied: NDArray[np.int64] | None = None  # cells of _local_all
+        self.reloc = Relocaliser(self.options, self.mount)
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -144,6 +157,7 @@ class Slam:
         opt = self.options
         odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
         pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
+        self._pts = pts
         kp = self._keypoints(scan) if self.corners is not None else None
         if self.pose is None:
             self.pose = odo.copy()
@@ -230,9 +244,28 @@ class Slam:
             if self._disagrees(aligned.pose, pred, sig) or self._disagrees(steady, pred, sig):
                 aligned, share = self._second_guess(xy, aligned, share, steady, prior)
             aligned = self._rescue(xy, aligned, share, pred)
-        if aligned.overlap >= opt.min_overlap:
+        if aligned.overlap >= opt.min_overlap and not (jump and self._lost_at(aligned.pose)):
             return aligned.pose
+        if not jump:
+            self._lost_at(pred)
         return self._failed(pred)
+
+    def _lost_at(self, pose: NDArray) -> bool:
+        """Whether the scan, at ``pose``, sees through the local map's walls (more than
+        :data:`LOST_CONFLICT` of its beams): lost (kidnapped, an odometry jump, a time jump
+        aligned to the wrong place); the keyframe made for it starts a new segment and
+        relocalisation (:mod:`.relocalise`). Asked only when the alignment failed, or after
+        a time jump."""
+        assert self._local_all is not None and self._pts is not None
+        if not self.options.relocalisation or len(self._local_all) < 50:
+            return False
+        if self._local_occupied is None:
+            self._local_occupied = occupancy_keys(self._local_all.xy)
+        if scan_conflict(self._local_occupied, self._pts, pose, self.mount) <= LOST_CONFLICT:
+            return False
+        self._lost = True
+        self.counts["lost"] += 1
+        return True
 
     def _fit_share(self, xy: NDArray, pose: NDArray) -> float:
         """Share of the scan's points within half the inlier distance of the local map at
@@ -332,8 +365,12 @@ class Slam:
     ) -> None:
         opt = self.options
         assert self.pose is not None
-        cut = self._jump and not self._aligned_since_kf  # a gap the alignment did not bridge
+        # a gap the alignment did not bridge, or a scan that fit nothing: a new segment
+        cut = (self._jump or self._lost) and not self._aligned_since_kf
         k = self.backend.add_keyframe(self.pose, prior=cut and not first)
+        if cut and not first and opt.relocalisation:
+            self.reloc.begin(k)
+        self._lost = False
         if not first:
             rel = np.array(relative_pose(self._anchor, self.pose))
             self._links.append(None if cut else rel)
@@ -350,11 +387,16 @@ class Slam:
         self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
         self._corner_keyframe(k, scan, kp, stamp)
         closed = self._close_loops(k) if opt.loop_closure and not first else False
-        full = closed or k % FULL_ESTIMATE_EVERY == 0
+        if closed:
+            self.reloc.end()  # an ordinary closure put the segment into the map
+        relocalised = self._relocalise(k) if self.reloc.lost else False
+        full = closed or relocalised or k % FULL_ESTIMATE_EVERY == 0
         if full:
             self.submaps.invalidate()
         estimate = self.backend.update(
-            extra_iterations=1 if closed else 0, full=full, recent=opt.local_map_keyframes + 5
+            extra_iterations=5 if relocalised else 1 if closed else 0,
+            full=full,
+            recent=opt.local_map_keyframes + 5,
         )
         self.kf.estimate = estimate
         if full and self.tracker is not None:
@@ -364,7 +406,7 @@ class Slam:
         self._aligned_since_kf = True
         self._jump = False
         self._local, self._local_all = self.kf.local_map(opt.local_map_keyframes)
-        self._local_grid = None
+        self._local_grid = self._local_occupied = None
         self.counts["keyframes"] = len(self.kf)
         self._cov = self.backend.covariance(k)
 
@@ -415,6 +457,21 @@ class Slam:
         if closed:
             self._since_closure = 0.0
         return closed
+
+    def _relocalise(self, k: int) -> bool:
+        """A relocalisation attempt for keyframe ``k`` of a lost segment (:mod:`.relocalise`);
+        whether it put the segment back into the map (two agreeing closures accepted)."""
+        estimate = np.vstack([self.kf.estimate, self.pose[None, :]])
+        found = self.reloc.attempt(k, self.kf.points, estimate)
+        self.counts["relocalisations_attempted"] = self.reloc.counts["attempted"]
+        self.counts["relocalisations_accepted"] = self.reloc.counts["accepted"]
+        for closure in found:
+            if closure not in self.closures:
+                self.closures.append(closure)
+            self._accept(closure)
+        if found:
+            self._since_closure = 0.0
+        return bool(found)
 
     def _accept(self, closure: LoopClosure) -> None:
         """Put a verified closure into the graph (robust factor); the back end's list of

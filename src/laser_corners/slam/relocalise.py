@@ -1,0 +1,297 @@
+"""Global relocalisation when the front end is lost: a search of the whole map with no prior.
+
+The front end declares itself lost (:meth:`~laser_corners.slam.Slam.add`) when a scan does
+not fit the local map after the correlative rescue and, at the odometry's prediction, sees
+through the local map's walls (more than :data:`LOST_CONFLICT` of its beams: a kidnapped
+robot, an odometry jump; new ground does not contradict the map), or when a time jump was
+not bridged. The keyframe made there starts a new segment under a weak prior (the graph is cut,
+the estimate dead-reckons on), and every keyframe of the segment tries to put the segment
+back into the map built before it (:class:`Relocaliser`):
+
+1. **Search**: the segment's last keyframes (their points in the current keyframe's frame)
+   are scored, by a correlative search (:func:`~laser_corners.slam.correlative.search`, every
+   heading), around each old keyframe position (thinned to :data:`CENTER_SPACING`), on a
+   likelihood grid of the whole old map; the best distinct poses are kept.
+2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
+   a narrow correlative search and ICP against the nearest old keyframe's submap, overlap,
+   degeneracy), then the share of the query on the whole old map (at least
+   :data:`MIN_SHARE`), and free-space consistency: at most :data:`MAX_CONFLICT` of the
+   query's beams may pass through an old wall (:func:`free_space_conflict`). Two verified
+   poses that differ and score within :data:`AMBIGUITY` of each other: no answer (a
+   symmetric building).
+3. **Agree**: a verified pose is accepted when the next attempt (the next keyframe of the
+   segment) implies the same correction of the segment (within :data:`AGREE_XY` /
+   :data:`AGREE_YAW`); both become loop closures under the robust model.
+
+Until then the segment dead-reckons (odometry and scan alignment among its own keyframes).
+Nothing of this runs while the front end is not lost, so on logs where it never is, results
+are those of the loop closure alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.pose import compose, compose_many, invert, relative_pose
+from laser_corners.slam.align import PointMap, match_share
+from laser_corners.slam.correlative import ScoreGrid, search
+from laser_corners.slam.loops import _query, _thin, verify
+from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.points import ScanPoints
+from laser_corners.slam.result import LoopClosure
+
+__all__ = [
+    "LOST_CONFLICT",
+    "OldMap",
+    "Relocaliser",
+    "free_space_conflict",
+    "occupancy_keys",
+    "scan_conflict",
+]
+
+LOST_CONFLICT = 0.25
+"""A failed alignment whose scan, at the predicted pose, sees through the local map's walls
+with more than this share of its steep beams (:func:`scan_conflict`): the scan is not where
+the estimate says (lost); new ground seen for the first time does not contradict the map."""
+GRID_RESOLUTION = 0.15
+"""Cell (m) of the global search's likelihood grid."""
+GRID_SIGMA = 0.2
+"""Width (m) of the global search's likelihood."""
+CENTER_SPACING = 1.4
+"""Old keyframe positions closer than this (m) share one search window."""
+CENTER_WINDOW = 1.0
+"""Half-width (m) of the search window around each centre."""
+QUERY_KEYFRAMES = 3
+"""Keyframes of the segment (the current one and its predecessors) forming the query."""
+QUERY_POINTS = 150
+"""Points of the query used by the global search at most."""
+CANDIDATES = 3
+"""Distinct best poses of the global search that are verified."""
+MIN_SHARE = 0.8
+"""Share of the query's points within the inlier distance of the old map to accept a pose."""
+MAX_CONFLICT = 0.05
+"""Share of the query's beams that may pass through an old wall."""
+AMBIGUITY = 0.1
+"""Two verified distinct poses whose shares differ by less: no answer."""
+AGREE_XY = 0.3
+"""Two attempts agree when their corrections of the segment differ by less (m)..."""
+AGREE_YAW = 0.1
+"""... and by less than this (rad)."""
+EVERY_AFTER = 20
+"""After this many attempts of one lost segment, only every 5th keyframe tries."""
+
+
+@dataclass
+class OldMap:
+    """The map before the lost segment: points in the map frame, a likelihood grid, a point
+    map for the share, an occupancy set for free space, the search centres."""
+
+    grid: ScoreGrid
+    points: PointMap
+    occupied: NDArray[np.int64]
+    centres: NDArray[np.float64]
+
+    @classmethod
+    def build(cls, points: list[ScanPoints], estimate: NDArray[np.float64], end: int) -> OldMap:
+        """The map of keyframes ``0 .. end - 1`` at ``estimate``."""
+        parts = []
+        for i in range(end):
+            pose = estimate[i]
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            parts.append(points[i].xy @ np.array([[c, s], [-s, c]]) + pose[:2])
+        xy = _thin(np.concatenate(parts), 0.05)
+        occupied = occupancy_keys(xy)
+        centres: list[NDArray] = []
+        for p in estimate[:end, :2]:
+            if all(math.hypot(*(p - q)) >= CENTER_SPACING for q in centres):
+                centres.append(p)
+        return cls(
+            ScoreGrid.build(xy, GRID_RESOLUTION, GRID_SIGMA, CENTER_WINDOW + 1.0),
+            PointMap.build(xy, np.zeros_like(xy)),
+            occupied,
+            np.array(centres),
+        )
+
+    def search(self, query: NDArray[np.float64]) -> list[tuple[float, NDArray[np.float64]]]:
+        """The :data:`CANDIDATES` best distinct poses of ``query`` (base frame) over the whole
+        map, with their mean likelihood, best first."""
+        pts = query[np.linspace(0, len(query) - 1, min(len(query), QUERY_POINTS)).astype(int)]
+        found = [
+            search(self.grid, pts, np.array([c[0], c[1], 0.0]), CENTER_WINDOW, math.pi)
+            for c in self.centres
+        ]
+        found.sort(key=lambda item: -item[0])
+        chosen: list[tuple[float, NDArray[np.float64]]] = []
+        for score, pose in found:
+            if all(_distinct(pose, q) for _, q in chosen):
+                chosen.append((score, pose))
+            if len(chosen) == CANDIDATES:
+                break
+        return chosen
+
+
+OCCUPANCY_CELL = 0.05
+"""Cell (m) of the old map's occupancy for the free-space check."""
+
+
+def _distinct(a: NDArray, b: NDArray) -> bool:
+    dyaw = abs((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)
+    return bool(math.hypot(a[0] - b[0], a[1] - b[1]) >= 1.0 or dyaw >= 0.3)
+
+
+def _steep_beams(points: ScanPoints, mount: NDArray) -> NDArray[np.float64]:
+    """The points (base frame) of the beams that hit a line within 60 degrees of its normal:
+    a beam grazing a wall runs along the wall's cells before its end, and would count as a
+    conflict wherever it is."""
+    d = points.xy - np.asarray(mount[:2])
+    unit = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-9)[:, None]
+    steep = points.has_normal & (np.abs(np.sum(unit * points.normals, axis=1)) > 0.5)
+    return points.xy[steep]
+
+
+def occupancy_keys(xy: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Sorted keys of the :data:`OCCUPANCY_CELL` cells holding a point of ``xy``."""
+    return np.unique(_keys(np.floor(xy / OCCUPANCY_CELL).astype(np.int64)))
+
+
+def _keys(cells: NDArray[np.int64]) -> NDArray[np.int64]:
+    return cells[..., 0] * 1_000_003 + cells[..., 1]
+
+
+def free_space_conflict(
+    occupied: NDArray[np.int64], origin: NDArray, xy: NDArray, margin: float = 0.3
+) -> float:
+    """Share of the beams from ``origin`` (map frame, x, y) to the points ``xy`` (map frame)
+    that pass through an occupied cell (``occupied``: :func:`occupancy_keys`) more than
+    ``margin`` before their end: beams seeing through walls of the map (the pose is wrong)."""
+    if len(xy) == 0 or len(occupied) == 0:
+        return 0.0
+    d = xy - origin[:2]
+    rng = np.hypot(d[:, 0], d[:, 1])
+    steps = np.arange(0.2, max(float(rng.max()) - margin, 0.2), OCCUPANCY_CELL)
+    if steps.size == 0:
+        return 0.0
+    unit = d / np.maximum(rng, 1e-9)[:, None]
+    samples = origin[None, None, :2] + steps[None, :, None] * unit[:, None, :]
+    valid = steps[None, :] < (rng - margin)[:, None]
+    keys = _keys(np.floor(samples / OCCUPANCY_CELL).astype(np.int64))
+    hit = np.isin(keys, occupied, assume_unique=False) & valid
+    return float(hit.any(axis=1).mean())
+
+
+def scan_conflict(
+    occupied: NDArray[np.int64], points: ScanPoints, pose: NDArray, mount: NDArray
+) -> float:
+    """:func:`free_space_conflict` of a scan's steep beams (:func:`_steep_beams`) at the base
+    pose ``pose`` against the map cells ``occupied``."""
+    own = _steep_beams(points, mount)
+    world = compose_many(pose, np.column_stack([own, np.zeros(len(own))]))
+    return free_space_conflict(occupied, np.asarray(compose(pose, mount)), world[:, :2])
+
+
+@dataclass
+class Relocaliser:
+    """The state of one lost segment: its first keyframe, the old map, a pending answer."""
+
+    options: SlamOptions
+    mount: NDArray[np.float64]
+    start: int | None = None
+    attempts: int = 0
+    old: OldMap | None = None
+    pending: LoopClosure | None = None
+    pending_shift: NDArray[np.float64] | None = None
+    counts: dict[str, int] = field(default_factory=lambda: {"attempted": 0, "accepted": 0})
+
+    @property
+    def lost(self) -> bool:
+        """Whether a lost segment is waiting to be put back into the map."""
+        return self.start is not None
+
+    def begin(self, k: int) -> None:
+        """Keyframe ``k`` starts a lost segment (nothing to search in without older ones)."""
+        if k == 0:
+            return
+        self.start, self.attempts, self.old, self.pending = k, 0, None, None
+
+    def end(self) -> None:
+        """The segment is back in the map (or closed by an ordinary loop closure)."""
+        self.start, self.old, self.pending = None, None, None
+
+    def attempt(
+        self, k: int, points: list[ScanPoints], estimate: NDArray[np.float64]
+    ) -> list[LoopClosure]:
+        """Search for keyframe ``k`` of the lost segment: the closures to add (two that agree),
+        else none; every verified candidate is returned in ``self.tried``."""
+        self.tried: list[LoopClosure] = []
+        if self.start is None:
+            return []
+        self.attempts += 1
+        if self.attempts > EVERY_AFTER and self.attempts % 5:
+            return []
+        self.counts["attempted"] += 1
+        if self.old is None:
+            self.old = OldMap.build(points, estimate, self.start)
+        query = _query(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
+        if len(query) < 20 or len(self.old.centres) == 0:
+            return []
+        best = self._best(k, query, points, estimate)
+        if best is None:
+            self.pending = None
+            return []
+        closure, pose = best
+        shift = np.array(compose(pose, invert(estimate[k])))  # map-frame correction
+        if self.pending is not None and self.pending_shift is not None:
+            d = relative_pose(self.pending_shift, shift)
+            if math.hypot(d[0], d[1]) <= AGREE_XY and abs(d[2]) <= AGREE_YAW:
+                first = self.pending
+                first.reason = closure.reason.replace("(", "(confirmed by the next keyframe, ", 1)
+                self.counts["accepted"] += 1
+                self.end()
+                return [first, closure]
+        closure.accepted = False
+        closure.reason = "relocalisation: pending agreement"
+        self.pending, self.pending_shift = closure, shift
+        return []
+
+    def _best(
+        self, k: int, query: NDArray, points: list[ScanPoints], estimate: NDArray
+    ) -> tuple[LoopClosure, NDArray] | None:
+        """The verified pose of keyframe ``k``, unambiguous, or None."""
+        assert self.old is not None and self.start is not None
+        opt = self.options
+        verified: list[tuple[float, LoopClosure, NDArray]] = []
+        old_est = estimate[: self.start]
+        # the old keyframes always qualify for submaps, the segment's never
+        travelled = np.where(np.arange(len(estimate)) < self.start, -1e9, 0.0)
+        for _, pose in self.old.search(query):
+            j = int(np.argmin(np.hypot(*(old_est[:, :2] - pose[:2]).T)))
+            moved = estimate.copy()
+            moved[k] = pose
+            closure = verify(k, j, points, moved, travelled, (0.3, 0.15), opt)
+            self.tried.append(closure)
+            if not closure.accepted:
+                continue
+            found = np.array(compose(estimate[j], closure.relative))
+            share = match_share(query, self.old.points, found, opt.loop_inlier_distance)
+            conflict = scan_conflict(self.old.occupied, points[k], found, self.mount)
+            if share < MIN_SHARE or conflict > MAX_CONFLICT:
+                closure.accepted = False
+                closure.reason = f"relocalisation: share {share:.2f}, conflict {conflict:.2f}"
+                continue
+            if any(not _distinct(found, p) for _, _, p in verified):
+                continue
+            closure.reason = f"relocalisation (share {share:.2f}, conflict {conflict:.2f})"
+            verified.append((share, closure, found))
+        if not verified:
+            return None
+        verified.sort(key=lambda item: -item[0])
+        if len(verified) > 1 and verified[0][0] - verified[1][0] < AMBIGUITY:
+            for _, c, _ in verified:
+                c.accepted = False
+                c.reason = "relocalisation: ambiguous"
+            return None
+        return verified[0][1], verified[0][2]

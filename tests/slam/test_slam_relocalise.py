@@ -1,0 +1,109 @@
+"""Global relocalisation: a robot carried to another place of the map (a kidnap) is found
+again, and the trajectory after the kidnap is right."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gtsam")
+
+from laser_corners.pose import between_many, compose
+from laser_corners.sim import SICK_LMS_1DEG, World
+from laser_corners.slam import Slam, SlamOptions
+from laser_corners.slam.relocalise import free_space_conflict, occupancy_keys
+
+RATE = 10.0
+
+
+def _building() -> World:
+    """Two rooms joined by a door, with a pillar (as in test_slam_sim)."""
+    world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
+    world.add_polygon([[6, 0], [6.1, 0], [6.1, 3], [6, 3]])
+    world.add_polygon([[6, 5], [6.1, 5], [6.1, 8], [6, 8]])
+    world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
+    world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
+    world.add_circle((8.5, 2.0), 0.15)
+    return world
+
+
+def _leg(a, b, turn_to: float | None = None) -> list[tuple[float, float, float]]:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    heading = math.atan2(b[1] - a[1], b[0] - a[0])
+    n = int(np.hypot(*(b - a)) / 0.05)
+    out = [(*(a + t * (b - a)), heading) for t in np.arange(n) / n]
+    if turn_to is not None:
+        steps = int(abs(turn_to - heading) / 0.15)
+        out += [
+            (b[0], b[1], heading + k * (turn_to - heading) / steps) for k in range(1, steps + 1)
+        ]
+    return out
+
+
+def _kidnap_drive() -> tuple[np.ndarray, int]:
+    """A lap of both rooms, the start of a second lap, then the robot is carried from the
+    middle of the first leg (6 m along y = 1.5, heading east) to (10.5, 6.5) heading west and
+    drives the last two legs: the true poses and the index of the first scan after it."""
+    c = [(1.5, 1.5), (10.5, 1.5), (10.5, 6.5), (1.5, 6.5)]
+    path = _leg(c[0], c[1], math.pi / 2) + _leg(c[1], c[2], math.pi)
+    path += _leg(c[2], c[3], 1.5 * math.pi) + _leg(c[3], c[0], 2 * math.pi)
+    path += [(x, y, 0.0) for x, y, _ in _leg(c[0], (4.5, 1.5))]
+    kidnap = len(path)
+    path += _leg(c[2], c[3], 1.5 * math.pi) + _leg(c[3], (1.5, 3.0))
+    return np.array(path), kidnap
+
+
+def _odometry(truth: np.ndarray, kidnap: int, rng: np.random.Generator) -> np.ndarray:
+    """Odometry with 2 % scale error and noise; across the kidnap it reads no motion."""
+    steps = between_many(truth[:-1], truth[1:])
+    steps[kidnap - 1] = 0.0  # carried: the wheels did not turn
+    odo = [truth[0]]
+    for d in steps:
+        noisy = np.array([d[0] * 1.02, d[1], d[2] * 1.01 + 0.001]) + rng.normal(0, 0.002, 3)
+        odo.append(compose(odo[-1], noisy))
+    return np.array(odo)
+
+
+def _run(options: SlamOptions, gap: float):
+    truth, kidnap = _kidnap_drive()
+    odo = _odometry(truth, kidnap, np.random.default_rng(1))
+    world, rng = _building(), np.random.default_rng(2)
+    slam = Slam(options)
+    for i, (pose, odom) in enumerate(zip(truth, odo, strict=True)):
+        stamp = i / RATE + (gap if i >= kidnap else 0.0)
+        scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=stamp)
+        slam.add(scan, odom, stamp)
+    return truth, kidnap, slam.result()
+
+
+@pytest.mark.parametrize("gap", [0.0, 30.0], ids=["carried", "carried-30s-gap"])
+def test_kidnapped_robot_is_relocalised(gap: float) -> None:
+    truth, kidnap, result = _run(SlamOptions(), gap)
+    err = np.hypot(*(result.poses[:, :2] - truth[:, :2]).T)
+    after = err[kidnap:]
+    # before the kidnap: the map is right; after it: found again and right
+    assert np.median(err[:kidnap]) < 0.05
+    assert np.median(after) < 0.1 and np.percentile(after[len(after) // 3 :], 95) < 0.1
+    assert result.counts["lost"] + result.counts["time_jumps"] >= 1
+    assert result.counts["relocalisations_accepted"] >= 1
+    assert result.counts["relocalisations_attempted"] >= result.counts["relocalisations_accepted"]
+
+
+def test_without_relocalisation_the_kidnap_stays_wrong() -> None:
+    truth, kidnap, result = _run(SlamOptions(relocalisation=False), 0.0)
+    after = np.hypot(*(result.poses[kidnap:, :2] - truth[kidnap:, :2]).T)
+    assert np.median(after) > 1.0  # the test above measures something
+    assert result.counts["relocalisations_attempted"] == 0
+
+
+def test_free_space_conflict_counts_beams_through_walls() -> None:
+    wall = occupancy_keys(np.column_stack([np.full(200, 2.01), np.linspace(-5, 5, 200)]))
+    origin = np.zeros(2)
+    through = np.array([[3.0, 0.0], [3.0, 1.0]])  # beyond the wall
+    before = np.array([[1.5, 0.0], [1.5, 1.0]])
+    at = np.array([[2.02, 0.0], [2.02, 0.5]])  # ending on it
+    assert free_space_conflict(wall, origin, through) == 1.0
+    assert free_space_conflict(wall, origin, before) == 0.0
+    assert free_space_conflict(wall, origin, at) == 0.0
