@@ -53,6 +53,10 @@ RESCUE_WINDOW = (0.3, 0.7)
 RESCUE_RESOLUTION = 0.05
 """Cell (m) of the rescue's likelihood grid."""
 
+DISTINGUISH_SIGMA = 3.0
+"""Standard deviations (of the scan's own information) by which a second ICP start must differ
+from the first for the front end to choose between them (:func:`_distinguishable`)."""
+
 COUNT_KEYS = (
     "scans",
     "keyframes",
@@ -72,6 +76,18 @@ COUNT_KEYS = (
     "corner_registrations",
     "corner_registrations_used",
 )
+
+
+def _distinguishable(first: Alignment, second: Alignment) -> bool:
+    """Whether the scan itself tells two alignments apart: their difference, measured with
+    the point residuals' information of either (:attr:`Alignment.information`, no prior), is
+    more than :data:`DISTINGUISH_SIGMA` standard deviations. Along a corridor it is not: there
+    the share of points on the map prefers whichever pose repeats a keyframe's beam pattern,
+    which pulls the estimate back towards that keyframe (less motion than driven)."""
+    d = second.pose - first.pose  # the information is of the map frame's (x, y, yaw)
+    d[2] = wrap_angle(d[2])
+    seen = min(float(d @ first.information @ d), float(d @ second.information @ d))
+    return seen > DISTINGUISH_SIGMA**2
 
 
 class Slam:
@@ -282,7 +298,11 @@ class Slam:
         self.counts["second_guesses"] += 1
         second = self._icp(xy, guess, prior)
         second_share = self._fit_share(xy, second.pose)
-        if second_share > share + 0.02 and second.overlap >= first.overlap:
+        if (
+            second_share > share + 0.02
+            and second.overlap >= first.overlap
+            and _distinguishable(first, second)
+        ):
             self.counts["second_guesses_used"] += 1
             return second, second_share
         return first, share
