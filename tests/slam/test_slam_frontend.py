@@ -1,6 +1,7 @@
 """SLAM front end and closure bookkeeping on simulated recordings with known poses: odometry
 that is wrong in ways a prior cannot absorb (reversing counted as forward motion, a scan
-with a stale heading), a corridor that must keep its length, and pruned loop closures marked on the right closure."""
+with a stale heading), a corridor that must keep its length, and pruned loop closures marked
+on the right closure."""
 
 from __future__ import annotations
 
