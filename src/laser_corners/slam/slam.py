@@ -1,8 +1,8 @@
 """The incremental SLAM: :class:`Slam` (``add(scan, odometry, stamp) -> pose, covariance``).
 
-Per scan: the odometry delta predicts the pose, point-to-line ICP against the local map (the
-points of the recent keyframes at their current estimates) corrects it, weighted against the
-prediction by the odometry noise. A scan becomes a keyframe after ``keyframe_distance`` /
+Per scan: the odometry delta predicts the pose, ICP against the implicit surface of the local
+map (the points of the recent keyframes at their current estimates, with their line normals)
+corrects it, weighted against the prediction by the odometry noise. A scan becomes a keyframe after ``keyframe_distance`` /
 ``keyframe_angle`` of motion: it joins the gtsam graph with a relative-pose factor to the
 previous keyframe, loop closures are searched for it, iSAM2 updates, and the local map is
 rebuilt from the new estimates. Other scans keep their pose relative to the last keyframe,
@@ -52,6 +52,12 @@ RESCUE_WINDOW = (0.3, 0.7)
 """Half-widths (m, rad) of the rescue's correlative search around the odometry prediction."""
 RESCUE_RESOLUTION = 0.05
 """Cell (m) of the rescue's likelihood grid."""
+
+SURFACE_SPACINGS = 2.0
+"""Kernel width of the local map's implicit surface that tracking aligns to
+(:func:`~laser_corners.slam.align.icp`'s ``surface``), in point spacings: each surface point
+averages the lines of the map points within two widths (about eight thinned points of a
+wall, from every keyframe that saw it)."""
 
 DISTINGUISH_SIGMA = 3.0
 """Standard deviations (of the scan's own information) by which a second ICP start must differ
@@ -338,6 +344,7 @@ class Slam:
             inlier_distance=opt.loop_inlier_distance,
             iterations=opt.icp_iterations,
             overlap_map=self._local_all,
+            surface=SURFACE_SPACINGS * opt.point_spacing,
         )
 
     # ------------------------------------------------------------------ keyframes
