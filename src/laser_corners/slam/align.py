@@ -25,6 +25,10 @@ from laser_corners.pose import wrap_angle
 __all__ = ["Alignment", "PointMap", "icp", "match_share"]
 
 CELL = 0.3
+SURFACE_AGREE = 0.94
+"""|cos| of the angle (20 degrees) within which a map point's normal must agree with the
+nearest point's to join that point's implicit surface (:func:`_surface`): the lines of one
+surface, not of a corner's other wall or around a pillar."""
 """Grid cell (m) of a :class:`PointMap`; a search within CELL looks at the 3 x 3 cells around."""
 
 
@@ -122,8 +126,9 @@ def _surface(
 ) -> tuple[float, float, float, bool]:
     """Signed distance of (px, py) to the map's implicit surface (IMLS: Kolluri, ACM TALG
     2008; Deschaud, ICRA 2018) and that surface's normal: the Gaussian-weighted (``width``)
-    means of ``n_i · (p - q_i)`` and of ``n_i`` over the map points within ``2 width`` of p,
-    each normal turned to agree with the nearest point's (which must be within ``max_d``).
+    means of ``n_i · (p - q_i)`` and of ``n_i`` over the map points within ``2 width`` of p
+    whose normals agree with the nearest point's (which must be within ``max_d``) within
+    :data:`SURFACE_AGREE`, turned to its side.
     Returns (distance, nx, ny, found)."""
     j0 = _nearest(px, py, grid, max_d)
     if j0 < 0:
@@ -150,7 +155,10 @@ def _surface(
                     continue
                 ax = nrm[j, 0]
                 ay = nrm[j, 1]
-                if ax * nrm[j0, 0] + ay * nrm[j0, 1] < 0.0:
+                dot = ax * nrm[j0, 0] + ay * nrm[j0, 1]
+                if abs(dot) < SURFACE_AGREE:
+                    continue
+                if dot < 0.0:
                     ax = -ax
                     ay = -ay
                 w = math.exp(-d2 * inv)

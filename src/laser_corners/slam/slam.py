@@ -2,11 +2,11 @@
 
 Per scan: the odometry delta predicts the pose, ICP against the implicit surface of the local
 map (the points of the recent keyframes at their current estimates, with their line normals)
-corrects it, weighted against the prediction by the odometry noise. A scan becomes a keyframe after ``keyframe_distance`` /
-``keyframe_angle`` of motion: it joins the gtsam graph with a relative-pose factor to the
-previous keyframe, loop closures are searched for it, iSAM2 updates, and the local map is
-rebuilt from the new estimates. Other scans keep their pose relative to the last keyframe,
-so their final pose follows the keyframe's final estimate.
+corrects it, weighted against the prediction by the odometry noise. A scan becomes a keyframe
+after ``keyframe_distance`` / ``keyframe_angle`` of motion: it joins the gtsam graph with a
+relative-pose factor to the previous keyframe, loop closures are searched for it, iSAM2
+updates, and the local map is rebuilt from the new estimates. Other scans keep their pose
+relative to the last keyframe, so their final pose follows the keyframe's final estimate.
 """
 
 from __future__ import annotations
