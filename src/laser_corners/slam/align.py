@@ -25,6 +25,12 @@ from laser_corners.pose import wrap_angle
 __all__ = ["Alignment", "PointMap", "icp", "match_share"]
 
 CELL = 0.3
+STEP_XY = 1.0 / 30.0
+"""ICP stops when a step moves the pose by less than this share of the point noise ``sigma``
+(1 mm for 3 cm) and turns it by less than :data:`STEP_YAW`: the implicit surface's
+correspondences can flip between two sets a tenth of a millimetre apart forever."""
+STEP_YAW = 1e-4
+"""Rotation (rad) below which an ICP step counts as converged (with :data:`STEP_XY`)."""
 SURFACE_AGREE = 0.94
 """|cos| of the angle (20 degrees) within which a map point's normal must agree with the
 nearest point's to join that point's implicit surface (:func:`_surface`): the lines of one
@@ -224,7 +230,7 @@ def _icp(
         info = h * scale
         step = np.linalg.solve(info + prior, -(g * scale + prior @ diff))
         pose += step
-        if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
+        if abs(step[0]) + abs(step[1]) < STEP_XY * sigma and abs(step[2]) < STEP_YAW:
             break
     return pose, info
 
