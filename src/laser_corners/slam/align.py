@@ -128,50 +128,67 @@ def _nearest(px: float, py: float, grid: Buckets, max_d: float) -> int:
 
 @numba.njit(cache=True)
 def _surface(
-    px: float, py: float, grid: Buckets, nrm: NDArray, max_d: float, width: float
+    px: float,
+    py: float,
+    grid: Buckets,
+    nrm: NDArray,
+    max_d: float,
+    width: float,
+    near: NDArray[np.int64],
 ) -> tuple[float, float, float, bool]:
     """Signed distance of (px, py) to the map's implicit surface (IMLS: Kolluri, ACM TALG
     2008; Deschaud, ICRA 2018) and that surface's normal: the Gaussian-weighted (``width``)
     means of ``n_i · (p - q_i)`` and of ``n_i`` over the map points within ``2 width`` of p
     whose normals agree with the nearest point's (which must be within ``max_d``) within
-    :data:`SURFACE_AGREE`, turned to its side.
+    :data:`SURFACE_AGREE`, turned to its side. One pass over the cells finds the nearest point
+    and keeps the points within ``2 width`` in ``near`` (scratch, at least the map's size).
     Returns (distance, nx, ny, found)."""
-    j0 = _nearest(px, py, grid, max_d)
-    if j0 < 0:
-        return 0.0, 0.0, 0.0, False
     xy, origin, nx, ny, start, order = grid
     rad = 2.0 * width
-    reach = min(math.ceil(rad / CELL), 3)
+    reach = min(math.ceil(max(rad, max_d) / CELL), 3)
     cx = math.floor((px - origin[0]) / CELL)
     cy = math.floor((py - origin[1]) / CELL)
-    inv = 0.5 / (width * width)
-    sw = 0.0
-    sd = 0.0
-    snx = 0.0
-    sny = 0.0
+    best = max_d * max_d
+    j0 = -1
+    m = 0
     for iy in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
         for ix in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
             c = iy * nx + ix
             for k in range(start[c], start[c + 1]):
                 j = order[k]
-                dx = px - xy[j, 0]
-                dy = py - xy[j, 1]
+                dx = xy[j, 0] - px
+                dy = xy[j, 1] - py
                 d2 = dx * dx + dy * dy
-                if d2 > rad * rad:
-                    continue
-                ax = nrm[j, 0]
-                ay = nrm[j, 1]
-                dot = ax * nrm[j0, 0] + ay * nrm[j0, 1]
-                if abs(dot) < SURFACE_AGREE:
-                    continue
-                if dot < 0.0:
-                    ax = -ax
-                    ay = -ay
-                w = math.exp(-d2 * inv)
-                sw += w
-                sd += w * (ax * dx + ay * dy)
-                snx += w * ax
-                sny += w * ay
+                if d2 < best:
+                    best = d2
+                    j0 = j
+                if d2 <= rad * rad:
+                    near[m] = j
+                    m += 1
+    if j0 < 0:
+        return 0.0, 0.0, 0.0, False
+    inv = 0.5 / (width * width)
+    sw = 0.0
+    sd = 0.0
+    snx = 0.0
+    sny = 0.0
+    for i in range(m):
+        j = near[i]
+        dx = px - xy[j, 0]
+        dy = py - xy[j, 1]
+        ax = nrm[j, 0]
+        ay = nrm[j, 1]
+        dot = ax * nrm[j0, 0] + ay * nrm[j0, 1]
+        if abs(dot) < SURFACE_AGREE:
+            continue
+        if dot < 0.0:
+            ax = -ax
+            ay = -ay
+        w = math.exp(-(dx * dx + dy * dy) * inv)
+        sw += w
+        sd += w * (ax * dx + ay * dy)
+        snx += w * ax
+        sny += w * ay
     if sw <= 0.0:  # pragma: no cover - j0 itself is within the radius
         return 0.0, 0.0, 0.0, False
     return sd / sw, snx / sw, sny / sw, True
@@ -192,6 +209,7 @@ def _icp(
     xy = grid.xy
     pose = guess.copy()
     info = np.zeros((3, 3))
+    near = np.empty(xy.shape[0], dtype=np.int64)
     scale = 1.0 / (sigma * sigma)
     huber = 2.0 * sigma
     for _ in range(iterations):
@@ -206,7 +224,7 @@ def _icp(
             px = rx + pose[0]
             py = ry + pose[1]
             if surface > 0.0:
-                r, ux, uy, found = _surface(px, py, grid, nrm, max_d, surface)
+                r, ux, uy, found = _surface(px, py, grid, nrm, max_d, surface, near)
                 if not found:
                     continue
             else:
