@@ -48,7 +48,7 @@ def test_a_corridor_scan_does_not_snap_to_the_keyframes_beam_pattern() -> None:
     # nearest map point's line (the old tracking): its noisy normal turns the offset along
     # the wall into a residual, so the pose is pulled to where scan and keyframe points
     # coincide (RMS 7.3 mm here); the implicit surface averages the lines around each point
-    # (3.0 mm)
+    # (2.9 mm)
     surface = _along_errors(SURFACE_SPACINGS * SlamOptions().point_spacing)
     line = _along_errors(0.0)
     rms_surface = float(np.sqrt(np.mean(surface**2)))
