@@ -4,7 +4,8 @@ per iteration).
 The map's points are bucketed in a grid of cells (:class:`PointMap`); the nearest map point
 of a scan point is searched in the cells around it. Each iteration pairs every scan point
 with its nearest map point within ``max_distance`` and minimises the Huber-weighted sum of
-squared point-to-line distances ``n_q · (R p + t - q)`` plus a prior pulling the pose towards
+squared point-to-line distances ``n_q · (R p + t - q)`` (or distances to the implicit
+surface of the map points around p, :func:`_surface`) plus a prior pulling the pose towards
 the prediction with information ``prior_info``, so a corridor (lines in one direction only)
 keeps the predicted position along itself.
 """
@@ -24,6 +25,16 @@ from laser_corners.pose import wrap_angle
 __all__ = ["Alignment", "PointMap", "icp", "match_share"]
 
 CELL = 0.3
+STEP_XY = 1.0 / 30.0
+"""ICP stops when a step moves the pose by less than this share of the point noise ``sigma``
+(1 mm for 3 cm) and turns it by less than :data:`STEP_YAW`: the implicit surface's
+correspondences can flip between two sets a tenth of a millimetre apart forever."""
+STEP_YAW = 1e-4
+"""Rotation (rad) below which an ICP step counts as converged (with :data:`STEP_XY`)."""
+SURFACE_AGREE = 0.94
+"""|cos| of the angle (20 degrees) within which a map point's normal must agree with the
+nearest point's to join that point's implicit surface (:func:`_surface`): the lines of one
+surface, not of a corner's other wall or around a pillar."""
 """Grid cell (m) of a :class:`PointMap`; a search within CELL looks at the 3 x 3 cells around."""
 
 
@@ -116,6 +127,74 @@ def _nearest(px: float, py: float, grid: Buckets, max_d: float) -> int:
 
 
 @numba.njit(cache=True)
+def _surface(
+    px: float,
+    py: float,
+    grid: Buckets,
+    nrm: NDArray,
+    max_d: float,
+    width: float,
+    near: NDArray[np.int64],
+) -> tuple[float, float, float, bool]:
+    """Signed distance of (px, py) to the map's implicit surface (IMLS: Kolluri, ACM TALG
+    2008; Deschaud, ICRA 2018) and that surface's normal: the Gaussian-weighted (``width``)
+    means of ``n_i · (p - q_i)`` and of ``n_i`` over the map points within ``2 width`` of p
+    whose normals agree with the nearest point's (which must be within ``max_d``) within
+    :data:`SURFACE_AGREE`, turned to its side. One pass over the cells finds the nearest point
+    and keeps the points within ``2 width`` in ``near`` (scratch, at least the map's size).
+    Returns (distance, nx, ny, found)."""
+    xy, origin, nx, ny, start, order = grid
+    rad = 2.0 * width
+    reach = min(math.ceil(max(rad, max_d) / CELL), 3)
+    cx = math.floor((px - origin[0]) / CELL)
+    cy = math.floor((py - origin[1]) / CELL)
+    best = max_d * max_d
+    j0 = -1
+    m = 0
+    for iy in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
+        for ix in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
+            c = iy * nx + ix
+            for k in range(start[c], start[c + 1]):
+                j = order[k]
+                dx = xy[j, 0] - px
+                dy = xy[j, 1] - py
+                d2 = dx * dx + dy * dy
+                if d2 < best:
+                    best = d2
+                    j0 = j
+                if d2 <= rad * rad:
+                    near[m] = j
+                    m += 1
+    if j0 < 0:
+        return 0.0, 0.0, 0.0, False
+    inv = 0.5 / (width * width)
+    sw = 0.0
+    sd = 0.0
+    snx = 0.0
+    sny = 0.0
+    for i in range(m):
+        j = near[i]
+        dx = px - xy[j, 0]
+        dy = py - xy[j, 1]
+        ax = nrm[j, 0]
+        ay = nrm[j, 1]
+        dot = ax * nrm[j0, 0] + ay * nrm[j0, 1]
+        if abs(dot) < SURFACE_AGREE:
+            continue
+        if dot < 0.0:
+            ax = -ax
+            ay = -ay
+        w = math.exp(-(dx * dx + dy * dy) * inv)
+        sw += w
+        sd += w * (ax * dx + ay * dy)
+        snx += w * ax
+        sny += w * ay
+    if sw <= 0.0:  # pragma: no cover - j0 itself is within the radius
+        return 0.0, 0.0, 0.0, False
+    return sd / sw, snx / sw, sny / sw, True
+
+
+@numba.njit(cache=True)
 def _icp(
     src: NDArray,
     grid: Buckets,
@@ -125,10 +204,12 @@ def _icp(
     max_d: float,
     sigma: float,
     iterations: int,
+    surface: float,
 ) -> tuple[NDArray, NDArray]:
     xy = grid.xy
     pose = guess.copy()
     info = np.zeros((3, 3))
+    near = np.empty(xy.shape[0], dtype=np.int64)
     scale = 1.0 / (sigma * sigma)
     huber = 2.0 * sigma
     for _ in range(iterations):
@@ -142,11 +223,18 @@ def _icp(
             ry = s * src[i, 0] + c * src[i, 1]
             px = rx + pose[0]
             py = ry + pose[1]
-            j = _nearest(px, py, grid, max_d)
-            if j < 0:
-                continue
-            r = nrm[j, 0] * (px - xy[j, 0]) + nrm[j, 1] * (py - xy[j, 1])
-            jac = np.array([nrm[j, 0], nrm[j, 1], -nrm[j, 0] * ry + nrm[j, 1] * rx])
+            if surface > 0.0:
+                r, ux, uy, found = _surface(px, py, grid, nrm, max_d, surface, near)
+                if not found:
+                    continue
+            else:
+                j = _nearest(px, py, grid, max_d)
+                if j < 0:
+                    continue
+                ux = nrm[j, 0]
+                uy = nrm[j, 1]
+                r = ux * (px - xy[j, 0]) + uy * (py - xy[j, 1])
+            jac = np.array([ux, uy, -ux * ry + uy * rx])
             w = 1.0 if abs(r) <= huber else huber / abs(r)
             for a in range(3):
                 g[a] += w * jac[a] * r
@@ -160,7 +248,7 @@ def _icp(
         info = h * scale
         step = np.linalg.solve(info + prior, -(g * scale + prior @ diff))
         pose += step
-        if abs(step[0]) + abs(step[1]) < 1e-4 and abs(step[2]) < 1e-4:
+        if abs(step[0]) + abs(step[1]) < STEP_XY * sigma and abs(step[2]) < STEP_YAW:
             break
     return pose, info
 
@@ -216,12 +304,18 @@ def icp(
     iterations: int,
     sigma: float = 0.03,
     overlap_map: PointMap | None = None,
+    surface: float = 0.0,
 ) -> Alignment:
     """Align ``points`` (base frame) to ``pointmap`` starting from ``guess`` (map frame).
 
     ``prior_info`` (3x3) weighs the pull towards ``guess`` against the point residuals of
     standard deviation ``sigma`` (m). The overlap is measured against ``overlap_map`` (all
     points, also those without a normal) when given, else against ``pointmap``.
+    ``surface`` > 0: a point's residual is its distance to the map's implicit surface of that
+    kernel width (m; :func:`_surface`), not to the line of its nearest map point: the pose
+    no longer gains by putting scan points on map points (a keyframe's beam pattern), which
+    the nearest point's line rewards wherever its normal is tilted by noise or the surface
+    curves.
     """
     guess = np.asarray(guess, dtype=np.float64)
     src = np.ascontiguousarray(points, dtype=np.float64)
@@ -237,6 +331,7 @@ def icp(
             max_distance,
             sigma,
             iterations,
+            surface,
         )
     except np.linalg.LinAlgError:  # pragma: no cover - singular system
         return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))

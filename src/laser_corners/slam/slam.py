@@ -1,12 +1,12 @@
 """The incremental SLAM: :class:`Slam` (``add(scan, odometry, stamp) -> pose, covariance``).
 
-Per scan: the odometry delta predicts the pose, point-to-line ICP against the local map (the
-points of the recent keyframes at their current estimates) corrects it, weighted against the
-prediction by the odometry noise. A scan becomes a keyframe after ``keyframe_distance`` /
-``keyframe_angle`` of motion: it joins the gtsam graph with a relative-pose factor to the
-previous keyframe, loop closures are searched for it, iSAM2 updates, and the local map is
-rebuilt from the new estimates. Other scans keep their pose relative to the last keyframe,
-so their final pose follows the keyframe's final estimate.
+Per scan: the odometry delta predicts the pose, ICP against the implicit surface of the local
+map (the points of the recent keyframes at their current estimates, with their line normals)
+corrects it, weighted against the prediction by the odometry noise. A scan becomes a keyframe
+after ``keyframe_distance`` / ``keyframe_angle`` of motion: it joins the gtsam graph with a
+relative-pose factor to the previous keyframe, loop closures are searched for it, iSAM2
+updates, and the local map is rebuilt from the new estimates. Other scans keep their pose
+relative to the last keyframe, so their final pose follows the keyframe's final estimate.
 """
 
 from __future__ import annotations
@@ -59,6 +59,16 @@ RESCUE_WINDOW = (0.3, 0.7)
 RESCUE_RESOLUTION = 0.05
 """Cell (m) of the rescue's likelihood grid."""
 
+SURFACE_SPACINGS = 2.0
+"""Kernel width of the local map's implicit surface that tracking aligns to
+(:func:`~laser_corners.slam.align.icp`'s ``surface``), in point spacings: each surface point
+averages the lines of the map points within two widths (about eight thinned points of a
+wall, from every keyframe that saw it)."""
+
+DISTINGUISH_SIGMA = 3.0
+"""Standard deviations (of the scan's own information) by which a second ICP start must differ
+from the first for the front end to choose between them (:func:`_distinguishable`)."""
+
 COUNT_KEYS = (
     "scans",
     "keyframes",
@@ -81,6 +91,18 @@ COUNT_KEYS = (
     "relocalisations_attempted",
     "relocalisations_accepted",
 )
+
+
+def _distinguishable(first: Alignment, second: Alignment) -> bool:
+    """Whether the scan itself tells two alignments apart: their difference, measured with
+    the point residuals' information of either (:attr:`Alignment.information`, no prior), is
+    more than :data:`DISTINGUISH_SIGMA` standard deviations. Along a corridor it is not: there
+    the share of points on the map prefers whichever pose repeats a keyframe's beam pattern,
+    which pulls the estimate back towards that keyframe (less motion than driven)."""
+    d = second.pose - first.pose  # the information is of the map frame's (x, y, yaw)
+    d[2] = wrap_angle(d[2])
+    seen = min(float(d @ first.information @ d), float(d @ second.information @ d))
+    return seen > DISTINGUISH_SIGMA**2
 
 
 class Slam:
@@ -315,7 +337,11 @@ class Slam:
         self.counts["second_guesses"] += 1
         second = self._icp(xy, guess, prior)
         second_share = self._fit_share(xy, second.pose)
-        if second_share > share + 0.02 and second.overlap >= first.overlap:
+        if (
+            second_share > share + 0.02
+            and second.overlap >= first.overlap
+            and _distinguishable(first, second)
+        ):
             self.counts["second_guesses_used"] += 1
             return second, second_share
         return first, share
@@ -351,6 +377,7 @@ class Slam:
             inlier_distance=opt.loop_inlier_distance,
             iterations=opt.icp_iterations,
             overlap_map=self._local_all,
+            surface=SURFACE_SPACINGS * opt.point_spacing,
         )
 
     # ------------------------------------------------------------------ keyframes
