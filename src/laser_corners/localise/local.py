@@ -25,16 +25,18 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.localise.freespace import Support
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.correlative import ScoreGrid
 from laser_corners.slam.points import ScanPoints, rotate, transform
 
-__all__ = ["LocalMap", "fuse"]
+__all__ = ["Fit", "LocalMap", "fuse"]
 
 UNEXPLAINED = 0.25
 """A scan point farther than this (m) from every map point is one the map does not explain
@@ -45,6 +47,33 @@ LOCAL_TRAVEL = 10.0
 """The local submap holds the frames of the last this many metres of travel."""
 MIN_POINTS = 10
 """A local submap with fewer points is not aligned to."""
+
+
+@dataclass
+class Fit:
+    """A tracked scan's pose and how the map and the local submap explain the scan."""
+
+    pose: NDArray[np.float64]
+    information: NDArray[np.float64]
+    """Of the alignments (without the odometry prior's)."""
+    mapped: float
+    """Share of the scan's points within ``inlier_distance`` of a map point."""
+    local: float
+    """The same for the local submap's points (disjoint from the map's)."""
+    support: Support
+    unmapped: float
+    """Share of the scan's points farther than :data:`UNEXPLAINED` from any map point."""
+
+    def explained(self, partly: float) -> float:
+        """Share of the scan's points that the map or the local submap explains; when more
+        than ``partly`` (``partly_outside``) of them are far from any map point (the robot
+        sees space the map does not cover), the share among the points the two could
+        explain (near a map point, or local): entering unmapped space, the newly seen
+        part of the scan is explained by nothing yet."""
+        both = self.mapped + self.local
+        if self.unmapped <= partly:
+            return min(1.0, both)
+        return min(1.0, both / max(1.0 - self.unmapped + self.local, 0.05))
 
 
 class LocalMap:

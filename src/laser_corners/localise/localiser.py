@@ -51,14 +51,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.freespace import Support
-from laser_corners.localise.local import LocalMap, fuse
+from laser_corners.localise.local import Fit, LocalMap, fuse
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel, _distinct
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import between_many, compose_many, invert_many
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, icp, match_share
 from laser_corners.slam.mapfile import SavedMap, load_map
-from laser_corners.slam.points import scan_points
+from laser_corners.slam.points import scan_points, transform
 
 __all__ = ["Hypothesis", "Localiser", "LocaliserEstimate"]
 
@@ -299,17 +299,23 @@ class Localiser:
         opt = self.options
         prior = self._prior(delta, jump)
         pred = compose_many(self.pose, delta)
-        pose, info, mapped, local = self._fused(pts.xy, pred, prior, jump)
+        fit = self._fused(pts.xy, pred, prior, jump)
         usual = float(np.mean(self._recent)) if self._recent else 1.0
-        if jump or mapped + local < max(usual - RECOVER_DROP, RECOVER_BELOW):
-            pose, info, mapped, local = self._recover(pts.xy, pred, (pose, info, mapped, local))
-        agreement = min(1.0, mapped + local)
-        support = self._support(pose, pts.xy)
+        partly = opt.partly_outside
+        if jump or fit.explained(partly) < max(usual - RECOVER_DROP, RECOVER_BELOW):
+            fit = self._recover(pts.xy, pred, fit)
+        pose, support, mapped = fit.pose, fit.support, fit.mapped
+        agreement = fit.explained(partly)
         self._conflicts.append(support.conflict)
         floor = max(opt.track_agreement, usual - opt.track_drop)
         fits = float(np.mean(self._conflicts)) <= opt.track_conflict
-        anchored = fits and mapped >= floor and support.outside <= opt.max_outside
-        unmapped = support.outside > opt.partly_outside and not jump
+        anchored = (
+            fits
+            and mapped + fit.local >= floor
+            and mapped >= opt.hypothesis_agreement
+            and support.outside <= opt.max_outside
+        )
+        unmapped = fit.unmapped > partly and support.conflict <= opt.track_conflict and not jump
         if not (anchored or (fits and unmapped and agreement >= floor)):
             self.pose = pred
             self._bad += 1
@@ -328,26 +334,29 @@ class Localiser:
             self._cov = self._cov + np.diag(grow**2)
             return self._estimate(odo, index, stamp, "local", agreement)
         try:
-            cov = np.linalg.inv(info + prior)
+            cov = np.linalg.inv(fit.information + prior)
         except np.linalg.LinAlgError:  # pragma: no cover - singular information
             cov = np.linalg.inv(prior)
         self._cov = cov + COVARIANCE_FLOOR
         return self._estimate(odo, index, stamp, "tracking", agreement)
 
-    def _fused(
-        self, xy: NDArray, pred: NDArray, prior: NDArray, jump: bool
-    ) -> tuple[NDArray, NDArray, float, float]:
+    def _fused(self, xy: NDArray, pred: NDArray, prior: NDArray, jump: bool) -> Fit:
         """ICP of the scan to the map and to the local submap (``localise.local``), fused
         by their information when the local submap explains at least ``LOCAL_SHARE`` of
-        the scan: pose, information (without the prior's), map and local agreement."""
+        the scan."""
         aligned, mapped = self._align(xy, pred, prior)
         local = None if jump else self.local.align(xy, pred, prior, self.options)
         if local is None or local.overlap < LOCAL_SHARE:
-            return aligned.pose, aligned.information, mapped, 0.0
+            return self._fit(xy, aligned.pose, aligned.information, mapped, 0.0)
         pose, info = fuse(pred, prior, aligned, local)
         inlier = self.options.inlier_distance
         mapped = match_share(xy, self.map.every, pose, inlier)
-        return pose, info, mapped, self.local.share(xy, pose, inlier)
+        return self._fit(xy, pose, info, mapped, self.local.share(xy, pose, inlier))
+
+    def _fit(self, xy: NDArray, pose: NDArray, info: NDArray, mapped: float, local: float) -> Fit:
+        """A :class:`Fit` with the free-space support and unmapped share at ``pose``."""
+        unmapped = float(np.mean(self.local.unexplained(transform(xy, pose)))) if len(xy) else 0.0
+        return Fit(pose, info, mapped, local, self._support(pose, xy), unmapped)
 
     def _support(self, pose: NDArray, xy: NDArray) -> Support:
         """Outside / conflict shares of the scan ``xy`` at ``pose`` (``freespace``)."""
@@ -366,20 +375,20 @@ class Localiser:
         self.counts["refused_free_space"] += not ok
         return ok
 
-    def _recover(self, xy: NDArray, pred: NDArray, current: tuple) -> tuple:
+    def _recover(self, xy: NDArray, pred: NDArray, current: Fit) -> Fit:
         """A correlative search around the prediction (wheel slip, a missed turn), then ICP
-        from its best pose under a weak prior; kept when the scan agrees more with the map
-        and the local submap together than at ``current`` (pose, information, map and
-        local agreement): a search on the map alone would pull a scan that partly sees
-        unmapped space onto the mapped part (a corridor's far end)."""
+        from its best pose under a weak prior; kept when the scan's explained share
+        (:meth:`Fit.explained`: map and local submap together) is larger than at
+        ``current``: a search on the map alone would pull a scan that partly sees unmapped
+        space onto the mapped part (a corridor's far end)."""
         self.counts["recoveries"] += 1
         guess = self.map.local_search(xy, pred, RECOVER_XY, RECOVER_YAW)
         weak = np.diag(1.0 / np.array([RECOVER_XY, RECOVER_XY, RECOVER_YAW]) ** 2)
         again, mapped = self._align(xy, guess, weak)
         local = self.local.share(xy, again.pose, self.options.inlier_distance)
-        if mapped + local > current[2] + current[3]:
-            return again.pose, again.information, mapped, local
-        return current
+        fit = self._fit(xy, again.pose, again.information, mapped, local)
+        partly = self.options.partly_outside
+        return fit if fit.explained(partly) > current.explained(partly) else current
 
     def _estimate(
         self, odo: NDArray, index: int, stamp: float, status: str, agreement: float
