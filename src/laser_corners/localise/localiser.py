@@ -315,7 +315,12 @@ class Localiser:
             and mapped >= opt.hypothesis_agreement
             and support.outside <= opt.max_outside
         )
-        unmapped = fit.unmapped > partly and support.conflict <= opt.track_conflict and not jump
+        unmapped = (  # no map anchor: the free-space test of a hypothesis (recent scans)
+            fit.unmapped > partly
+            and support.conflict <= opt.track_conflict
+            and float(np.mean(self._conflicts)) <= opt.max_conflict
+            and not jump
+        )
         if not (anchored or (fits and unmapped and agreement >= floor)):
             self.pose = pred
             self._bad += 1
@@ -377,18 +382,19 @@ class Localiser:
 
     def _recover(self, xy: NDArray, pred: NDArray, current: Fit) -> Fit:
         """A correlative search around the prediction (wheel slip, a missed turn), then ICP
-        from its best pose under a weak prior; kept when the scan's explained share
-        (:meth:`Fit.explained`: map and local submap together) is larger than at
-        ``current``: a search on the map alone would pull a scan that partly sees unmapped
-        space onto the mapped part (a corridor's far end)."""
+        from its best pose under a weak prior; kept when more of the scan's points agree
+        with the map and the local submap together than at ``current``: judged on the map
+        alone, a scan that partly sees unmapped space would be pulled onto the mapped part
+        (a corridor's far end). Not on :meth:`Fit.explained`, which leaves out the points
+        far from the map and so would favour poses that put more of the scan off the map."""
         self.counts["recoveries"] += 1
         guess = self.map.local_search(xy, pred, RECOVER_XY, RECOVER_YAW)
         weak = np.diag(1.0 / np.array([RECOVER_XY, RECOVER_XY, RECOVER_YAW]) ** 2)
         again, mapped = self._align(xy, guess, weak)
         local = self.local.share(xy, again.pose, self.options.inlier_distance)
         fit = self._fit(xy, again.pose, again.information, mapped, local)
-        partly = self.options.partly_outside
-        return fit if fit.explained(partly) > current.explained(partly) else current
+        better = fit.mapped + fit.local > current.mapped + current.local
+        return fit if better else current
 
     def _estimate(
         self, odo: NDArray, index: int, stamp: float, status: str, agreement: float
