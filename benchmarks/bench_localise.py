@@ -202,8 +202,13 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     est_t, est_p, est_i, est_s = [], [], [], []
     held_t, held_p = [], []  # every scan from the first fix on: the estimate, else the
     map_to_odom = None  # last map -> odom applied to the odometry (what a robot would use)
+    cpu_tracking = []  # CPU ms of the scans given while tracking (anchored or local)
     for i in range(half, len(scans)):
+        tracking = loc.status == "tracking"
+        cpu = time.process_time()
         e = loc.add(scans[i], odo[i], stamps[i])
+        if tracking:
+            cpu_tracking.append((time.process_time() - cpu) * 1e3)
         if e is not None:
             est_t.append(stamps[i])
             est_p.append(e.pose)
@@ -276,6 +281,7 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "wrong_local": int(((err > 0.5) & (np.array(est_s) == "local")).sum()),
         "wrong_anchor_median": float(np.median(anchor[err > 0.5])) if (err > 0.5).any() else None,
         "error_max": float(err.max()) if len(err) else None,
+        "cpu_ms_tracking_mean": float(np.mean(cpu_tracking)) if cpu_tracking else None,
         "worst": worst_relations(joined_t, joined_p, rel, t_half, both),
         "error_median": float(np.median(err)) if len(err) else None,
         "error_p95": float(np.percentile(err, 95)) if len(err) else None,

@@ -315,8 +315,9 @@ class Localiser:
             and mapped >= opt.hypothesis_agreement
             and support.outside <= opt.max_outside
         )
-        unmapped = (  # no map anchor: the free-space test of a hypothesis (recent scans)
-            fit.unmapped > partly
+        unmapped = (  # no map anchor: the free-space test of a hypothesis (recent scans),
+            fit.unmapped > partly  # and the recent scans explain part of this one
+            and fit.local >= LOCAL_SHARE
             and support.conflict <= opt.track_conflict
             and float(np.mean(self._conflicts)) <= opt.max_conflict
             and not jump
