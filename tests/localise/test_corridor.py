@@ -15,7 +15,9 @@ from test_localiser import RATE, noisy_odometry
 from test_unmapped import map_folder, scans_along
 
 from laser_corners.localise import Localiser
+from laser_corners.localise.local import fuse
 from laser_corners.sim import World
+from laser_corners.slam.align import Alignment
 
 LENGTH = 40.0
 WIDTH = 2.4
@@ -67,3 +69,18 @@ def test_driving_out_of_the_map_along_a_corridor_keeps_a_true_pose(start_of_corr
     assert far and all(e.status == "local" for e in far)
     assert loc.counts["local"] >= len(far)
     assert np.trace(far[-1].covariance[:2, :2]) > np.trace(far[0].covariance[:2, :2])
+
+
+def test_fuse_weighs_two_alignments_by_their_information() -> None:
+    pred = np.zeros(3)
+    prior = np.diag([1e-6, 1e-6, 1e-6])
+    # the first alignment knows only x, the second only y: each decides its own axis
+    along = Alignment(np.array([1.0, 5.0, 0.0]), 1.0, 100, np.diag([100.0, 0.0, 1.0]))
+    across = Alignment(np.array([7.0, 2.0, 0.0]), 1.0, 100, np.diag([0.0, 100.0, 1.0]))
+    pose, info = fuse(pred, prior, along, across)
+    assert pose[:2] == pytest.approx([1.0, 2.0], abs=1e-3)
+    assert info == pytest.approx(np.diag([100.0, 100.0, 2.0]))
+    # equal information: the mean; no second alignment: the first unchanged
+    other = Alignment(np.array([3.0, 5.0, 0.2]), 1.0, 100, np.diag([100.0, 0.0, 1.0]))
+    assert fuse(pred, prior, along, other)[0][[0, 2]] == pytest.approx([2.0, 0.1], abs=1e-3)
+    assert fuse(pred, prior, along, None)[0] is along.pose
