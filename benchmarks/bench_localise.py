@@ -199,15 +199,21 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
-    est_t, est_p, est_i = [], [], []
+    est_t, est_p, est_i, est_s = [], [], [], []
     held_t, held_p = [], []  # every scan from the first fix on: the estimate, else the
     map_to_odom = None  # last map -> odom applied to the odometry (what a robot would use)
+    cpu_tracking = []  # CPU ms of the scans given while tracking (anchored or local)
     for i in range(half, len(scans)):
+        tracking = loc.status == "tracking"
+        cpu = time.process_time()
         e = loc.add(scans[i], odo[i], stamps[i])
+        if tracking:
+            cpu_tracking.append((time.process_time() - cpu) * 1e3)
         if e is not None:
             est_t.append(stamps[i])
             est_p.append(e.pose)
             est_i.append(i)
+            est_s.append(e.status)
             map_to_odom = e.map_to_odom
         if map_to_odom is not None:
             held_t.append(stamps[i])
@@ -271,9 +277,42 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "scans": len(scans) - half,
         "lost": loc.counts["lost"],
         "wrong": int((err > 0.5).sum()),
+        "local": loc.counts["local"],
+        "wrong_local": int(((err > 0.5) & (np.array(est_s) == "local")).sum()),
+        "wrong_anchor_median": float(np.median(anchor[err > 0.5])) if (err > 0.5).any() else None,
+        "error_max": float(err.max()) if len(err) else None,
+        "cpu_ms_tracking_mean": float(np.mean(cpu_tracking)) if cpu_tracking else None,
+        "worst": worst_relations(joined_t, joined_p, rel, t_half, both),
         "error_median": float(np.median(err)) if len(err) else None,
         "error_p95": float(np.percentile(err, 95)) if len(err) else None,
         "anchor_p95": float(np.percentile(anchor, 95)) if len(anchor) else None,
+    }
+
+
+def worst_relations(stamps, poses, rel, t_half, posed, n: int = 5) -> dict:
+    """Where the joined trajectory's relation error sits: the share of the summed error
+    carried by the worst 5 % of the relations, by the relations with a stamp in a gap (no
+    pose within 0.1 s), and the ``n`` worst (stamps from the half, error m, posed)."""
+    err = np.array(
+        [relation_metrics(stamps, poses, rel[k : k + 1]).trans_mean for k in range(len(rel))]
+    )
+    err = np.nan_to_num(err)
+    total = max(float(err.sum()), 1e-12)
+    order = np.argsort(-err)
+    top = order[: max(1, len(err) // 20)]
+    return {
+        "top5pct_share": float(err[top].sum() / total),
+        "gap_share": float(err[~posed].sum() / total),
+        "gap_relations": int((~posed).sum()),
+        "worst": [
+            [
+                round(float(rel[k, 0] - t_half), 1),
+                round(float(rel[k, 1] - t_half), 1),
+                round(float(err[k]), 3),
+                bool(posed[k]),
+            ]
+            for k in order[:n]
+        ],
     }
 
 
@@ -355,8 +394,9 @@ def table(results: list[dict]) -> list[str]:
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
         "| ratio | spanning m | posed relations (spanning) | posed: joined / full m, ratio "
         "| held relations: joined / full m, ratio "
-        "| first fix travel m | estimates / scans | lost | wrong | error median / p95 m |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| first fix travel m | estimates / scans (local) | lost | wrong (local) "
+        "| error median / p95 m | error share: worst 5 % of relations, gap relations |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         if "later" not in r:
@@ -373,8 +413,10 @@ def table(results: list[dict]) -> list[str]:
             f"{v['posed_trans'] / v['posed_full_trans']:.2f} "
             f"| {v['held']}: {v['held_trans']:.4f} / {v['held_full_trans']:.4f}, "
             f"{v['held_trans'] / v['held_full_trans']:.2f} "
-            f"| {fix} | {v['estimates']} / {v['scans']} | {v['lost']} "
-            f"| {v['wrong']} | {v['error_median']:.3f} / {v['error_p95']:.3f} |"
+            f"| {fix} | {v['estimates']} / {v['scans']} ({v['local']}) | {v['lost']} "
+            f"| {v['wrong']} ({v['wrong_local']}) "
+            f"| {v['error_median']:.3f} / {v['error_p95']:.3f} "
+            f"| {v['worst']['top5pct_share']:.2f}, {v['worst']['gap_share']:.2f} |"
         )
     return lines
 

@@ -67,6 +67,8 @@ def test_localise_writes_trajectory_summary_and_plot(mapped, tmp_path: Path) -> 
     got_t, got_p = read_tum(out / "trajectory.tum")
     assert got_t[0] == pytest.approx(fix["stamp"]) and got_t[0] >= stamps[0]
     assert len(got_t) == summary["counts"]["estimates"] >= 0.8 * (len(stamps) - fix["scan_index"])
+    # local estimates (into unmapped space) are written too, and counted
+    assert 0 <= summary["counts"]["local"] <= summary["counts"]["estimates"]
     # the map's own trajectory is the reference: same frame
     map_t, map_p = read_tum(map_dir / "trajectory.tum")
     ref = map_p[np.searchsorted(map_t, got_t)]

@@ -147,7 +147,10 @@ def _report(console, summary: dict, folder: Path) -> None:
         "relocalisations / lost", f"{len(summary['relocalisations'])} / {summary['lost']}"
     )
     counts = summary["counts"]
-    table.add_row("scans / estimates", f"{counts['scans']} / {counts['estimates']}")
+    table.add_row(
+        "scans / estimates (local)",
+        f"{counts['scans']} / {counts['estimates']} ({counts.get('local', 0)})",
+    )
     if summary["ms_per_scan_mean"] is not None:
         table.add_row(
             "ms per scan",

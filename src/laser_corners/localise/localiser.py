@@ -27,6 +27,13 @@ Three states (:attr:`Localiser.status`):
     ``max_outside`` of its beams outside the map, or whose last ``conflict_scans`` contradict
     the map's free space on more than ``track_conflict`` of the beams on average (the track
     slid to a look-alike place, or the robot left the map), gives no estimate.
+    The scan is also aligned to a local submap of the recent scans' points that the map
+    does not explain (:mod:`.local`) and the two alignments are fused by their information:
+    where the robot drives out of the map the unmapped part of the scan holds the pose (a
+    corridor whose far end is unmapped cannot drag it back). A scan with more than
+    ``partly_outside`` of its beams outside the map that agrees with map and local submap
+    together gets a ``"local"`` estimate (chained to the last anchored pose, covariance
+    growing); once the map explains it again the estimate is anchored again.
 ``lost``
     ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
     (a kidnapped robot); the next fix is reported as ``relocalised``.
@@ -44,13 +51,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.freespace import Support
-from laser_corners.localise.mapmodel import MapModel, _distinct
+from laser_corners.localise.local import Fit, LocalMap, fuse
+from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel, _distinct
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import between_many, compose_many, invert_many
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import Alignment, icp
+from laser_corners.slam.align import Alignment, icp, match_share
 from laser_corners.slam.mapfile import SavedMap, load_map
-from laser_corners.slam.points import scan_points
+from laser_corners.slam.points import scan_points, transform
 
 __all__ = ["Hypothesis", "Localiser", "LocaliserEstimate"]
 
@@ -67,6 +75,12 @@ RECOVER_YAW = 0.3
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
 HISTORY_STEP = 0.2
+LOCAL_SHARE = 0.05
+"""The local submap (``localise.local``) takes part in a tracked scan's pose when it explains
+at least this share of the scan's points (else stray clutter would)."""
+LOCAL_DRIFT = 0.02
+"""Growth of a local estimate's standard deviation per metre travelled (m/m, rad/m; and
+rad per radian turned): scan matching chained from the last pose anchored in the map."""
 """Odometry travel (m, turns 0.5 m per radian) between two scans kept for the history check."""
 
 
@@ -81,14 +95,18 @@ class LocaliserEstimate:
     covariance : ndarray, shape (3, 3)
         Its covariance (map frame).
     status : str
-        ``"relocalised"`` on the scan of a (first or new) fix, else ``"tracking"``.
+        ``"relocalised"`` on the scan of a (first or new) fix, ``"local"`` for a scan that
+        sees much unmapped space and is placed by the recent scans more than by the map
+        (``localise.local``: chained to the last anchored pose, covariance growing), else
+        ``"tracking"``.
     map_to_odom : ndarray, shape (3,)
         ``pose ∘ odometry⁻¹``: the map -> odom transform a ROS node publishes.
     scan_index : int
         Index of the scan among those given to :meth:`Localiser.add`.
     stamp : float
     agreement : float
-        Share of the scan's points within ``inlier_distance`` of the map.
+        Share of the scan's points within ``inlier_distance`` of the map, or of the map and
+        the local submap together (their points are disjoint).
     """
 
     pose: NDArray[np.float64]
@@ -179,6 +197,9 @@ class Localiser:
         self.counts["recoveries"] = 0
         self.counts["refused_free_space"] = 0
         self.counts["refused_history"] = 0
+        self.counts["local"] = 0
+        self.local = LocalMap(self.map.grid, GLOBAL_SIGMA)
+        """Recent scans' points the map does not explain (tracking into unmapped space)."""
         self._recent: deque = deque(maxlen=self.options.recent_scans)
         self._conflicts: deque = deque(maxlen=self.options.conflict_scans)
         self.ms_per_scan: list[float] = []
@@ -207,6 +228,7 @@ class Localiser:
         self._bad = 0
         self._recent.clear()
         self._conflicts.clear()
+        self.local.clear()
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -270,21 +292,37 @@ class Localiser:
     def _track(
         self, pts, delta: NDArray, jump: bool, odo: NDArray, index: int, stamp: float
     ) -> LocaliserEstimate | None:
+        """One tracked scan: the map's and the local submap's alignments fused; an estimate
+        anchored in the map, a local one (the scan sees much unmapped space and fits the
+        recent scans), or none (counts towards lost)."""
         assert self.pose is not None
         opt = self.options
         prior = self._prior(delta, jump)
         pred = compose_many(self.pose, delta)
-        aligned, agreement = self._align(pts.xy, pred, prior)
+        fit = self._fused(pts.xy, pred, prior, jump)
         usual = float(np.mean(self._recent)) if self._recent else 1.0
-        if jump or agreement < max(usual - RECOVER_DROP, RECOVER_BELOW):
-            aligned, agreement = self._recover(pts.xy, pred, aligned, agreement)
-        support = self._support(aligned.pose, pts.xy)
+        partly = opt.partly_outside
+        if jump or fit.explained(partly) < max(usual - RECOVER_DROP, RECOVER_BELOW):
+            fit = self._recover(pts.xy, pred, fit)
+        pose, support, mapped = fit.pose, fit.support, fit.mapped
+        agreement = fit.explained(partly)
         self._conflicts.append(support.conflict)
-        if (
-            agreement < max(opt.track_agreement, usual - opt.track_drop)
-            or support.outside > opt.max_outside
-            or float(np.mean(self._conflicts)) > opt.track_conflict
-        ):
+        floor = max(opt.track_agreement, usual - opt.track_drop)
+        fits = float(np.mean(self._conflicts)) <= opt.track_conflict
+        anchored = (
+            fits
+            and mapped + fit.local >= floor
+            and mapped >= opt.hypothesis_agreement
+            and support.outside <= opt.max_outside
+        )
+        unmapped = (  # no map anchor: the free-space test of a hypothesis (recent scans),
+            fit.unmapped > partly  # and the recent scans explain part of this one
+            and fit.local >= LOCAL_SHARE
+            and support.conflict <= opt.track_conflict
+            and float(np.mean(self._conflicts)) <= opt.max_conflict
+            and not jump
+        )
+        if not (anchored or (fits and unmapped and agreement >= floor)):
             self.pose = pred
             self._bad += 1
             self.counts["no_agreement"] += 1
@@ -293,13 +331,38 @@ class Localiser:
             return None
         self._bad = 0
         self._recent.append(agreement)
-        self.pose = aligned.pose
+        self.pose = pose
+        step = math.hypot(delta[0], delta[1])
+        self.local.add(pose, pts, step + 0.5 * abs(delta[2]))
+        if not anchored:  # chained to the last anchored pose: the covariance grows
+            self.counts["local"] += 1
+            grow = LOCAL_DRIFT * np.array([step, step, step + abs(delta[2])])
+            self._cov = self._cov + np.diag(grow**2)
+            return self._estimate(odo, index, stamp, "local", agreement)
         try:
-            cov = np.linalg.inv(aligned.information + prior)
+            cov = np.linalg.inv(fit.information + prior)
         except np.linalg.LinAlgError:  # pragma: no cover - singular information
             cov = np.linalg.inv(prior)
         self._cov = cov + COVARIANCE_FLOOR
         return self._estimate(odo, index, stamp, "tracking", agreement)
+
+    def _fused(self, xy: NDArray, pred: NDArray, prior: NDArray, jump: bool) -> Fit:
+        """ICP of the scan to the map and to the local submap (``localise.local``), fused
+        by their information when the local submap explains at least ``LOCAL_SHARE`` of
+        the scan."""
+        aligned, mapped = self._align(xy, pred, prior)
+        local = None if jump else self.local.align(xy, pred, prior, self.options)
+        if local is None or local.overlap < LOCAL_SHARE:
+            return self._fit(xy, aligned.pose, aligned.information, mapped, 0.0)
+        pose, info = fuse(pred, prior, aligned, local)
+        inlier = self.options.inlier_distance
+        mapped = match_share(xy, self.map.every, pose, inlier)
+        return self._fit(xy, pose, info, mapped, self.local.share(xy, pose, inlier))
+
+    def _fit(self, xy: NDArray, pose: NDArray, info: NDArray, mapped: float, local: float) -> Fit:
+        """A :class:`Fit` with the free-space support and unmapped share at ``pose``."""
+        unmapped = float(np.mean(self.local.unexplained(transform(xy, pose)))) if len(xy) else 0.0
+        return Fit(pose, info, mapped, local, self._support(pose, xy), unmapped)
 
     def _support(self, pose: NDArray, xy: NDArray) -> Support:
         """Outside / conflict shares of the scan ``xy`` at ``pose`` (``freespace``)."""
@@ -318,18 +381,21 @@ class Localiser:
         self.counts["refused_free_space"] += not ok
         return ok
 
-    def _recover(
-        self, xy: NDArray, pred: NDArray, aligned: Alignment, agreement: float
-    ) -> tuple[Alignment, float]:
+    def _recover(self, xy: NDArray, pred: NDArray, current: Fit) -> Fit:
         """A correlative search around the prediction (wheel slip, a missed turn), then ICP
-        from its best pose under a weak prior; the better-agreeing of the two alignments."""
+        from its best pose under a weak prior; kept when more of the scan's points agree
+        with the map and the local submap together than at ``current``: judged on the map
+        alone, a scan that partly sees unmapped space would be pulled onto the mapped part
+        (a corridor's far end). Not on :meth:`Fit.explained`, which leaves out the points
+        far from the map and so would favour poses that put more of the scan off the map."""
         self.counts["recoveries"] += 1
         guess = self.map.local_search(xy, pred, RECOVER_XY, RECOVER_YAW)
         weak = np.diag(1.0 / np.array([RECOVER_XY, RECOVER_XY, RECOVER_YAW]) ** 2)
-        again, agreement2 = self._align(xy, guess, weak)
-        if agreement2 > agreement:
-            return again, agreement2
-        return aligned, agreement
+        again, mapped = self._align(xy, guess, weak)
+        local = self.local.share(xy, again.pose, self.options.inlier_distance)
+        fit = self._fit(xy, again.pose, again.information, mapped, local)
+        better = fit.mapped + fit.local > current.mapped + current.local
+        return fit if better else current
 
     def _estimate(
         self, odo: NDArray, index: int, stamp: float, status: str, agreement: float
@@ -359,6 +425,7 @@ class Localiser:
         self._since_search = 0
         self._search_travel = 0.0
         self._history.clear()
+        self.local.clear()
         self.counts["lost"] += 1
 
     # ------------------------------------------------------------------ global search
@@ -387,6 +454,7 @@ class Localiser:
         self.pose = winner.pose.copy()
         self.hypotheses = []
         self._conflicts.clear()
+        self.local.clear()
         self.fixes.append(Fix(index, stamp, self._search_travel, tuple(winner.pose.tolist())))
         self._cov = np.diag([0.05, 0.05, 0.02]) ** 2
         agreement = winner.recent[-1]
