@@ -138,12 +138,17 @@ def mostly_empty(scans: list[LaserScan], fraction: float = 0.85, seed: int = 0) 
     return out
 
 
-def dense_scan(n_beams: int, noise_sigma: float = 0.001, seed: int = 0) -> LaserScan:
-    """A 360-degree scan of the demo world with ``n_beams`` beams."""
+def dense_scan(
+    n_beams: int, noise_sigma: float = 0.001, seed: int = 0, dropouts: float = 0.0
+) -> LaserScan:
+    """A 360-degree scan of the demo world with ``n_beams`` beams; ``dropouts``: the fraction
+    of beams (drawn with ``seed + 1``) that return nothing (NaN)."""
     inc = 2 * np.pi / n_beams
     angles = -np.pi + inc * np.arange(n_beams)
     ranges = demo_world().cast((0.4, -0.3, 0.25), angles)
     ranges = ranges + np.random.default_rng(seed).normal(0.0, noise_sigma, n_beams)
+    if dropouts > 0.0:
+        ranges[np.random.default_rng(seed + 1).random(n_beams) < dropouts] = np.nan
     return LaserScan(ranges, -np.pi, inc, 0.02, 30.0)
 
 

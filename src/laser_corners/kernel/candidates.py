@@ -261,7 +261,7 @@ def _walk_structures(x, y, valid, px, py, scales, max_gap_beams: int) -> tuple:
     branch-free walk, counted per scale on demand.
     """
     dense = max_gap_beams > 0 or points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
-    box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
+    box = block_boxes(x, y, valid, max_gap_beams) if dense else np.empty((1, 1, 4))
     if dense:
         next_valid, prev_valid = links(valid)
     else:

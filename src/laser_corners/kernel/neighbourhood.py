@@ -111,33 +111,58 @@ def links(valid: NDArray[np.bool_]) -> tuple:
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _long_gaps(valid: NDArray[np.bool_], max_gap: int) -> NDArray[np.bool_]:
+    """Whether each beam is invalid and in a run of more than ``max_gap`` invalid beams (one
+    that ends a neighbourhood), in one pass."""
+    n = valid.shape[0]
+    ends = np.zeros(n, dtype=np.bool_)
+    i = 0
+    while i < n:
+        if valid[i]:
+            i += 1
+            continue
+        run_end = i
+        while run_end < n and not valid[run_end]:
+            run_end += 1
+        if run_end - i > max_gap:
+            ends[i:run_end] = True
+        i = run_end
+    return ends
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def block_boxes(
-    x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_]
+    x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_], max_gap: int
 ) -> NDArray[np.float64]:
     """Bounding boxes (xmin, xmax, ymin, ymax) of runs of 2**l consecutive blocks of 8 beams, a
-    sparse table of shape (:data:`_SPAN`, N // 8, 4): entry (l, b) bounds beams 8b to
-    8(b + 2**l) - 1 (filled for b + 2**l <= N // 8); a run holding a gap gets an infinite box
-    (never skipped). The aligned blocks of 8**(a+1) beams of :func:`walk` are entries
-    (3a, 8**a · b), any run of blocks is two overlapping entries (:func:`_run_within`)."""
+    sparse table of shape (:data:`_SPAN`, N // 8, 4): entry (l, b) bounds the valid beams 8b to
+    8(b + 2**l) - 1 (filled for b + 2**l <= N // 8). A run holding a beam of a run of more than
+    ``max_gap`` invalid beams (which ends a neighbourhood; every gap when ``max_gap`` is 0) gets
+    an infinite box (never skipped); shorter gaps, bridged by the walk, are left out of the box
+    (a block of gaps only: an empty box, +inf to -inf, never skipped either). The aligned
+    blocks of 8**(a+1) beams of :func:`walk` are entries (3a, 8**a · b), any run of blocks is
+    two overlapping entries (:func:`_run_within`)."""
     n = x.shape[0]
     nb0 = n >> _SHIFT
     box = np.empty((_SPAN, max(nb0, 1), 4))
+    ends = _long_gaps(valid, max_gap)
     for b in range(nb0):
         x0 = math.inf
         x1 = -math.inf
         y0 = math.inf
         y1 = -math.inf
         for i in range(b << _SHIFT, (b + 1) << _SHIFT):
-            if not valid[i]:
+            if ends[i]:
                 x0 = -math.inf
                 x1 = math.inf
                 y0 = -math.inf
                 y1 = math.inf
                 break
-            x0 = min(x0, x[i])
-            x1 = max(x1, x[i])
-            y0 = min(y0, y[i])
-            y1 = max(y1, y[i])
+            if valid[i]:
+                x0 = min(x0, x[i])
+                x1 = max(x1, x[i])
+                y0 = min(y0, y[i])
+                y1 = max(y1, y[i])
         box[0, b, 0] = x0
         box[0, b, 1] = x1
         box[0, b, 2] = y0
@@ -256,6 +281,15 @@ def _leading_within(
     return leading_zeros(mask) - (64 - W)
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _last_valid(i: int, step: int, valid, next_valid, prev_valid) -> int:
+    """The last valid beam of a walk towards ``step`` that has passed beam ``i``: ``i``, or,
+    when it is a bridged gap (a skipped block ending in one), the valid beam before it."""
+    if valid[i]:
+        return i
+    return prev_valid[i] if step > 0 else next_valid[i]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def walk(
     j: int,
@@ -304,12 +338,12 @@ def walk(
             to = _jump(box, i, step, n, xj, yj, r2[k], bound[k])
             if to != i:  # every beam up to ``to`` lies within R_k (and every larger scale)
                 i = to
-                last = i - step
+                last = _last_valid(i - step, step, valid, next_valid, prev_valid)
                 continue
         size = _skip(box, i, step, n, xj, yj, r2[k])
         if size > 0:  # a whole block within R_k (and every larger scale)
             i += step * size
-            last = i - step
+            last = _last_valid(i - step, step, valid, next_valid, prev_valid)
             continue
         ahead = _leading_within(px, py, i, step, xj, yj, r2[k])
         if ahead > 0:  # valid beams within R_k
