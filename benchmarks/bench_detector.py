@@ -34,7 +34,9 @@ world) with 100,000, 400,000 and 1,000,000 beams at range noise 0.001 m, time(40
 and time(1M)/time(400k), in CPU time of the thread (these calls take seconds, long enough for
 other processes on a shared machine to distort wall-clock times), and whether the keypoints
 at each size are those of main at 08b9988, before the jumping walk
-(``dense_keypoints_08b9988.json``).
+(``dense_keypoints_08b9988.json``); then the same scans with 2 % of the beams dropped and
+``max_gap_beams=2`` (dropouts bridged), against the keypoints of main at 19fb21a
+(``dense_bridging_keypoints_19fb21a.json``).
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ from laser_corners.sim import UST_10LX
 HERE = Path(__file__).resolve().parent
 REAL = HERE.parent / ".." / "shared" / "data" / "real"
 DENSE_REFERENCE = HERE / "dense_keypoints_08b9988.json"  # see same_as_stored
+# the dense scans with 2 % dropouts bridged (max_gap_beams=2), by main at 19fb21a, whose walk
+# took 5.1 s at 400,000 beams and 31 s at 1,000,000 (blocks holding a gap were never skipped)
+BRIDGING_REFERENCE = HERE / "dense_bridging_keypoints_19fb21a.json"
 REAL_SETS = [
     ("aces.bag", "/scan"),
     ("intel.bag", "/scan"),
@@ -138,12 +143,17 @@ def mostly_empty(scans: list[LaserScan], fraction: float = 0.85, seed: int = 0) 
     return out
 
 
-def dense_scan(n_beams: int, noise_sigma: float = 0.001, seed: int = 0) -> LaserScan:
-    """A 360-degree scan of the demo world with ``n_beams`` beams."""
+def dense_scan(
+    n_beams: int, noise_sigma: float = 0.001, seed: int = 0, dropouts: float = 0.0
+) -> LaserScan:
+    """A 360-degree scan of the demo world with ``n_beams`` beams; ``dropouts``: the fraction
+    of beams (drawn with ``seed + 1``) that return nothing (NaN)."""
     inc = 2 * np.pi / n_beams
     angles = -np.pi + inc * np.arange(n_beams)
     ranges = demo_world().cast((0.4, -0.3, 0.25), angles)
     ranges = ranges + np.random.default_rng(seed).normal(0.0, noise_sigma, n_beams)
+    if dropouts > 0.0:
+        ranges[np.random.default_rng(seed + 1).random(n_beams) < dropouts] = np.nan
     return LaserScan(ranges, -np.pi, inc, 0.02, 30.0)
 
 
@@ -219,11 +229,12 @@ def covariance_cost(new: CornerDetector, scans: list[LaserScan], repeats: int) -
     return float(np.median(best)) * 1e6, float(best.sum() / max(n_kp.sum(), 1)) * 1e6
 
 
-def same_as_stored(keypoints: object, n_beams: int) -> str:
-    """Whether ``keypoints`` of :func:`dense_scan` are those of the kernel at 08b9988 (count,
-    beam index, position to 1e-9 m), stored in :data:`DENSE_REFERENCE` (its 1,000,000-beam
-    scan takes the frozen kernel minutes)."""
-    stored = json.loads(DENSE_REFERENCE.read_text(encoding="utf-8"))["keypoints"].get(str(n_beams))
+def same_as_stored(keypoints: object, n_beams: int, reference: Path = DENSE_REFERENCE) -> str:
+    """Whether ``keypoints`` of :func:`dense_scan` are those stored in ``reference`` (count,
+    beam index, position to 1e-9 m): the kernel at 08b9988 (:data:`DENSE_REFERENCE`; its
+    1,000,000-beam scan takes the frozen kernel minutes) or, with dropouts bridged, at 19fb21a
+    (:data:`BRIDGING_REFERENCE`)."""
+    stored = json.loads(reference.read_text(encoding="utf-8"))["keypoints"].get(str(n_beams))
     if stored is None:
         return "-"
     xy = np.asarray(stored["xy"], dtype=np.float64).reshape(-1, 2)
@@ -265,6 +276,30 @@ def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
     if with_old:
         print(f", old {times['old'][1] / times['old'][0]:.1f}", end="")
     print(f"; time(1M)/time(400k): new {new_t[2] / new_t[1]:.2f}")
+
+
+def bridging_scaling() -> None:
+    """The dense scans with 2 % of the beams dropped (NaN) and ``max_gap_beams=2``: the
+    walk bridges the dropouts."""
+    print("\nBridging, the same scans with 2 % of the beams dropped (NaN), max_gap_beams=2,")
+    print("best of 3, CPU time; same kp 19fb21a: the keypoints of main at 19fb21a")
+    print(f"({BRIDGING_REFERENCE.name})")
+    print("| beams | keypoints | new s | same kp 19fb21a |")
+    print("|---:|---:|---:|---|")
+    detector = CornerDetector(DetectorParams(max_gap_beams=2))
+    times = []
+    for n in (100_000, 400_000, 1_000_000):
+        scan = dense_scan(n, dropouts=0.02)
+        best = np.inf
+        for _ in range(3):
+            t0 = time.thread_time()
+            kp = detector.detect(scan)
+            best = min(best, time.thread_time() - t0)
+        times.append(best)
+        same = same_as_stored(kp, n, BRIDGING_REFERENCE)
+        print(f"| {n:,} | {len(kp)} | {best:.3f} | {same} |")
+    ratios = f"{times[1] / times[0]:.1f}; time(1M)/time(400k) {times[2] / times[1]:.2f}"
+    print(f"\ntime(400k)/time(100k) {ratios}")
 
 
 def main() -> int:
@@ -322,6 +357,7 @@ def main() -> int:
         cells += [falko_s, adjusted, f"{cov_scan:.1f}", f"{cov_kp:.2f}"]
         print("| " + " | ".join(str(c) for c in cells) + " |")
     scaling(old, new, not args.skip_old_scaling)
+    bridging_scaling()
     return 0
 
 

@@ -256,12 +256,15 @@ def _walk_structures(x, y, valid, px, py, scales, max_gap_beams: int) -> tuple:
     """Which neighbourhood walk a scan gets, and its structures: (dense, boxes, links).
 
     Dense scans (many points within the largest scale) and gap bridging take the
-    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes; its links:
+    block-skipping :func:`~laser_corners.kernel.neighbourhood.walk` (block boxes,
+    :mod:`~laser_corners.kernel.boxes`; its links:
     next/previous valid point and the padded points ``px``, ``py``); the others the short
     branch-free walk, counted per scale on demand.
     """
-    dense = max_gap_beams > 0 or points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
-    box = block_boxes(x, y, valid) if dense else np.empty((1, 1, 4))
+    crowded = points_within(x, y, valid, scales[scales.shape[0] - 1]) > 48.0
+    dense = max_gap_beams > 0 or crowded
+    # boxes in the local wall direction when crowded (tight: kernel.boxes), else axis-aligned
+    box = block_boxes(x, y, valid, max_gap_beams, crowded) if dense else np.empty((1, 1, 6))
     if dense:
         next_valid, prev_valid = links(valid)
     else:

@@ -390,6 +390,10 @@ def detect_scan(
     return detect_into(ranges, cos_a, sin_a, limits[0], limits[1], packed, x, y, rows)
 
 
+# numba caches detect_xy (and the functions above and below that call it) with the phases'
+# code linked in, keyed on this file alone: a change to kernel/neighbourhood.py, boxes.py or
+# candidates.py is not seen until the __pycache__ *.nbi/*.nbc files are deleted or this file
+# changes (docs/method.md, "Speed"; noted with the oriented boxes of the dense walk)
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def detect_xy(
     x: NDArray[np.float64],

@@ -31,6 +31,10 @@ import numpy as np
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 from numpy.typing import NDArray
 
+from laser_corners.kernel.boxes import SHIFT as _SHIFT
+from laser_corners.kernel.boxes import SPAN as _SPAN
+from laser_corners.kernel.boxes import block_boxes
+from laser_corners.kernel.boxes import box_d2 as _box_d2
 from laser_corners.kernel.simd import W, far_masks
 
 __all__ = [
@@ -47,9 +51,7 @@ __all__ = [
     "within",
 ]
 
-_LEVELS = 4  # aligned block sizes of :func:`walk`: 8, 64, 512, 4096 beams
-_SHIFT = 3  # log2 of the block size ratio
-_SPAN = 3 * (_LEVELS - 1) + 1  # levels of the sparse table of boxes: runs of 1 to 512 blocks
+_LEVELS = 4  # aligned block sizes of :func:`walk`: 8, 64, 512, 4096 beams (_SPAN = 3·3 + 1)
 _BACKOFF = 24  # tries of :func:`_jump`: 0, 1, 3, 7, ... blocks short of the guess
 ROW = 6  # values per index in the flat prefix sums of :func:`prepare`
 PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
@@ -108,58 +110,6 @@ def links(valid: NDArray[np.bool_]) -> tuple:
             last = i
         prev_valid[i] = last
     return next_valid, prev_valid
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def block_boxes(
-    x: NDArray[np.float64], y: NDArray[np.float64], valid: NDArray[np.bool_]
-) -> NDArray[np.float64]:
-    """Bounding boxes (xmin, xmax, ymin, ymax) of runs of 2**l consecutive blocks of 8 beams, a
-    sparse table of shape (:data:`_SPAN`, N // 8, 4): entry (l, b) bounds beams 8b to
-    8(b + 2**l) - 1 (filled for b + 2**l <= N // 8); a run holding a gap gets an infinite box
-    (never skipped). The aligned blocks of 8**(a+1) beams of :func:`walk` are entries
-    (3a, 8**a · b), any run of blocks is two overlapping entries (:func:`_run_within`)."""
-    n = x.shape[0]
-    nb0 = n >> _SHIFT
-    box = np.empty((_SPAN, max(nb0, 1), 4))
-    for b in range(nb0):
-        x0 = math.inf
-        x1 = -math.inf
-        y0 = math.inf
-        y1 = -math.inf
-        for i in range(b << _SHIFT, (b + 1) << _SHIFT):
-            if not valid[i]:
-                x0 = -math.inf
-                x1 = math.inf
-                y0 = -math.inf
-                y1 = math.inf
-                break
-            x0 = min(x0, x[i])
-            x1 = max(x1, x[i])
-            y0 = min(y0, y[i])
-            y1 = max(y1, y[i])
-        box[0, b, 0] = x0
-        box[0, b, 1] = x1
-        box[0, b, 2] = y0
-        box[0, b, 3] = y1
-    for lev in range(1, _SPAN):
-        half = 1 << (lev - 1)
-        for b in range(nb0 - (1 << lev) + 1):
-            c = b + half
-            box[lev, b, 0] = min(box[lev - 1, b, 0], box[lev - 1, c, 0])
-            box[lev, b, 1] = max(box[lev - 1, b, 1], box[lev - 1, c, 1])
-            box[lev, b, 2] = min(box[lev - 1, b, 2], box[lev - 1, c, 2])
-            box[lev, b, 3] = max(box[lev - 1, b, 3], box[lev - 1, c, 3])
-    return box
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _box_d2(box: NDArray[np.float64], lev: int, b: int, xj: float, yj: float) -> float:
-    """Squared distance from (xj, yj) to the farthest corner of a box: an upper bound of the
-    kernel's d2 of every point in it (monotone rounding)."""
-    dx = max(abs(box[lev, b, 0] - xj), abs(box[lev, b, 1] - xj))
-    dy = max(abs(box[lev, b, 2] - yj), abs(box[lev, b, 3] - yj))
-    return dx * dx + dy * dy
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -256,6 +206,15 @@ def _leading_within(
     return leading_zeros(mask) - (64 - W)
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _last_valid(i: int, step: int, valid, next_valid, prev_valid) -> int:
+    """The last valid beam of a walk towards ``step`` that has passed beam ``i``: ``i``, or,
+    when it is a bridged gap (a skipped block ending in one), the valid beam before it."""
+    if valid[i]:
+        return i
+    return prev_valid[i] if step > 0 else next_valid[i]
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def walk(
     j: int,
@@ -304,12 +263,12 @@ def walk(
             to = _jump(box, i, step, n, xj, yj, r2[k], bound[k])
             if to != i:  # every beam up to ``to`` lies within R_k (and every larger scale)
                 i = to
-                last = i - step
+                last = _last_valid(i - step, step, valid, next_valid, prev_valid)
                 continue
         size = _skip(box, i, step, n, xj, yj, r2[k])
         if size > 0:  # a whole block within R_k (and every larger scale)
             i += step * size
-            last = i - step
+            last = _last_valid(i - step, step, valid, next_valid, prev_valid)
             continue
         ahead = _leading_within(px, py, i, step, xj, yj, r2[k])
         if ahead > 0:  # valid beams within R_k
