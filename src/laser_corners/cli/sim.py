@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import time
 from pathlib import Path
 from typing import Annotated
@@ -95,6 +96,9 @@ def warmup() -> None:
     many = detector.detect_many([scan, scan])
     _ = [k.cov for k in many]
     typer.echo(f"detector kernels ready in {time.perf_counter() - start:.1f} s")
+    if importlib.util.find_spec("gtsam") is None:  # the slam extra is optional
+        typer.echo("SLAM, localiser and matching kernels: not compiled (no gtsam: the slam extra)")
+        return
     start = time.perf_counter()
     warm_slam_kernels()
     typer.echo(f"SLAM, localiser and matching kernels ready in {time.perf_counter() - start:.1f} s")
