@@ -22,6 +22,7 @@ __all__ = [
     "invert",
     "invert_many",
     "pose_error",
+    "poses_apart",
     "relative_pose",
     "rotation",
     "transform_points",
@@ -75,6 +76,19 @@ def invert(a: Pose2D) -> Pose2D:
 def pose_error(est: Pose2D, truth: Pose2D) -> tuple[float, float]:
     """Position error (metres) and absolute angle error (radians, in [0, π]) of ``est``."""
     return math.hypot(est[0] - truth[0], est[1] - truth[1]), abs(wrap_angle(est[2] - truth[2]))
+
+
+def poses_apart(a: ArrayLike, b: ArrayLike, xy: float, yaw: float) -> bool:
+    """Whether poses ``a`` and ``b`` (x, y, theta) differ by at least ``xy`` (m) in position
+    or ``yaw`` (rad) in heading: two answers of a search that are not the same place.
+
+    Examples
+    --------
+    >>> poses_apart((0.0, 0.0, 0.0), (0.5, 0.0, 0.1), 1.0, 0.3)
+    False
+    """
+    dyaw = abs((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)
+    return bool(math.hypot(a[0] - b[0], a[1] - b[1]) >= xy or dyaw >= yaw)
 
 
 def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:

@@ -52,9 +52,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.freespace import Support
 from laser_corners.localise.local import Fit, LocalMap, fuse
-from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel, _distinct
+from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.pose import between_many, compose_many, invert_many
+from laser_corners.pose import between_many, compose_many, invert_many, poses_apart
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, icp, match_share
 from laser_corners.slam.mapfile import SavedMap, load_map
@@ -75,13 +75,13 @@ RECOVER_YAW = 0.3
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
 HISTORY_STEP = 0.2
+"""Odometry travel (m, turns 0.5 m per radian) between two scans kept for the history check."""
 LOCAL_SHARE = 0.05
 """The local submap (``localise.local``) takes part in a tracked scan's pose when it explains
 at least this share of the scan's points (else stray clutter would)."""
 LOCAL_DRIFT = 0.02
 """Growth of a local estimate's standard deviation per metre travelled (m/m, rad/m; and
 rad per radian turned): scan matching chained from the last pose anchored in the map."""
-"""Odometry travel (m, turns 0.5 m per radian) between two scans kept for the history check."""
 
 
 @dataclass
@@ -525,7 +525,7 @@ class Localiser:
         opt = self.options
         kept: list[Hypothesis] = []
         for h in sorted(hypotheses, key=lambda h: h.born):
-            if all(_distinct(h.pose, k.pose, opt.distinct_xy, opt.distinct_yaw) for k in kept):
+            if all(poses_apart(h.pose, k.pose, opt.distinct_xy, opt.distinct_yaw) for k in kept):
                 kept.append(h)
         kept.sort(key=lambda h: -h.score())
         return kept[: opt.max_hypotheses]

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from laser_corners.localise.freespace import FreeSpace
 from laser_corners.localise.options import LocaliseOptions
+from laser_corners.pose import poses_apart
 from laser_corners.slam.align import PointMap
 from laser_corners.slam.correlative import ScoreGrid
 from laser_corners.slam.mapfile import SavedMap
@@ -165,7 +166,7 @@ class MapModel:
         chosen: list[tuple[NDArray[np.float64], float]] = []
         for p in np.argsort(-best):
             pose = np.array([*self.positions[p], yaws[arg[p]]])
-            if all(_distinct(pose, q, 1.0, 0.3) for q, _ in chosen):
+            if all(poses_apart(pose, q, 1.0, 0.3) for q, _ in chosen):
                 chosen.append((pose, float(best[p])))
                 if len(chosen) == count:
                     break
@@ -177,9 +178,3 @@ def _subsample(points: NDArray[np.float64], most: int = GLOBAL_POINTS) -> NDArra
     if len(points) <= most:
         return np.ascontiguousarray(points)
     return np.ascontiguousarray(points[np.linspace(0, len(points) - 1, most).astype(int)])
-
-
-def _distinct(a: NDArray, b: NDArray, xy: float, yaw: float) -> bool:
-    """Whether poses ``a`` and ``b`` differ by at least ``xy`` (m) or ``yaw`` (rad)."""
-    dyaw = abs((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)
-    return bool(math.hypot(a[0] - b[0], a[1] - b[1]) >= xy or dyaw >= yaw)

@@ -20,10 +20,10 @@ from laser_corners.pose import between_many, compose, invert, relative_pose
 from laser_corners.slam.align import PointMap, icp, match_share
 from laser_corners.slam.correlative import ScoreGrid, search
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints
+from laser_corners.slam.points import ScanPoints, transform
 from laser_corners.slam.result import LoopClosure
 
-__all__ = ["ClosureGate", "SubmapCache", "candidates", "verify"]
+__all__ = ["ClosureGate", "SubmapCache", "candidates", "query_points", "thin_points", "verify"]
 
 SEARCH_RESOLUTION = 0.15
 """Cell size (m) of the correlative search grid (refined by ICP afterwards)."""
@@ -88,20 +88,18 @@ def _submap(
     return np.concatenate(all_xy), np.concatenate(line_xy), np.concatenate(normals)
 
 
-def _query(
+def query_points(
     k: int, points: list[ScanPoints], estimate: NDArray[np.float64], n: int
 ) -> NDArray[np.float64]:
     """Points of keyframe ``k`` and its ``n - 1`` predecessors in ``k``'s frame, thinned."""
     parts = []
     for i in range(max(0, k - n + 1), k + 1):
-        pose = np.array(relative_pose(estimate[k], estimate[i]))
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        parts.append(points[i].xy @ np.array([[c, s], [-s, c]]) + pose[:2])
+        parts.append(transform(points[i].xy, np.array(relative_pose(estimate[k], estimate[i]))))
     xy = np.concatenate(parts)
-    return xy if len(parts) == 1 else _thin(xy, QUERY_CELL)
+    return xy if len(parts) == 1 else thin_points(xy, QUERY_CELL)
 
 
-def _thin(xy: NDArray[np.float64], cell: float) -> NDArray[np.float64]:
+def thin_points(xy: NDArray[np.float64], cell: float) -> NDArray[np.float64]:
     """One point per ``cell``-sized square (the first one), in the input order."""
     cells = np.floor(xy / cell).astype(np.int64)
     _, keep = np.unique(cells[:, 0] * 1_000_003 + cells[:, 1], return_index=True)
@@ -148,7 +146,7 @@ def verify(
 ) -> LoopClosure:
     """Try to close keyframe ``k`` against the older keyframe ``j``."""
     guess = between_many(estimate[j], estimate[k])
-    query = _query(k, points, estimate, options.loop_query_keyframes)
+    query = query_points(k, points, estimate, options.loop_query_keyframes)
 
     def build() -> tuple[ScoreGrid, PointMap, PointMap] | None:
         all_xy, line_xy, normals = _submap(j, k, points, estimate, travelled, options)
@@ -161,7 +159,7 @@ def verify(
     if query.shape[0] < 20 or submap is None:
         return LoopClosure(k, j, tuple(guess), False, "too few points")
     grid, pointmap, full = submap
-    score, found = search(grid, _thin(query, SEARCH_RESOLUTION), guess, window[0], window[1])
+    score, found = search(grid, thin_points(query, SEARCH_RESOLUTION), guess, window[0], window[1])
     aligned = icp(
         query,
         pointmap,

@@ -36,12 +36,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.pose import compose, compose_many, invert, relative_pose
+from laser_corners.pose import compose, compose_many, invert, poses_apart, relative_pose
 from laser_corners.slam.align import PointMap, match_share
 from laser_corners.slam.correlative import ScoreGrid, search
-from laser_corners.slam.loops import _query, _thin, verify
+from laser_corners.slam.loops import query_points, thin_points, verify
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints
+from laser_corners.slam.points import ScanPoints, transform
 from laser_corners.slam.result import LoopClosure
 
 __all__ = [
@@ -71,6 +71,10 @@ QUERY_POINTS = 150
 """Points of the query used by the global search at most."""
 CANDIDATES = 3
 """Distinct best poses of the global search that are verified."""
+DISTINCT_XY = 1.0
+"""Two poses of the search at least this far apart (m)..."""
+DISTINCT_YAW = 0.3
+"""... or turned by at least this (rad) are distinct answers."""
 MIN_SHARE = 0.8
 """Share of the query's points within the inlier distance of the old map to accept a pose."""
 MAX_CONFLICT = 0.05
@@ -98,12 +102,8 @@ class OldMap:
     @classmethod
     def build(cls, points: list[ScanPoints], estimate: NDArray[np.float64], end: int) -> OldMap:
         """The map of keyframes ``0 .. end - 1`` at ``estimate``."""
-        parts = []
-        for i in range(end):
-            pose = estimate[i]
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            parts.append(points[i].xy @ np.array([[c, s], [-s, c]]) + pose[:2])
-        xy = _thin(np.concatenate(parts), 0.05)
+        parts = [transform(points[i].xy, estimate[i]) for i in range(end)]
+        xy = thin_points(np.concatenate(parts), 0.05)
         occupied = occupancy_keys(xy)
         centres: list[NDArray] = []
         for p in estimate[:end, :2]:
@@ -127,7 +127,7 @@ class OldMap:
         found.sort(key=lambda item: -item[0])
         chosen: list[tuple[float, NDArray[np.float64]]] = []
         for score, pose in found:
-            if all(_distinct(pose, q) for _, q in chosen):
+            if all(poses_apart(pose, q, DISTINCT_XY, DISTINCT_YAW) for _, q in chosen):
                 chosen.append((score, pose))
             if len(chosen) == CANDIDATES:
                 break
@@ -136,11 +136,6 @@ class OldMap:
 
 OCCUPANCY_CELL = 0.05
 """Cell (m) of the old map's occupancy for the free-space check."""
-
-
-def _distinct(a: NDArray, b: NDArray) -> bool:
-    dyaw = abs((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)
-    return bool(math.hypot(a[0] - b[0], a[1] - b[1]) >= 1.0 or dyaw >= 0.3)
 
 
 def _steep_beams(points: ScanPoints, mount: NDArray) -> NDArray[np.float64]:
@@ -235,7 +230,7 @@ class Relocaliser:
         self.counts["attempted"] += 1
         if self.old is None:
             self.old = OldMap.build(points, estimate, self.start)
-        query = _query(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
+        query = query_points(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
         if len(query) < 20 or len(self.old.centres) == 0:
             return []
         best = self._best(k, query, points, estimate)
@@ -282,7 +277,7 @@ class Relocaliser:
                 closure.accepted = False
                 closure.reason = f"relocalisation: share {share:.2f}, conflict {conflict:.2f}"
                 continue
-            if any(not _distinct(found, p) for _, _, p in verified):
+            if any(not poses_apart(found, p, DISTINCT_XY, DISTINCT_YAW) for _, _, p in verified):
                 continue
             closure.reason = f"relocalisation (share {share:.2f}, conflict {conflict:.2f})"
             verified.append((share, closure, found))
