@@ -302,12 +302,16 @@ class Localiser:
         fit = self._fused(pts.xy, pred, prior, jump)
         usual = float(np.mean(self._recent)) if self._recent else 1.0
         partly = opt.partly_outside
+        recovered = False
         if jump or fit.explained(partly) < max(usual - RECOVER_DROP, RECOVER_BELOW):
-            fit = self._recover(pts.xy, pred, fit)
+            searched = self._recover(pts.xy, pred, fit)
+            recovered, fit = searched is not fit, searched
         pose, support, mapped = fit.pose, fit.support, fit.mapped
         agreement = fit.explained(partly)
         self._conflicts.append(support.conflict)
         floor = max(opt.track_agreement, usual - opt.track_drop)
+        if recovered and not jump:  # a pose off the odometry's: only if the scan fits as usual
+            floor = max(floor, usual - RECOVER_DROP)
         fits = float(np.mean(self._conflicts)) <= opt.track_conflict
         anchored = (
             fits
