@@ -7,7 +7,7 @@ and thin legs are missed at grazing angles). Since then the far part was furnish
 the later visit drives into it: its right poses put the furniture where the map's far rays
 passed. The map is not sure of that space, so the right poses must not be refused as
 contradicting the map's free space (aces' later visit: right local poses refused on 0.2-0.3 of
-their beams at the map's fringe, the track lost, and a gap of 14 m); near the mapping robot a
+their beams at the map's fringe, the track lost for 25.8 m of travel); near the mapping robot a
 new object still contradicts the map.
 """
 
