@@ -84,3 +84,40 @@ def test_fuse_weighs_two_alignments_by_their_information() -> None:
     other = Alignment(np.array([3.0, 5.0, 0.2]), 1.0, 100, np.diag([100.0, 0.0, 1.0]))
     assert fuse(pred, prior, along, other)[0][[0, 2]] == pytest.approx([2.0, 0.1], abs=1e-3)
     assert fuse(pred, prior, along, None)[0] is along.pose
+
+
+def test_a_recovered_pose_that_fits_worse_than_usual_gives_no_estimate(start_of_corridor) -> None:
+    """fr079, same log: a recovery search (agreement down by a passer-by) moved a track 0.45 m
+    off the odometry onto a pose agreeing 0.75-0.85 (usual 0.99), reported as tracking with
+    σ 0.03 m. A pose off the odometry's is reported only when the scan fits as usual there."""
+    drive = straight(2.0, 4.0)
+    loc = Localiser(start_of_corridor)
+    loc.set_pose(drive[0])
+    scans = scans_along(corridor(), drive, seed=7)
+    odo = noisy_odometry(drive, seed=7)
+    for i in range(10):
+        assert loc.add(scans[i], odo[i], i / RATE) is not None
+    usual = float(np.mean(loc._recent))
+    assert usual > 0.95
+    shift = np.array([0.45, 0.0, 0.0])
+
+    def searched(fits: float):
+        def recover(xy, pred, current):  # the search's pose: 0.45 m on, agreeing ``fits``
+            fit = loc._fit(xy, pred + shift, current.information, fits, 0.0)
+            return fit
+
+        return recover
+
+    def dropped(xy, pred, prior, jump):  # the scan agrees less than usual at the prediction
+        fit = original(xy, pred, prior, jump)
+        fit.mapped = usual - 0.2
+        return fit
+
+    original = loc._fused
+    loc._fused = dropped
+    loc._recover = searched(usual - 0.15)  # better than the prediction, worse than usual
+    assert loc.add(scans[10], odo[10], 1.0) is None
+    assert abs(loc.pose[0] - drive[10, 0]) < 0.1  # the prediction is kept, not the jump
+    loc._recover = searched(usual)  # a pose where the scan fits as usual is taken
+    estimate = loc.add(scans[11], odo[11], 1.1)
+    assert estimate is not None and estimate.pose[0] - drive[11, 0] > 0.3

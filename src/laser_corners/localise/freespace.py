@@ -9,7 +9,9 @@ each of its points, counting per cell the rays that end in it (hits) and those t
 door open once or a wall drawn twice does not make a right pose look wrong:
 
 * a cell is *known* when any ray reached it (else *unknown*);
-* *free* only when at least ``FREE_MISSES`` rays crossed it and none ended in it;
+* *free* only when at least ``FREE_MISSES`` rays crossed it within ``FREE_REACH`` of their
+  sensor and none ended in it (farther out a ray's place is not sure to a cell: the map's
+  fringe, seen only from afar, is not surely free);
 * a *wall* only when at least ``WALL_HITS`` rays ended in it and no more crossed it.
 
 :meth:`FreeSpace.support` then tests a hypothesised pose on a subsample of the scan's beams:
@@ -58,6 +60,11 @@ walking by or a door open once leaves in the map (hit once, crossed by many rays
 OCCUPIED_RATIO = 0.3
 """The *any-evidence* test: a cell is occupied when the rays ending in it are at least this
 share of those crossing it, else free when any ray crossed it."""
+FREE_REACH = 10.0
+"""Only the first metres (m) of a ray make a cell *surely free*: farther out, a keyframe heading
+error of 0.01 rad moves the ray by more than a cell, and thin or glass structures are missed
+at grazing angles. At the map's fringe (space the mapping robot saw only from afar) right
+poses of aces' later visit contradicted rays 10-30 m long on 0.2-0.3 of their beams."""
 BEAMS = 90
 """Beams tested per pose at most (evenly subsampled)."""
 
@@ -66,13 +73,16 @@ BEAMS = 90
 def _carve(
     hits: NDArray[np.int32],
     misses: NDArray[np.int32],
+    near: NDArray[np.int32],
     origin: NDArray[np.float64],
     res: float,
     sensors: NDArray[np.float64],
     owner: NDArray[np.int64],
     xy: NDArray[np.float64],
+    reach: float,
 ) -> None:
-    """Count, per cell, the rays ending in it (hits) and crossing it (misses)."""
+    """Count, per cell, the rays ending in it (hits), crossing it (misses) and crossing it
+    within ``reach`` of their sensor (near misses)."""
     ny, nx = hits.shape
     for k in range(xy.shape[0]):
         sx, sy = sensors[owner[k], 0], sensors[owner[k], 1]
@@ -86,6 +96,8 @@ def _carve(
             iy = math.floor((sy + t * dy - origin[1]) / res)
             if (ix != last_x or iy != last_y) and 0 <= ix < nx and 0 <= iy < ny:
                 misses[iy, ix] += 1
+                if j * 0.5 * res <= reach:
+                    near[iy, ix] += 1
             last_x, last_y = ix, iy
         ix = math.floor((xy[k, 0] - origin[0]) / res)
         iy = math.floor((xy[k, 1] - origin[1]) / res)
@@ -194,11 +206,14 @@ class FreeSpace:
         shape = (np.ceil((hi - lo) / resolution).astype(int) + 1)[::-1]
         hits = np.zeros(shape, dtype=np.int32)
         misses = np.zeros(shape, dtype=np.int32)
+        near = np.zeros(shape, dtype=np.int32)
         owner = np.repeat(np.arange(len(saved)), np.diff(saved.offsets)).astype(np.int64)
-        _carve(hits, misses, lo, resolution, np.ascontiguousarray(sensors), owner, xy)
+        _carve(
+            hits, misses, near, lo, resolution, np.ascontiguousarray(sensors), owner, xy, FREE_REACH
+        )
         state = np.where(hits + misses > 0, KNOWN, 0)
         state |= np.where(hits > 0, HIT, 0)
-        state |= np.where((misses >= FREE_MISSES) & (hits == 0), FREE, 0)
+        state |= np.where((near >= FREE_MISSES) & (hits == 0), FREE, 0)
         state |= np.where((hits >= WALL_HITS) & (hits >= misses), WALL, 0)
         state |= np.where((hits > 0) & (hits >= OCCUPIED_RATIO * misses), OCCUPIED, 0)
         return cls(state.astype(np.int8), lo, resolution, mount)
