@@ -49,7 +49,6 @@ from laser_corners.kernel.neighbourhood import (
     prepare,
     reach,
     walk,
-    walk_from,
     within,
 )
 from laser_corners.kernel.scale_tests import best_run, full_test, keep_runs, screen
@@ -236,12 +235,15 @@ def candidates(
             hit |= screened[k]
         if not hit:
             continue
+        if dense:  # again, every scale
+            walk(j, -1, x, y, valid, lk, box, r2, gap, start)
+            walk(j, 1, x, y, valid, lk, box, r2, gap, stop)
         # the other scales' bounds (the modes of _screen_rest)
         mode = 0 if dense else (1 if many else 2)
         if mode == 1 and st < top:  # again, to the largest scale, storing the running maxima
             na = reach(j, -1, px, py, (r2[top], -1.0, -1.0), rm_a, True)[0]
             nd = reach(j, 1, px, py, (r2[top], -1.0, -1.0), rm_d, True)[0]
-        rm = (rm_a, rm_d, na, nd, px, py, mode, (x, y, valid, lk, box, gap))
+        rm = (rm_a, rm_d, na, nd, px, py, mode)
         _screen_rest(ps, inv, j, start, stop, screened, r2, m, st, gate, rm)
         if not want_table and not keep_runs(screened, m):
             continue
@@ -348,12 +350,11 @@ def _screen_rest(
     (:func:`~laser_corners.kernel.neighbourhood.within`); 2, from the bounds of the sentinels next
     to the scale (:func:`~laser_corners.kernel.neighbourhood.extend`).
     """
-    rm_a, rm_d, na, nd, px, py, mode, dense = rm
+    rm_a, rm_d, na, nd, px, py, mode = rm
     min_points, loose_mse, max_cos2, want_all = gate
     top = r2.shape[0] - 1
     far = px.shape[0]  # more steps than any walk takes (it stops at the padding)
     r = st % m  # (st - k) % m, counted down with k (no division per scale)
-    known = -1  # the largest scale below k whose bounds are known (mode 0)
     for k in range(top + 1):
         # the nearest sentinels above (none above st) and below k
         above = k + r if k < st else -1
@@ -361,16 +362,12 @@ def _screen_rest(
         sentinel = k <= st and r == 0
         r = r - 1 if r > 0 else m - 1
         if sentinel:
-            known = k
             continue
         near = want_all or (above >= 0 and screened[above]) or (below >= 0 and screened[below])
         screened[k] = False
         if not near:
             continue
-        if mode == 0:  # the dense walk, from the bounds of the largest known smaller scale
-            _walk_between(j, k, known, above, start, stop, r2, dense)
-            known = k
-        elif mode == 1:
+        if mode == 1:
             start[k] = j - within(rm_a, na, r2[k])
             stop[k] = j + within(rm_d, nd, r2[k])
         elif mode == 2:  # between the counts of the sentinels below (or 0) and above (or none)
@@ -383,28 +380,6 @@ def _screen_rest(
         screened[k] = screen(
             ps, inv, j, start[k], stop[k], min_points, loose_mse, max_cos2, mode == 0
         )
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _walk_between(j: int, k: int, known: int, above: int, start, stop, r2, dense: tuple) -> None:
-    """Bounds of scale ``k`` of p_j by the dense walk from those of scale ``known`` < k (-1:
-    from p_j), where every neighbourhood of scale k reaches; the guess interpolates in the
-    radius between scale ``known`` and the sentinel ``above`` (-1: none, extrapolated)."""
-    x, y, valid, lk, box, gap = dense
-    rk = math.sqrt(r2[k])
-    r0 = math.sqrt(r2[known]) if known >= 0 else 0.0
-    a0 = start[known] if known >= 0 else j
-    d0 = stop[known] if known >= 0 else j
-    if above >= 0:  # between two known bounds
-        t = (rk - r0) / (math.sqrt(r2[above]) - r0)
-        ga, gd = a0 + t * (start[above] - a0), d0 + t * (stop[above] - d0)
-    else:  # beyond the largest known one: proportional to the radius from p_j
-        t = rk / r0 if r0 > 0.0 else 1.0
-        ga, gd = j + t * (a0 - j), j + t * (d0 - j)
-    start[k] = int(ga)
-    stop[k] = int(gd)
-    walk_from(j, a0, -1, x, y, valid, lk, box, r2[k : k + 1], gap, start[k : k + 1])
-    walk_from(j, d0, 1, x, y, valid, lk, box, r2[k : k + 1], gap, stop[k : k + 1])
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")

@@ -48,7 +48,6 @@ __all__ = [
     "prepare",
     "reach",
     "walk",
-    "walk_from",
     "within",
 ]
 
@@ -216,7 +215,7 @@ def _last_valid(i: int, step: int, valid, next_valid, prev_valid) -> int:
     return prev_valid[i] if step > 0 else next_valid[i]
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def walk(
     j: int,
     step: int,
@@ -229,30 +228,9 @@ def walk(
     max_gap: int,
     bound: NDArray[np.int64],
 ) -> None:
-    """Farthest valid index of the neighbourhood of p_j for every scale, one side:
-    :func:`walk_from` p_j itself."""
-    walk_from(j, j, step, x, y, valid, links, box, r2, max_gap, bound)
+    """Farthest valid index of the neighbourhood of p_j for every scale, one side.
 
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def walk_from(
-    j: int,
-    origin: int,
-    step: int,
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    valid: NDArray[np.bool_],
-    links: tuple,
-    box: NDArray[np.float64],
-    r2: NDArray[np.float64],
-    max_gap: int,
-    bound: NDArray[np.int64],
-) -> None:
-    """Farthest valid index of the neighbourhood of p_j for every scale, one side, knowing
-    that the neighbourhood of every scale reaches the valid index ``origin`` (``j``, or the
-    bound of a smaller scale: neighbourhoods grow with the scale).
-
-    Walks from ``origin`` towards ``step`` (-1 arrival, +1 departure) up to the first point
+    Walks from ``j`` towards ``step`` (-1 arrival, +1 departure) up to the first point
     farther than R_k from p_j, the first run of more than ``max_gap`` invalid beams, or the
     scan's end; ``bound[k]`` is the last valid index before that point. ``links``: the
     next/previous valid index (:func:`links`) and the padded coordinates (:func:`padded`).
@@ -270,8 +248,8 @@ def walk_from(
     xj = x[j]
     yj = y[j]
     k = 0
-    last = origin
-    i = origin + step
+    last = j
+    i = j + step
     tried = -1  # the last scale whose guess was tried
     while k < n_scales and 0 <= i < n:
         if not valid[i]:  # a run of gaps: bridge it if short and a point follows
