@@ -30,10 +30,13 @@ with this run's new/old times the frozen kernel's ms on the unloaded machine of 
 figures (:data:`OLD_MS_UNLOADED`; a fair yardstick when other processes slow this run).
 
 Then the scaling in beam count: a synthetic 360-degree scan of a polygonal room (the demo
-world) with 100,000, 400,000 and 1,000,000 beams at range noise 0.001 m, time(400k)/time(100k)
-and time(1M)/time(400k), in CPU time of the thread (these calls take seconds, long enough for
-other processes on a shared machine to distort wall-clock times), and whether the keypoints
-at each size are those of main at 08b9988, before the jumping walk
+world) with 100,000, 400,000 and 1,000,000 beams at range noise 0.001 m, timed in rounds
+(``--scaling-repeats``, default 7, at least 5) in each of which the three sizes alternate,
+in CPU time of the thread (these calls take seconds, long enough for other processes on a
+shared machine to distort wall-clock times): the best and the median per size, and
+time(400k)/time(100k) and time(1M)/time(400k) of the bests and of the medians (a slow spell
+of the machine falls on every size alike); ``--scaling-only`` skips the per-scan tables.
+Whether the keypoints at each size are those of main at 08b9988, before the jumping walk
 (``dense_keypoints_08b9988.json``); then the same scans with 2 % of the beams dropped and
 ``max_gap_beams=2`` (dropouts bridged), against the keypoints of main at 19fb21a
 (``dense_bridging_keypoints_19fb21a.json``).
@@ -245,61 +248,81 @@ def same_as_stored(keypoints: object, n_beams: int, reference: Path = DENSE_REFE
     return "yes" if same else "NO"
 
 
-def scaling(old: object, new: CornerDetector, with_old: bool) -> None:
-    print("\nScaling, synthetic 360-degree scan of the demo world, noise 0.001 m, best of 3,")
-    print("CPU time of the calling thread (time.thread_time: robust to other processes);")
-    print("the frozen kernel at 100,000 and 400,000 beams only (it takes minutes at 1,000,000):")
-    print(f"same kp 08b9988: the keypoints of main at 08b9988 ({DENSE_REFERENCE.name})")
-    print("| beams | keypoints | new s | old s | same kp 08b9988 |")
-    print("|---:|---:|---:|---:|---|")
-    times: dict[str, list[float]] = {"new": [], "old": []}
-    for n in (100_000, 400_000, 1_000_000):
-        scan = dense_scan(n)
-        runs = {"new": new}
+SIZES = (100_000, 400_000, 1_000_000)
+
+
+def alternating_times(detector: CornerDetector, scans: dict[int, LaserScan], repeats: int):
+    """CPU times of the calling thread (``time.thread_time``: robust to other processes) of
+    ``detect`` on each scan, the sizes alternating within each of ``repeats`` rounds (a slow
+    spell of the machine then falls on every size alike); returns the times per size and the
+    keypoints of the last round."""
+    times: dict[int, list[float]] = {n: [] for n in scans}
+    keypoints = {}
+    for _ in range(repeats):
+        for n, scan in scans.items():
+            t0 = time.thread_time()
+            keypoints[n] = detector.detect(scan)
+            times[n].append(time.thread_time() - t0)
+    return times, keypoints
+
+
+def ratio_line(times: dict[int, list[float]]) -> str:
+    """time(400k)/time(100k) and time(1M)/time(400k), of the minima (best per size) and of
+    the medians."""
+    lo, mid, hi = (times[n] for n in SIZES)
+    best = f"{min(mid) / min(lo):.1f}, {min(hi) / min(mid):.2f}"
+    median = f"{np.median(mid) / np.median(lo):.1f}, {np.median(hi) / np.median(mid):.2f}"
+    return (
+        f"time(400k)/time(100k), time(1M)/time(400k): best of {len(lo)} per size {best}; "
+        f"median {median}"
+    )
+
+
+def scaling(old: object, new: CornerDetector, with_old: bool, repeats: int) -> None:
+    print("\nScaling, synthetic 360-degree scan of the demo world, noise 0.001 m, CPU time of")
+    print(f"the calling thread, the sizes alternating in each of {repeats} rounds: best and")
+    print("median per size; the frozen kernel once at 100,000 and 400,000 beams only (it")
+    print(f"takes minutes at 1,000,000); same kp 08b9988: those of {DENSE_REFERENCE.name}")
+    print("| beams | keypoints | new s (best) | new s (median) | old s | same kp 08b9988 |")
+    print("|---:|---:|---:|---:|---:|---|")
+    scans = {n: dense_scan(n) for n in SIZES}
+    new.detect(scans[SIZES[0]])  # warm-up
+    times, kp = alternating_times(new, scans, repeats)
+    old_times = {}
+    for n in SIZES:
+        old_s = "-"
         if with_old and n <= 400_000:
-            runs["old"] = old
-        kp = {}
-        for label, detector in runs.items():
-            best = np.inf
-            for _ in range(3 if label == "new" else 1):
-                t0 = time.thread_time()
-                kp[label] = detector.detect(scan)  # type: ignore[attr-defined]
-                best = min(best, time.thread_time() - t0)
-            times[label].append(best)
-        old_s = f"{times['old'][-1]:.3f}" if "old" in runs else "-"
-        same = same_as_stored(kp["new"], n)
-        print(f"| {n:,} | {len(kp['new'])} | {times['new'][-1]:.3f} | {old_s} | {same} |")
-        if "old" in kp and not same_keypoints(kp["old"], kp["new"]):
-            print(f"  WARNING: keypoints differ from the frozen kernel's at {n} beams")
-    new_t = times["new"]
-    print(f"\ntime(400k)/time(100k): new {new_t[1] / new_t[0]:.1f}", end="")
-    if with_old:
-        print(f", old {times['old'][1] / times['old'][0]:.1f}", end="")
-    print(f"; time(1M)/time(400k): new {new_t[2] / new_t[1]:.2f}")
+            t0 = time.thread_time()
+            old_kp = old.detect(scans[n])  # type: ignore[attr-defined]
+            old_times[n] = time.thread_time() - t0
+            old_s = f"{old_times[n]:.3f}"
+            if not same_keypoints(old_kp, kp[n]):
+                print(f"  WARNING: keypoints differ from the frozen kernel's at {n} beams")
+        same = same_as_stored(kp[n], n)
+        best, median = min(times[n]), float(np.median(times[n]))
+        print(f"| {n:,} | {len(kp[n])} | {best:.3f} | {median:.3f} | {old_s} | {same} |")
+    print(f"\n{ratio_line(times)}")
+    if old_times:
+        print(f"old: time(400k)/time(100k) {old_times[400_000] / old_times[100_000]:.1f}")
 
 
-def bridging_scaling() -> None:
+def bridging_scaling(repeats: int) -> None:
     """The dense scans with 2 % of the beams dropped (NaN) and ``max_gap_beams=2``: the
     walk bridges the dropouts."""
     print("\nBridging, the same scans with 2 % of the beams dropped (NaN), max_gap_beams=2,")
-    print("best of 3, CPU time; same kp 19fb21a: the keypoints of main at 19fb21a")
-    print(f"({BRIDGING_REFERENCE.name})")
-    print("| beams | keypoints | new s | same kp 19fb21a |")
-    print("|---:|---:|---:|---|")
+    print(f"sizes alternating in {repeats} rounds, CPU time; same kp 19fb21a: the keypoints of")
+    print(f"main at 19fb21a ({BRIDGING_REFERENCE.name})")
+    print("| beams | keypoints | new s (best) | new s (median) | same kp 19fb21a |")
+    print("|---:|---:|---:|---:|---|")
     detector = CornerDetector(DetectorParams(max_gap_beams=2))
-    times = []
-    for n in (100_000, 400_000, 1_000_000):
-        scan = dense_scan(n, dropouts=0.02)
-        best = np.inf
-        for _ in range(3):
-            t0 = time.thread_time()
-            kp = detector.detect(scan)
-            best = min(best, time.thread_time() - t0)
-        times.append(best)
-        same = same_as_stored(kp, n, BRIDGING_REFERENCE)
-        print(f"| {n:,} | {len(kp)} | {best:.3f} | {same} |")
-    ratios = f"{times[1] / times[0]:.1f}; time(1M)/time(400k) {times[2] / times[1]:.2f}"
-    print(f"\ntime(400k)/time(100k) {ratios}")
+    scans = {n: dense_scan(n, dropouts=0.02) for n in SIZES}
+    detector.detect(scans[SIZES[0]])  # warm-up
+    times, kp = alternating_times(detector, scans, repeats)
+    for n in SIZES:
+        same = same_as_stored(kp[n], n, BRIDGING_REFERENCE)
+        best, median = min(times[n]), float(np.median(times[n]))
+        print(f"| {n:,} | {len(kp[n])} | {best:.3f} | {median:.3f} | {same} |")
+    print(f"\n{ratio_line(times)}")
 
 
 def main() -> int:
@@ -308,17 +331,40 @@ def main() -> int:
     parser.add_argument("--sim-scans", type=int, default=400)
     parser.add_argument("--real-scans", type=int, default=1000)
     parser.add_argument(
+        "--scaling-repeats",
+        type=int,
+        default=7,
+        help="rounds of the scaling and bridging lines (sizes alternating; at least 5)",
+    )
+    parser.add_argument("--scaling-only", action="store_true", help="only the dense scans")
+    parser.add_argument(
         "--skip-old-scaling",
         action="store_true",
         help="do not time the frozen kernel on the dense scans (slow)",
     )
     args = parser.parse_args()
+    if args.scaling_repeats < 5:
+        parser.error("--scaling-repeats: at least 5 (min and median of fewer mislead)")
 
     numba.set_num_threads(1)
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     old = frozen_detector_class()(DetectorParams())
     new = CornerDetector(DetectorParams())
+    print(
+        f"python {platform.python_version()}, numba {numba.__version__}, pinned to one core, "
+        f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
+        "per scan, median over scans\n"
+    )
+    if not args.scaling_only:
+        scan_tables(old, new, args)
+    scaling(old, new, not args.skip_old_scaling, args.scaling_repeats)
+    bridging_scaling(args.scaling_repeats)
+    return 0
+
+
+def scan_tables(old: object, new: CornerDetector, args: argparse.Namespace) -> None:
+    """The per-scan table of every data set (see the module's docstring)."""
     sets: list[tuple[str, list[LaserScan] | str]] = [
         (f"simulated UST-10LX, noise {sigma} m", simulated_scans(args.sim_scans, noise_sigma=sigma))
         for sigma in (0.0, 0.01, 0.03)
@@ -329,11 +375,6 @@ def main() -> int:
     empty = mostly_empty(intel) if isinstance(intel, list) else "skipped: intel.bag not found"
     sets.append((EMPTY_LABEL, empty))
 
-    print(
-        f"python {platform.python_version()}, numba {numba.__version__}, pinned to one core, "
-        f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
-        "per scan, median over scans\n"
-    )
     columns = ["data set", "beams", "scans", "kp/scan", "old ms", "new ms", "new/old", "same kp"]
     columns += ["+xy ms", "many/one", "FALKO ms", "new/FALKO", "adj new/FALKO", "cov us/scan"]
     columns += ["cov us/kp"]
@@ -356,9 +397,6 @@ def main() -> int:
         cells += [f"{m_new / m_old:.2f}", "yes" if agree else "NO", f"{m_xy:.4f}", f"{many:.2f}"]
         cells += [falko_s, adjusted, f"{cov_scan:.1f}", f"{cov_kp:.2f}"]
         print("| " + " | ".join(str(c) for c in cells) + " |")
-    scaling(old, new, not args.skip_old_scaling)
-    bridging_scaling()
-    return 0
 
 
 if __name__ == "__main__":

@@ -19,6 +19,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from laser_corners.kernel_cache import use_keyed_cache
+
+use_keyed_cache()  # numba's cache folder, keyed by the kernel sources: before any kernel loads
+
 if TYPE_CHECKING:  # the names as type checkers and readers see them
     from laser_corners.citation import CITATION
     from laser_corners.detector import CornerDetector, ScaleTable

@@ -391,9 +391,8 @@ def detect_scan(
 
 
 # numba caches detect_xy (and the functions above and below that call it) with the phases'
-# code linked in, keyed on this file alone: a change to kernel/neighbourhood.py, boxes.py or
-# candidates.py is not seen until the __pycache__ *.nbi/*.nbc files are deleted or this file
-# changes (docs/method.md, "Speed"; noted with the oriented boxes of the dense walk)
+# code linked in, keyed on this file alone; laser_corners.kernel_cache keys the cache folder
+# by every kernel source, so an edit to neighbourhood.py, boxes.py or candidates.py is seen
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def detect_xy(
     x: NDArray[np.float64],

@@ -1,0 +1,102 @@
+"""Two kernels' ``candidates`` alternating in one process, on the dense scans (issue 21).
+
+Usage::
+
+    taskset -c 1 env PYTHONPATH=src .venv/bin/python benchmarks/ab_candidates.py \\
+        --old ../main/src/laser_corners [--rounds 6]
+
+``--old`` is another checkout's package folder; it is copied to a temporary folder under the
+name ``lc_old`` (its imports rewritten), so both kernels load in one process and alternate
+round by round (the order swapping each round): a slow spell of a shared machine falls on
+both alike, where separate processes minutes apart differ by 20 % from load alone. Checks
+that both give the same candidates at 400,000 and 1,000,000 beams, then prints the best and
+the median seconds per size of each and their time(1M)/time(400k). Two identical kernels
+(this branch's and main's at a796458) gave best 0.380 / 0.386 s at 400k and 1.303 / 1.257 s at
+1M (2026-12-02 08:19 UTC, load 0.9-1.7, ``--rounds 4``): differences under 4 % are noise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_detector import dense_scan
+from laser_corners.kernel import candidates as new_kernel
+from laser_corners.params import DetectorParams
+
+SIZES = (400_000, 1_000_000)
+
+
+def load_old(package: Path, into: Path):  # type: ignore[no-untyped-def]
+    """The ``candidates`` module of the package folder ``package``, as ``lc_old``."""
+    copy = into / "lc_old"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    for path in copy.rglob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        text = re.sub(r"\blaser_corners\b", "lc_old", text)
+        path.write_text(text, encoding="utf-8")
+    sys.path.insert(0, str(into))
+    from lc_old.kernel import candidates  # type: ignore[import-not-found]
+
+    return candidates
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--old", type=Path, required=True, help="another laser_corners folder")
+    parser.add_argument("--rounds", type=int, default=6)
+    args = parser.parse_args()
+    nb.set_num_threads(1)
+    with tempfile.TemporaryDirectory() as tmp:
+        kernels = {"old": load_old(args.old.resolve(), Path(tmp)), "new": new_kernel}
+        packed = new_kernel.kernel_config(DetectorParams())
+        points = {}
+        for n in SIZES:
+            scan = dense_scan(n)
+            angles = scan.angle_min + scan.angle_increment * np.arange(n)
+            x, y = np.empty(n), np.empty(n)
+            lo, hi = scan.range_min, scan.range_max
+            new_kernel.polar_to_xy(scan.ranges, np.cos(angles), np.sin(angles), lo, hi, x, y)
+            points[n] = (x, y)
+        cands = {}
+        for label, kernel in kernels.items():
+            for n in SIZES:
+                cands[label, n] = np.empty((n, new_kernel.NC))
+                kernel.candidates(*points[n], packed, cands[label, n], np.empty((0, 0, 3)))
+        for n in SIZES:
+            a, b = cands["old", n], cands["new", n]
+            same = np.array_equal(a[:, 2] > 0, b[:, 2] > 0)
+            same = same and np.allclose(a[a[:, 2] > 0], b[b[:, 2] > 0], equal_nan=True)
+            print(f"{n:,} beams: same candidates {'yes' if same else 'NO'}")
+        times: dict[tuple[str, int], list[float]] = {}
+        for r in range(args.rounds):
+            order = ("old", "new") if r % 2 == 0 else ("new", "old")
+            for n in SIZES:
+                for label in order:
+                    t0 = time.thread_time()
+                    kernels[label].candidates(
+                        *points[n], packed, cands[label, n], np.empty((0, 0, 3))
+                    )
+                    times.setdefault((label, n), []).append(time.thread_time() - t0)
+        for label in kernels:
+            lo, hi = times[label, SIZES[0]], times[label, SIZES[1]]
+            print(
+                f"{label}: 400k best {min(lo):.3f} median {np.median(lo):.3f} s; 1M best "
+                f"{min(hi):.3f} median {np.median(hi):.3f} s; 1M/400k best "
+                f"{min(hi) / min(lo):.2f} median {np.median(hi) / np.median(lo):.2f}"
+            )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
