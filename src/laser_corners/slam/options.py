@@ -74,6 +74,16 @@ class SlamOptions(Options):
     segment is found in it (:mod:`~laser_corners.slam.relocalise`)."""
     final_optimisation: bool = True
     """Run a batch Levenberg-Marquardt optimisation of the whole graph at the end."""
+    refine_final: bool = False
+    """After the final optimisation, re-align every ``refine_every``-th keyframe to the
+    submaps of its spatial neighbours (within ``loop_radius``, travelled apart by more than
+    ``loop_recent_distance``, at any time) by ICP from the final estimate, add the alignments
+    that pass the loop closure's checks as robust relative-pose factors and solve once more
+    (:mod:`~laser_corners.slam.refine`). Needs ``final_optimisation``."""
+    refine_every: int = Field(1, ge=1, le=1000)
+    """The refinement pass re-aligns every n-th keyframe."""
+    refine_candidates: int = Field(3, ge=1, le=20)
+    """Submaps (nearest first) each keyframe is re-aligned to in the refinement pass."""
     mount: tuple[float, float, float] | None = None
     """Base -> laser transform ``(x, y, yaw)``, overriding the recording's (``/tf_static``)."""
     detector_preset: Literal["paper", "auto", "robust"] = "paper"
