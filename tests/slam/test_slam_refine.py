@@ -13,7 +13,7 @@ pytest.importorskip("gtsam")
 
 from laser_corners.pose import between_many, compose, wrap_angle
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam import SlamOptions
+from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.points import scan_points
 from laser_corners.slam.refine import refine, refine_links
@@ -86,8 +86,8 @@ def test_refine_links_measure_the_true_relative_poses(lap) -> None:
     assert far not in set(links.match.tolist())  # not a submap anchor (its frame would be off)
     assert links.tried > len(truth) // 2 and len(links) > len(truth) // 3
     assert far not in set(links.query.tolist())
-    apart = np.abs(travelled[links.query] - travelled[links.match])
-    assert apart.min() > OPTIONS.loop_recent_distance  # only across the loop
+    # a submap never holds the keyframe it aligns (1.5 submap lengths on each side)
+    assert np.abs(links.query - links.match).min() > 1.5 * OPTIONS.loop_submap_keyframes
     true_rel = between_many(truth[links.match], truth[links.query])
     err = between_many(true_rel, links.relative)
     assert np.percentile(np.hypot(err[:, 0], err[:, 1]), 90) < 0.015
@@ -118,3 +118,35 @@ def test_refinement_straightens_a_map_bent_between_laps(lap) -> None:
     before_err = np.hypot(*(lap_bent - lap_truth)[:, :2].T).mean()
     after_err = np.hypot(*(lap_after - lap_truth)[:, :2].T).mean()
     assert before_err > 0.025 and after_err < before_err / 3, (before_err, after_err)
+
+
+def test_refine_min_travel_keeps_only_links_across_the_loop(lap) -> None:
+    truth, points, travelled = lap
+    options = OPTIONS.with_overrides(["refine_min_travel=10"])
+    links = refine_links(points, truth, travelled, options)
+    apart = np.abs(travelled[links.query] - travelled[links.match])
+    assert len(links) > 0 and apart.min() >= 10.0
+
+
+def test_slam_with_the_refinement_pass(lap) -> None:
+    # two laps at keyframe spacing with slightly wrong odometry: the option runs the pass
+    # after the final optimisation, counts its links and keeps the map on the truth
+    truth, _, _ = lap
+    world = _building()
+    rng = np.random.default_rng(9)
+    steps = between_many(truth[:-1], truth[1:]) * np.array([1.02, 1.0, 1.01])
+    odo = [truth[0]]
+    for d in steps:
+        odo.append(compose(odo[-1], d))
+    results = {}
+    for on in (False, True):
+        slam = Slam(OPTIONS.with_overrides([f"refine_final={on}"]))
+        for i, (pose, odom) in enumerate(zip(truth, odo, strict=True)):
+            scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng)
+            slam.add(scan, odom, float(i))
+        results[on] = slam.result()
+    off, on = results[False], results[True]
+    assert off.counts["refine_links"] == 0 and on.counts["refine_links"] > len(truth) // 3
+    assert on.counts["refine_tried"] >= on.counts["refine_links"] + on.counts["refine_pruned"]
+    error = np.hypot(*(on.poses[:, :2] - truth[:, :2]).T)
+    assert error.max() < 0.1

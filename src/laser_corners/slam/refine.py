@@ -5,17 +5,16 @@ keyframe chain and the few loop closures the online search found (one search eve
 ``loop_every`` keyframes). This pass adds what Cartographer's constraint search adds online:
 constraints from many keyframes to every submap near them, whatever the time between.
 
-The keyframes are cut into submaps of ``loop_submap_keyframes`` consecutive keyframes (the
-submap of block ``b`` holds the keyframes of blocks ``b - 1 .. b + 1``, in the frame of block
-``b``'s middle keyframe, its anchor, at their final estimates). Each ``refine_every``-th
-keyframe is aligned by point-to-line ICP, from its final estimate, to at most
-``refine_candidates`` submaps whose anchor lies within ``loop_radius`` and which were reached
-more than ``loop_recent_distance`` of travel before or after it (the keyframe chain already
-ties the nearer ones). An alignment becomes a relative-pose factor under the loop closures'
-robust model when, as a loop closure, at least ``loop_min_score`` of the keyframe's points lie
-on the submap and the alignment is not degenerate, and, the map being consistent already, when
-it moves the keyframe by less than ``loop_agree_xy`` / ``loop_agree_yaw``: a larger move is a
-wrong match, not a correction. No search: the estimate is the guess.
+Every ``loop_submap_keyframes``-th keyframe (n) anchors a submap: the keyframes within 1.5 n
+of it, in its frame, at their final estimates. Each ``refine_every``-th keyframe is aligned by
+point-to-line ICP, from its final estimate, to at most ``refine_candidates`` submaps (nearest
+first) whose anchor lies within ``loop_radius`` of it and at least ``refine_min_travel`` of
+travel before or after it, and which do not hold the keyframe itself. An alignment becomes a
+relative-pose factor under the loop closures' robust model when, as for a loop closure, at
+least ``loop_min_score`` of the keyframe's points lie on the submap and the alignment is not
+degenerate, and, the map being consistent already, when it moves the keyframe by less than
+``loop_agree_xy`` / ``loop_agree_yaw``: a larger move is a wrong match, not a correction.
+No search: the estimate is the guess.
 """
 
 from __future__ import annotations
@@ -36,16 +35,6 @@ __all__ = ["RefineLinks", "refine", "refine_links"]
 REFINE_PRIOR = 1e-6
 """Information (per m², per rad²) pulling a refinement alignment towards the estimate: none to
 speak of, the submap decides."""
-REFINE_SURFACE = 0.0
-"""Kernel width (m) of the submap's implicit surface the keyframe is aligned to
-(:func:`~laser_corners.slam.align.icp`'s ``surface``); 0: the nearest point's line."""
-REFINE_PASSES = 1
-"""Rounds of re-alignment and solving."""
-REFINE_APART: float | None = None
-"""Travel (m) between a keyframe and a submap anchor below which they are not linked; None:
-``loop_recent_distance``."""
-REFINE_SIGMA = 1.0
-"""Scale of the loop closure noise for the refinement links."""
 
 
 @dataclass
@@ -74,8 +63,8 @@ class RefineLinks:
 def _submap(
     anchor: int, block: int, points: list[ScanPoints], estimate: NDArray[np.float64]
 ) -> tuple[PointMap, PointMap]:
-    """Line points (with normals) and every point of the keyframes within ``block`` of the
-    anchor (``1.5 block`` on each side), in the anchor's frame."""
+    """Line points (with normals) and every point of the keyframes within ``1.5 block`` of
+    the anchor, in the anchor's frame."""
     lo = max(0, anchor - block - block // 2)
     hi = min(len(points), anchor + block + block // 2 + 1)
     rel = between_many(estimate[anchor], estimate[lo:hi])
@@ -97,8 +86,8 @@ def _pairs(
     options: SlamOptions,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(keyframe, anchor) pairs to align: each ``refine_every``-th keyframe with its nearest
-    ``refine_candidates`` anchors within ``loop_radius``, travelled apart by more than
-    ``loop_recent_distance``."""
+    ``refine_candidates`` anchors within ``loop_radius``, travelled apart by at least
+    ``refine_min_travel``."""
     keys = np.arange(0, estimate.shape[0], options.refine_every)
     query, match = [], []
     for chunk in np.array_split(keys, max(1, keys.shape[0] // 256)):
@@ -107,8 +96,7 @@ def _pairs(
             estimate[chunk, None, 1] - estimate[None, anchors, 1],
         )
         apart = np.abs(travelled[chunk, None] - travelled[None, anchors])
-        least = options.loop_recent_distance if REFINE_APART is None else REFINE_APART
-        d[(d >= options.loop_radius) | (apart <= least)] = np.inf
+        d[(d >= options.loop_radius) | (apart < options.refine_min_travel)] = np.inf
         n = min(options.refine_candidates, anchors.shape[0])
         near = np.argsort(d, axis=1)[:, :n]
         ok = np.isfinite(np.take_along_axis(d, near, axis=1))
@@ -155,7 +143,6 @@ def refine_links(
             inlier_distance=options.loop_inlier_distance,
             iterations=options.icp_iterations,
             overlap_map=every,
-            surface=REFINE_SURFACE,
         )
         moved = relative_pose(guesses[i], aligned.pose)
         if (
@@ -186,17 +173,13 @@ def refine(
     :func:`refine_links` at ``backend``'s estimate, solved once more with them
     (:meth:`Backend.optimise`, robust and pruned as the loop closures): (graph, values,
     counts ``refine_tried`` / ``refine_links`` / ``refine_pruned``)."""
-    sig = REFINE_SIGMA * np.array(
-        [options.loop_sigma_xy, options.loop_sigma_xy, options.loop_sigma_yaw]
-    )
-    sig = tuple(sig.tolist())
-    for _ in range(REFINE_PASSES):
-        links = refine_links(points, backend.estimate, travelled, options)
-        extra = [
-            (int(j), int(k), rel, sig)
-            for j, k, rel in zip(links.match, links.query, links.relative, strict=True)
-        ]
-        graph, values = backend.optimise(extra, start=values)
+    links = refine_links(points, backend.estimate, travelled, options)
+    sig = (options.loop_sigma_xy, options.loop_sigma_xy, options.loop_sigma_yaw)
+    extra = [
+        (int(j), int(k), rel, sig)
+        for j, k, rel in zip(links.match, links.query, links.relative, strict=True)
+    ]
+    graph, values = backend.optimise(extra, start=values)
     counts = {
         "refine_tried": links.tried,
         "refine_links": len(links) - backend.extra_pruned,
