@@ -80,7 +80,7 @@ class SlamOptions(Options):
     any time), add the alignments that pass the loop closure's checks as robust relative-pose
     factors and solve once more (:mod:`~laser_corners.slam.refine`; needs
     ``final_optimisation``). Off by default: on intel it lowered the relation error (0.0242
-    -> 0.0229 m), on fr079 with the bag's mounting and on aces it raised it slightly
+    -> 0.0230 m), on fr079 with the bag's mounting and on aces it raised it slightly
     (docs/slam.md, "The refinement pass")."""
     refine_every: int = Field(1, ge=1, le=1000)
     """The refinement pass re-aligns every n-th keyframe."""
