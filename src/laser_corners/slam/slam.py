@@ -548,7 +548,8 @@ class Slam:
 
     # ------------------------------------------------------------------ result
     def result(self, interrupted: bool = False) -> SlamResult:
-        """The current result; with ``final_optimisation``, a batch optimisation runs first."""
+        """The current result; with ``final_optimisation``, a batch optimisation runs first,
+        and with ``refine_final`` the refinement pass after it (:func:`.refine.refine`)."""
         graph, values, opt = None, None, self.options
         if len(self.kf):
             if self.options.final_optimisation:
