@@ -81,6 +81,7 @@ def _worker(log: Path, overrides: list[str], output: Path) -> None:
         "contradicted": float(closure_consistency(result)) if accepted else None,
         "mount": [float(v) for v in np.asarray(result.mount).reshape(3)],
         "interrupted": bool(result.interrupted),
+        "counts": {key: int(value) for key, value in result.counts.items()},
     }
     if relations is not None:
         record["relations"] = relations_path.name

@@ -67,10 +67,13 @@ class Backend:
         self.n_landmarks = 0
         self.loops: list[tuple[int, int, object, object, int]] = []
         self.pruned: list[int] = []  # indices into ``loops`` dropped by :meth:`optimise`
+        self.extra_pruned = 0  # extra factors of the last :meth:`optimise` dropped
+        self._solved: object | None = None  # the graph the last :meth:`optimise` solved
         self._estimate = np.zeros((0, 3))
         self._stale = False
 
     def _add(self, factor: object) -> None:
+        self._solved = None
         self.graph.add(factor)
         self._new.add(factor)
 
@@ -141,7 +144,8 @@ class Backend:
         """``gtsam.Marginals`` of the current graph at the current estimate (None when the
         graph cannot be factorised, e.g. an under-constrained landmark)."""
         try:
-            return gtsam.Marginals(self.graph, self.values)
+            graph = self._solved if self._solved is not None else self.graph
+            return gtsam.Marginals(graph, self.values)
         except RuntimeError:
             return None
 
@@ -197,21 +201,37 @@ class Backend:
         """Marginal covariance (3x3, base frame x, y, yaw) of keyframe ``keyframe``."""
         return np.asarray(self.isam.marginalCovariance(X(keyframe)))
 
-    def optimise(self) -> tuple[object, object]:
-        """Batch Levenberg-Marquardt from the iSAM2 estimate, then the loop closures that the
-        result contradicts (residual > :data:`PRUNE_CHI` sigmas) dropped and the graph solved
-        again, up to :data:`PRUNE_ROUNDS` times (a dropped closure can have hidden another):
-        (graph, values)."""
+    def optimise(
+        self,
+        extra: list[tuple[int, int, NDArray[np.float64], tuple[float, float, float]]] | None = None,
+        start: object | None = None,
+    ) -> tuple[object, object]:
+        """Batch Levenberg-Marquardt from ``start`` (default: the iSAM2 estimate), then the
+        loop closures that the result contradicts (residual > :data:`PRUNE_CHI` sigmas)
+        dropped and the graph solved again, up to :data:`PRUNE_ROUNDS` times (a dropped
+        closure can have hidden another): (graph, values).
+
+        ``extra``: relative-pose measurements ``(a, b, relative, sigmas)`` for this solve only
+        (the refinement pass, :mod:`.refine`), robust and pruned as the loop closures; not
+        put into iSAM2. Closures dropped once stay dropped (:attr:`pruned`); the extra ones
+        dropped are counted in :attr:`extra_pruned`.
+        """
         params = gtsam.LevenbergMarquardtParams()
         params.setMaxIterations(50)
-        values = gtsam.LevenbergMarquardtOptimizer(
-            self.graph, self.isam.calculateEstimate(), params
-        ).optimize()
-        dropped: set[int] = set()
-        for _ in range(PRUNE_ROUNDS):
+        checked = [(a, b, rel, noise) for a, b, rel, noise, _ in self.loops]
+        for a, b, relative, sigmas in extra or []:
+            checked.append((a, b, gtsam.Pose2(*map(float, relative)), _diag(*sigmas)))
+        n_loops = len(self.loops)
+        dropped = set(self.pruned)
+        values = start if start is not None else self.isam.calculateEstimate()
+        for round_ in range(PRUNE_ROUNDS + 1):
+            graph = self._active(checked[n_loops:], dropped)
+            values = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+            if round_ == PRUNE_ROUNDS:
+                break
             bad = [
                 i
-                for i, (a, b, rel, noise, _) in enumerate(self.loops)
+                for i, (a, b, rel, noise) in enumerate(checked)
                 if i not in dropped
                 and np.sqrt(2.0 * gtsam.BetweenFactorPose2(X(a), X(b), rel, noise).error(values))
                 > PRUNE_CHI
@@ -219,18 +239,30 @@ class Backend:
             if not bad:
                 break
             dropped.update(bad)
-            drop = {self.loops[i][4] for i in dropped}
-            kept = gtsam.NonlinearFactorGraph()
-            for f in range(self.graph.size()):
-                if f not in drop:
-                    kept.add(self.graph.at(f))
-            values = gtsam.LevenbergMarquardtOptimizer(kept, values, params).optimize()
-        if dropped:
-            self.graph = kept
-            self.pruned = sorted(dropped)
+        self.pruned = sorted(i for i in dropped if i < n_loops)
+        self.extra_pruned = sum(1 for i in dropped if i >= n_loops)
+        self._solved = graph
         self._values = values
+        self._stale = False
         self._estimate = gtsam.utilities.extractPose2(values)
-        return self.graph, values
+        return graph, values
+
+    def _active(self, extra: list[tuple[int, int, object, object]], dropped: set[int]) -> object:
+        """Every factor but the dropped loop closures (indices into :attr:`loops`, then into
+        ``extra``), plus the ``extra`` ones not dropped, robust."""
+        drop = {self.loops[i][4] for i in dropped if i < len(self.loops)}
+        graph = gtsam.NonlinearFactorGraph()
+        for f in range(self.graph.size()):
+            if f not in drop:
+                graph.add(self.graph.at(f))
+        n_loops = len(self.loops)
+        for i, (a, b, rel, noise) in enumerate(extra):
+            if i + n_loops not in dropped:
+                robust = gtsam.noiseModel.Robust.Create(
+                    gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise
+                )
+                graph.add(gtsam.BetweenFactorPose2(X(a), X(b), rel, robust))
+        return graph
 
     @property
     def values(self) -> object:

@@ -35,6 +35,7 @@ from laser_corners.slam.loops import (
 )
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import scan_points
+from laser_corners.slam.refine import refine
 from laser_corners.slam.relocalise import (
     LOST_CONFLICT,
     Relocaliser,
@@ -83,6 +84,9 @@ COUNT_KEYS = (
     "closures_accepted",
     "closures_rejected",
     "closures_pruned",
+    "refine_tried",
+    "refine_links",
+    "refine_pruned",
     "landmarks",
     "landmark_observations",
     "corner_registrations",
@@ -544,13 +548,19 @@ class Slam:
 
     # ------------------------------------------------------------------ result
     def result(self, interrupted: bool = False) -> SlamResult:
-        """The current result; with ``final_optimisation``, a batch optimisation runs first."""
-        graph, values = None, None
+        """The current result; with ``final_optimisation``, a batch optimisation runs first,
+        and with ``refine_final`` the refinement pass after it (:func:`.refine.refine`)."""
+        graph, values, opt = None, None, self.options
         if len(self.kf):
             if self.options.final_optimisation:
                 graph, values = self.backend.optimise()
+                if self.options.refine_final:
+                    points, travelled = self.kf.points, self.kf.travelled_array()
+                    graph, values, counts = refine(self.backend, values, points, travelled, opt)
+                    self.counts.update(counts)
                 for i in self.backend.pruned:  # indices in the order added to the graph
-                    self._prune(self._in_graph[i])
+                    if self._in_graph[i].accepted:
+                        self._prune(self._in_graph[i])
             else:
                 self.backend.update(full=True)
                 graph, values = self.backend.graph, self.backend.values
