@@ -15,7 +15,7 @@ import typer
 from rich.console import Console
 
 from laser_corners.cli.app import evaluate_app
-from laser_corners.cli.common import InputArg, TopicOption, new_folder, quoted
+from laser_corners.cli.common import InputArg, OdomTopicOption, TopicOption, new_folder, quoted
 from laser_corners.cli.evaluate import TrajectoryOption, method_list
 from laser_corners.cli.kernels import KernelCommand
 
@@ -55,6 +55,7 @@ def evaluate_loops_command(
         ),
     ] = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     trajectory: TrajectoryOption = None,
 ) -> None:
     """Place recognition with FLIRT's protocol on a log with corrected poses.
@@ -80,7 +81,7 @@ def evaluate_loops_command(
     new_folder(output)
     with _Phases(console) as progress:
         progress(f"reading {input_path.name}", 0, None)
-        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
+        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory, odom_topic)
         if pose_source == ODOMETRY_POSES:
             progress.warn(
                 f"the poses are the bag's raw odometry ({pose_source}), not ground truth: "

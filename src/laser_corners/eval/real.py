@@ -122,15 +122,19 @@ def load_scans(
     topic: str | None = None,
     max_scans: int | None = None,
     trajectory: Path | None = None,
+    odom_topic: str | None = None,
 ) -> tuple[list[LaserScan], str]:
     """Read the scans (at most ``max_scans``) and attach poses; returns them and the pose source.
+
+    A bag's poses come from its odometry ``odom_topic`` (an Odometry topic or ``"tf"``;
+    default: the only one, see :func:`laser_corners.io.open_scans`).
 
     Raises
     ------
     InputError
         No scans, or no scan with a pose and no trajectory to give them one.
     """
-    source = open_scans(path, topic=topic)
+    source = open_scans(path, topic=topic, odom_topic=odom_topic)
     scans = list(islice(iter(source), max_scans))
     if not scans:
         raise no_scan_error(source)
