@@ -14,7 +14,7 @@ from laser_corners.cli import app
 from laser_corners.cli.app import error_line
 from laser_corners.io import TopicChoiceError
 from laser_corners.io.trajectory import read_tum
-from sim_bags import TF, write_drive_bag
+from sim_drives import TF, write_drive_bag
 
 runner = CliRunner()
 SOURCES = {"/odom": (1.0, 0.0, 0.0), "/wheel_odom": (0.0, 0.0, 0.0), TF: (0.0, 2.0, 0.0)}

@@ -15,7 +15,7 @@ from laser_corners.io import TopicChoiceError, open_scans
 from laser_corners.pipeline import laser_topic_sources, open_recording
 from laser_corners.pose import compose_many
 from laser_corners.sim import World
-from sim_bags import TF, write_drive_bag
+from sim_drives import TF, write_drive_bag
 
 MOUNT = (0.2, 0.0, 0.0)
 SOURCES = {"/odom": (1.0, 0.0, 0.0), "/wheel_odom": (0.0, 0.0, 0.0), TF: (0.0, 2.0, 0.1)}

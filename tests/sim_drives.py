@@ -1,10 +1,15 @@
-"""Bags of a simulated drive, for tests: ROS 1 ``.bag`` or ROS 2 MCAP, with any number of
-``nav_msgs/Odometry`` topics and an ``odom -> base_link`` on ``/tf``.
+"""Simulated drives for the tests: worlds, paths, odometry, a SLAM fed scan by scan, and bags.
 
-:func:`write_drive_bag` writes ``/tf_static`` (``base_link -> laser``), ``/scan`` (the world
-seen from each laser pose) and the odometry sources it is given, each sampled 20 ms before
-and 30 ms after every scan (so a reader interpolates). Every source is the drive plus its own
-offset, so a test can tell which source a reader took.
+* :func:`two_rooms`: the building of the SLAM tests (two rooms joined by a door, a pillar, a
+  triangle, optionally a round post); :func:`straight`: poses along a leg at 0.05 m a scan;
+* :func:`noisy_odometry`: odometry from true poses with a scale error, a yaw bias and white
+  noise (optionally no motion across chosen steps, a kidnap);
+* :func:`drive_slam`: every scan of a drive through a world, fed to ``Slam.add``;
+* :func:`write_drive_bag`: a ROS 1 ``.bag`` or ROS 2 MCAP bag of a drive with ``/tf_static``
+  (``base_link -> laser``), ``/scan`` and any number of odometry sources
+  (``nav_msgs/Odometry`` topics, an ``odom -> base_link`` on ``/tf``), each sampled 20 ms
+  before and 30 ms after every scan (so a reader interpolates) and offset by its own amount,
+  so a test can tell which source a reader took; :class:`BagMessages` builds the messages.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from rosbags.rosbag2 import StoragePlugin
 from rosbags.rosbag2 import Writer as Writer2
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from laser_corners.pose import compose_many
+from laser_corners.pose import between_many, compose, compose_many
 from laser_corners.sim import SICK_LMS_1DEG, World
 
 TF = "tf"
@@ -27,6 +32,63 @@ TF = "tf"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 ODOM_TYPE = "nav_msgs/msg/Odometry"
+
+
+def two_rooms(post: bool = True) -> World:
+    """Two rooms joined by a door, with a pillar and a triangle (and, with ``post``, a round
+    post): structure in every direction."""
+    world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
+    world.add_polygon([[6, 0], [6.1, 0], [6.1, 3], [6, 3]])
+    world.add_polygon([[6, 5], [6.1, 5], [6.1, 8], [6, 8]])
+    world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
+    world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
+    if post:
+        world.add_circle((8.5, 2.0), 0.15)
+    return world
+
+
+def straight(a, b) -> list[tuple[float, float, float]]:
+    """Poses from ``a`` towards ``b`` (``b`` excluded), 0.05 m apart, heading along the leg."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    heading = math.atan2(b[1] - a[1], b[0] - a[0])
+    n = int(np.hypot(*(b - a)) / 0.05)
+    return [(*(a + t * (b - a)), heading) for t in np.arange(n) / n]
+
+
+def noisy_odometry(
+    truth: np.ndarray,
+    rng: np.random.Generator,
+    scale: tuple[float, float, float] = (1.03, 1.02, 0.002),
+    sigma: Sequence[float] = (0.004, 0.002, 0.003),
+    still: Sequence[int] = (),
+) -> np.ndarray:
+    """Odometry of the true poses: each increment's forward step times ``scale[0]``, its turn
+    times ``scale[1]`` plus the bias ``scale[2]``, plus white noise of ``sigma``; the steps
+    into the scans ``still`` read no motion (the robot was carried)."""
+    steps = between_many(truth[:-1], truth[1:])
+    for i in still:
+        steps[i - 1] = 0.0
+    odo = [truth[0]]
+    for d in steps:
+        noisy = np.array([d[0] * scale[0], d[1], d[2] * scale[1] + scale[2]])
+        noisy += rng.normal(0.0, sigma)
+        odo.append(compose(odo[-1], noisy))
+    return np.array(odo)
+
+
+def drive_slam(
+    slam,
+    world: World,
+    laser: np.ndarray,
+    odometry: np.ndarray,
+    stamps: np.ndarray,
+    rng: np.random.Generator,
+) -> None:
+    """Feed ``slam`` the scans of ``world`` from the ``laser`` poses (SICK LMS, 1 deg, 1 cm
+    noise) with their ``odometry`` poses and ``stamps``."""
+    for pose, odom, stamp in zip(laser, odometry, stamps.tolist(), strict=True):
+        scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=stamp)
+        slam.add(scan, odom, stamp)
 
 
 class BagMessages:
@@ -46,8 +108,8 @@ class BagMessages:
         return self.store.serialize_ros1(msg, msgtype)
 
     def header(self, stamp: float, frame: str) -> object:
-        sec = math.floor(stamp)
-        time = self.t["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((stamp - sec) * 1e9))
+        sec, nanosec = divmod(round(stamp * 1e9), 10**9)
+        time = self.t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
         if self.ros2:
             return self.t["std_msgs/msg/Header"](stamp=time, frame_id=frame)
         return self.t["std_msgs/msg/Header"](seq=0, stamp=time, frame_id=frame)
@@ -88,9 +150,9 @@ class BagMessages:
             ),
         )
 
-    def scan(self, stamp: float, scan) -> object:
+    def scan(self, stamp: float, scan, frame: str = "laser") -> object:
         return self.t[SCAN_TYPE](
-            header=self.header(stamp, "laser"),
+            header=self.header(stamp, frame),
             angle_min=scan.angle_min,
             angle_max=scan.angle_min + scan.angle_increment * (scan.n_beams - 1),
             angle_increment=scan.angle_increment,
