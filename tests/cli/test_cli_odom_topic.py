@@ -139,3 +139,9 @@ def test_slam_and_localise_take_odom_topic(bag: Path, tmp_path: Path) -> None:
     )
     assert result.exit_code == 0, result.output
     assert (loc / "trajectory.tum").is_file()
+
+
+def test_info_lists_the_odometry_choices(bag: Path) -> None:
+    result = _invoke("info", bag)
+    assert result.exit_code == 0, result.output
+    assert "--odom-topic /odom" in result.stdout and "--odom-topic /wheel_odom" in result.stdout

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from laser_corners.errors import InputError
+from laser_corners.eval.real import ODOMETRY_POSES, load_scans
 from laser_corners.io import TopicChoiceError, open_scans
 from laser_corners.pipeline import laser_topic_sources, open_recording
 from laser_corners.pose import compose_many
@@ -133,3 +134,11 @@ def test_listings_open_a_bag_with_several_odometry_topics(bag: Path) -> None:
     odometry = sources[0].describe()["odometry"]
     assert "/odom, /wheel_odom" in str(odometry) and "--odom-topic" in str(odometry)
     assert math.isfinite(sources[0].first_scan().ranges[0])
+
+
+def test_load_scans_names_the_odometry_it_took(bag: Path) -> None:
+    scans, label = load_scans(bag, odom_topic="/wheel_odom")
+    assert label == "/wheel_odom + /tf"
+    np.testing.assert_allclose(_poses(scans), _expected(SOURCES["/wheel_odom"]), atol=1e-6)
+    assert load_scans(bag, odom_topic="/odom")[1] == ODOMETRY_POSES
+    assert load_scans(bag, odom_topic="tf")[1] == "/tf"

@@ -166,6 +166,11 @@ def info(input_path: InputArg, topic: TopicOption = None) -> None:
         console.print("several LaserScan topics; pick one for detect/plot with:")
         for source in sources:
             console.print(f"  --topic {quoted(source.topic)}", highlight=False)
+    odometry = list(getattr(sources[0], "odom_topics", []))
+    if len(odometry) > 1:  # a listing reads none of them: say how to choose
+        console.print("several Odometry topics; pick the scan poses' odometry with:")
+        for name in odometry:
+            console.print(f"  --odom-topic {quoted(name)}", highlight=False)
 
 
 def _head_table(input_path: Path, description: dict[str, Any]) -> Any:

@@ -66,7 +66,7 @@ def evaluate_loops_command(
     """
     # the library is imported after the options are parsed, so that --help stays instant
     from laser_corners.eval.loops import LoopsConfig, evaluate_loops
-    from laser_corners.eval.real import ODOMETRY_POSES, load_scans
+    from laser_corners.eval.real import load_scans
     from laser_corners.viz.loops_report import loops_rows, write_loops_report
 
     console = Console(stderr=True)
@@ -82,7 +82,7 @@ def evaluate_loops_command(
     with _Phases(console) as progress:
         progress(f"reading {input_path.name}", 0, None)
         scans, pose_source = load_scans(input_path, topic, max_scans, trajectory, odom_topic)
-        if pose_source == ODOMETRY_POSES:
+        if pose_source.endswith("/tf"):  # a bag's odometry (eval.real.ODOMETRY_POSES)
             progress.warn(
                 f"the poses are the bag's raw odometry ({pose_source}), not ground truth: "
                 "a correct match counts as wrong where odometry drifted, so precision means "

@@ -113,8 +113,9 @@ class RealEvaluation:
 
 
 ODOMETRY_POSES = "/odom + /tf"
-"""The pose source :func:`load_scans` names for a bag's odometry (raw, drifting: not ground
-truth)."""
+"""The pose source :func:`load_scans` names for a bag's odometry on ``/odom`` (raw, drifting:
+not ground truth); another Odometry topic is named the same way (``/wheel_odom + /tf``), the
+odometry of ``/tf`` alone ``/tf``: every bag odometry ends with ``/tf``."""
 
 
 def load_scans(
@@ -146,7 +147,8 @@ def load_scans(
     elif source.kind == "carmen":
         pose_source = "laser poses of the log"
     elif source.kind in ("ros1", "ros2", "mcap"):
-        pose_source = ODOMETRY_POSES
+        odometry = getattr(source, "odom_topic", None)
+        pose_source = "/tf" if odometry in (None, "/tf") else f"{odometry} + /tf"
     else:
         pose_source = "poses of the recording"
     if not any(s.pose is not None for s in scans):
