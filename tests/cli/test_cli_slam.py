@@ -122,7 +122,7 @@ def test_ctrl_c_writes_what_was_mapped_and_exits_130(tmp_path: Path, monkeypatch
     bag, _, _ = _sim_bag(tmp_path, n_scans=20)
     partial = fake_result(n_scans=40, interrupted=True)
 
-    def interrupted_run(path, options=None, *, topic=None, progress=None, stop_scan=None):
+    def interrupted_run(path, options=None, *, progress=None, **kwargs):
         for i in range(40):
             progress(i, 100, float(partial.stamps[i]))
         return partial  # what run_slam returns when Ctrl-C stops it

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import Stores, get_typestore
 
 from conftest import real_file, run_until_killed
 from laser_corners import CornerDetector, InputError, LaserScan
@@ -19,6 +18,7 @@ from laser_corners.io.messages import (
     MARKER_DELETEALL,
 )
 from laser_corners.pipeline import detect_file, detect_recording
+from sim_drives import SCAN_TYPE, BagMessages
 
 
 def test_fr079_keypoint_bag_reads_back_with_the_scan_stamps(tmp_path: Path) -> None:
@@ -66,34 +66,18 @@ def _write_ros2_mcap(
     path: Path, scans: list[LaserScan], storage: StoragePlugin = StoragePlugin.MCAP
 ) -> None:
     """A tiny ROS 2 bag with a LaserScan topic and a non-scan topic (as evo does)."""
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    scan_type = store.types["sensor_msgs/msg/LaserScan"]
-    header_type = store.types["std_msgs/msg/Header"]
-    time_type = store.types["builtin_interfaces/msg/Time"]
-    string_type = store.types["std_msgs/msg/String"]
+    bag = BagMessages(ros2=True)
+    string_type = bag.t["std_msgs/msg/String"]
     with Writer(path, version=9, storage_plugin=storage) as writer:
-        scan_conn = writer.add_connection("/base_scan", scan_type.__msgtype__, typestore=store)
-        text_conn = writer.add_connection("/chatter", string_type.__msgtype__, typestore=store)
+        scan_conn = writer.add_connection("/base_scan", SCAN_TYPE, typestore=bag.store)
+        text_conn = writer.add_connection("/chatter", string_type.__msgtype__, typestore=bag.store)
         for scan in scans:
             ns = round(scan.stamp * 1e9)
-            header = header_type(
-                stamp=time_type(sec=ns // 10**9, nanosec=ns % 10**9), frame_id="base_laser"
+            writer.write(
+                scan_conn, ns, bag.ser(bag.scan(scan.stamp, scan, "base_laser"), SCAN_TYPE)
             )
-            msg = scan_type(
-                header=header,
-                angle_min=scan.angle_min,
-                angle_max=scan.angle_min + scan.angle_increment * (scan.n_beams - 1),
-                angle_increment=scan.angle_increment,
-                time_increment=0.0,
-                scan_time=0.0,
-                range_min=scan.range_min,
-                range_max=scan.range_max,
-                ranges=scan.ranges.astype(np.float32),
-                intensities=np.zeros(0, np.float32),
-            )
-            writer.write(scan_conn, ns, store.serialize_cdr(msg, scan_type.__msgtype__))
-            text = string_type(data="hello")
-            writer.write(text_conn, ns, store.serialize_cdr(text, string_type.__msgtype__))
+            text = bag.ser(string_type(data="hello"), string_type.__msgtype__)
+            writer.write(text_conn, ns, text)
 
 
 def test_ros2_mcap_in_and_keypoint_mcap_out(tmp_path: Path) -> None:

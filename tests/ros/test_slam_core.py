@@ -228,6 +228,12 @@ def test_invalid_parameters_give_one_line(values, message) -> None:
     assert message in str(err.value) and "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize(("given", "kept"), [("tf", ""), ("/tf", ""), ("", ""), ("odom", "odom")])
+def test_odom_topic_tf_means_the_odometry_on_tf(given: str, kept: str) -> None:
+    config = MappingConfig.from_mapping({"mode": "slam", "odom_topic": given})
+    assert config.odom_topic == kept
+
+
 def test_missing_map_folder_is_one_line(tmp_path) -> None:
     config = MappingConfig.from_mapping({"mode": "localise", "map": str(tmp_path / "nope")})
     with pytest.raises(InputError, match="nope: no such map folder"):

@@ -11,29 +11,18 @@ import pytest
 pytest.importorskip("gtsam")
 
 from laser_corners.pose import between_many, compose
-from laser_corners.sim import SICK_LMS_1DEG, World
+from laser_corners.sim import World
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.result import LoopClosure
+from sim_drives import drive_slam, two_rooms
 
 RATE = 5.0
 
 
-def _rooms() -> World:
-    """A room with a door to a second one, a pillar and a triangle: structure everywhere."""
-    world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
-    world.add_polygon([[6, 0], [6.1, 0], [6.1, 3], [6, 3]])
-    world.add_polygon([[6, 5], [6.1, 5], [6.1, 8], [6, 8]])
-    world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
-    world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
-    return world
-
-
 def _drive(slam: Slam, truth: np.ndarray, odo: np.ndarray) -> None:
-    world = _rooms()
-    rng = np.random.default_rng(5)
-    for i, (pose, odom) in enumerate(zip(truth, odo, strict=True)):
-        scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=i / RATE)
-        slam.add(scan, odom, i / RATE)
+    """The drive through :func:`two_rooms` (without the round post) at RATE Hz."""
+    stamps = np.arange(len(truth)) / RATE
+    drive_slam(slam, two_rooms(post=False), truth, odo, stamps, np.random.default_rng(5))
 
 
 def _step_errors(poses: np.ndarray, truth: np.ndarray) -> np.ndarray:
@@ -98,11 +87,8 @@ def test_a_corridor_keeps_the_driven_length() -> None:
     odo = [truth[0]]
     for d in between_many(truth[:-1], truth[1:]):
         odo.append(np.array(compose(odo[-1], d + rng.normal(0.0, [0.002, 0.002, 0.002]))))
-    world = _corridor()
     slam = Slam(SlamOptions(loop_closure=False))
-    for i, (pose, odom) in enumerate(zip(truth, odo, strict=True)):
-        scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=i / 10)
-        slam.add(scan, odom, i / 10)
+    drive_slam(slam, _corridor(), truth, np.array(odo), np.arange(len(truth)) / 10, rng)
     poses = slam.result().poses
     est = between_many(poses[:-10:5], poses[10::5])  # 1 s relations
     gt = between_many(truth[:-10:5], truth[10::5])

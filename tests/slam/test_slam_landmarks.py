@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("gtsam")
 
-from test_slam_sim import RATE, _building, _loop_path, _noisy_odometry, _relations
+from test_slam_sim import RATE, _loop_path, _relations
 
 from laser_corners.errors import InvalidParamsError
 from laser_corners.eval.relations import relation_metrics
@@ -15,12 +15,13 @@ from laser_corners.pose import compose_many
 from laser_corners.sim import UST_10LX, World
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.viz.slam_report import write_landmarks
+from sim_drives import noisy_odometry, two_rooms
 
 MOUNT = (0.2, 0.0, 0.0)
 
 
 def _world() -> World:
-    world = _building()
+    world = two_rooms()
     world.add_polygon([[4.0, 5.0], [4.6, 5.0], [4.6, 5.6], [4.0, 5.6]])
     world.add_polygon([[8.0, 3.5], [8.8, 3.5], [8.8, 4.0], [8.0, 4.0]])
     return world
@@ -31,7 +32,7 @@ def lap():
     """One lap of the two-room building seen by a 270 deg, 0.25 deg scanner mounted 0.2 m
     ahead of the base: (world, true base poses, noisy odometry, scans)."""
     truth = _loop_path(1)
-    odo = _noisy_odometry(truth, np.random.default_rng(7))
+    odo = noisy_odometry(truth, np.random.default_rng(7))
     world = _world()
     rng = np.random.default_rng(3)
     laser = compose_many(truth, np.asarray(MOUNT))

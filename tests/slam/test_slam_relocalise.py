@@ -10,30 +10,17 @@ import pytest
 
 pytest.importorskip("gtsam")
 
-from laser_corners.pose import between_many, compose
-from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.relocalise import free_space_conflict, occupancy_keys
+from sim_drives import drive_slam, noisy_odometry, straight, two_rooms
 
 RATE = 10.0
 
 
-def _building() -> World:
-    """Two rooms joined by a door, with a pillar (as in test_slam_sim)."""
-    world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
-    world.add_polygon([[6, 0], [6.1, 0], [6.1, 3], [6, 3]])
-    world.add_polygon([[6, 5], [6.1, 5], [6.1, 8], [6, 8]])
-    world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
-    world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
-    world.add_circle((8.5, 2.0), 0.15)
-    return world
-
-
 def _leg(a, b, turn_to: float | None = None) -> list[tuple[float, float, float]]:
-    a, b = np.asarray(a, float), np.asarray(b, float)
+    """:func:`straight` from ``a`` to ``b``, then a turn in place to ``turn_to``."""
+    out = straight(a, b)
     heading = math.atan2(b[1] - a[1], b[0] - a[0])
-    n = int(np.hypot(*(b - a)) / 0.05)
-    out = [(*(a + t * (b - a)), heading) for t in np.arange(n) / n]
     if turn_to is not None:
         steps = int(abs(turn_to - heading) / 0.15)
         out += [
@@ -55,26 +42,15 @@ def _kidnap_drive() -> tuple[np.ndarray, int]:
     return np.array(path), kidnap
 
 
-def _odometry(truth: np.ndarray, kidnap: int, rng: np.random.Generator) -> np.ndarray:
-    """Odometry with 2 % scale error and noise; across the kidnap it reads no motion."""
-    steps = between_many(truth[:-1], truth[1:])
-    steps[kidnap - 1] = 0.0  # carried: the wheels did not turn
-    odo = [truth[0]]
-    for d in steps:
-        noisy = np.array([d[0] * 1.02, d[1], d[2] * 1.01 + 0.001]) + rng.normal(0, 0.002, 3)
-        odo.append(compose(odo[-1], noisy))
-    return np.array(odo)
-
-
 def _run(options: SlamOptions, gap: float):
     truth, kidnap = _kidnap_drive()
-    odo = _odometry(truth, kidnap, np.random.default_rng(1))
-    world, rng = _building(), np.random.default_rng(2)
+    odo = noisy_odometry(
+        truth, np.random.default_rng(1), (1.02, 1.01, 0.001), (0.002,) * 3, still=(kidnap,)
+    )
+    index = np.arange(len(truth))
+    stamps = index / RATE + np.where(index >= kidnap, gap, 0.0)
     slam = Slam(options)
-    for i, (pose, odom) in enumerate(zip(truth, odo, strict=True)):
-        stamp = i / RATE + (gap if i >= kidnap else 0.0)
-        scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=stamp)
-        slam.add(scan, odom, stamp)
+    drive_slam(slam, two_rooms(), truth, odo, stamps, np.random.default_rng(2))
     return truth, kidnap, slam.result()
 
 

@@ -11,23 +11,13 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.eval.relations import closure_consistency, relation_metrics
-from laser_corners.pose import between_many, compose, compose_many
+from laser_corners.pose import between_many, compose_many
 from laser_corners.scan import LaserScan
-from laser_corners.sim import SICK_LMS_1DEG, World
+from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam import Slam, SlamOptions, run_slam
+from sim_drives import drive_slam, noisy_odometry, straight, two_rooms
 
 RATE = 10.0
-
-
-def _building() -> World:
-    """Two rooms joined by a door, with a pillar: enough structure in every direction."""
-    world = World().add_polygon([[0, 0], [12, 0], [12, 8], [0, 8]])
-    world.add_polygon([[6, 0], [6.1, 0], [6.1, 3], [6, 3]])
-    world.add_polygon([[6, 5], [6.1, 5], [6.1, 8], [6, 8]])
-    world.add_polygon([[2.5, 2.5], [3.3, 2.5], [3.3, 3.2], [2.5, 3.2]])
-    world.add_polygon([[9, 5.5], [10, 5.5], [9.5, 6.4]])
-    world.add_circle((8.5, 2.0), 0.15)
-    return world
 
 
 def _loop_path(laps: int = 2) -> np.ndarray:
@@ -37,33 +27,17 @@ def _loop_path(laps: int = 2) -> np.ndarray:
     for _ in range(laps):
         for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
             heading = math.atan2(b[1] - a[1], b[0] - a[0])
-            n = int(np.hypot(*(b - a)) / 0.05)
-            for t in np.arange(n) / n:
-                poses.append((*(a + t * (b - a)), heading))
+            poses += straight(a, b)
             # turn in place to the next leg
             poses.extend((b[0], b[1], heading + k * 0.15) for k in range(1, 11))
     return np.array(poses)
 
 
-def _noisy_odometry(truth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Odometry: the true increments with 3 % scale error, a yaw bias and white noise."""
-    steps = between_many(truth[:-1], truth[1:])
-    odo = [truth[0]]
-    for d in steps:
-        noisy = np.array([d[0] * 1.03, d[1], d[2] * 1.02 + 0.002])
-        noisy += rng.normal(0.0, [0.004, 0.002, 0.003])
-        odo.append(compose(odo[-1], noisy))
-    return np.array(odo)
-
-
 def _run(truth: np.ndarray, odo: np.ndarray, options: SlamOptions, mount=(0.0, 0.0, 0.0)):
-    world = _building()
-    rng = np.random.default_rng(3)
     slam = Slam(options, mount)
     laser = compose_many(truth, np.asarray(mount, dtype=float))
-    for i, (pose, odom) in enumerate(zip(laser, odo, strict=True)):
-        scan = world.scan(tuple(pose), SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=i / RATE)
-        slam.add(scan, odom, i / RATE)
+    stamps = np.arange(len(truth)) / RATE
+    drive_slam(slam, two_rooms(), laser, odo, stamps, np.random.default_rng(3))
     return slam.result()
 
 
@@ -84,7 +58,7 @@ def _relations(truth: np.ndarray, step: int = 15) -> np.ndarray:
 @pytest.fixture(scope="module")
 def drive() -> tuple[np.ndarray, np.ndarray]:
     truth = _loop_path()
-    return truth, _noisy_odometry(truth, np.random.default_rng(7))
+    return truth, noisy_odometry(truth, np.random.default_rng(7))
 
 
 def test_slam_beats_noisy_odometry(drive) -> None:
@@ -117,7 +91,7 @@ def test_mount_is_applied(drive) -> None:
 
 
 def test_beam_count_change_and_time_jump_do_not_crash() -> None:
-    world = _building()
+    world = two_rooms()
     slam = Slam(SlamOptions())
     rng = np.random.default_rng(0)
     poses = [(1.5 + 0.05 * i, 1.5, 0.0) for i in range(40)]

@@ -42,15 +42,16 @@ _FILE_ERRNOS = frozenset({errno.ENOSPC, errno.EROFS, errno.EDQUOT, errno.EFBIG})
 def error_line(exc: BaseException) -> str | None:
     """The one-line message of a known error, or None for anything else (a bug).
 
-    A bag's several LaserScan topics (``io.TopicChoiceError``) keep one ready-to-paste
-    ``--topic`` line each.
+    A bag's several LaserScan (Odometry) topics (``io.TopicChoiceError``) keep one
+    ready-to-paste ``--topic`` (``--odom-topic``) line each.
     """
     if isinstance(exc, LaserCornersError):
         message = str(exc).strip() or type(exc).__name__
         topics = getattr(exc, "topics", None)
         if isinstance(topics, list):
             head = printable(message.splitlines()[0])
-            return head + "".join(f"\n  --topic {printable(str(t))}" for t in topics)
+            option = printable(str(getattr(exc, "option", "--topic")))
+            return head + "".join(f"\n  {option} {printable(str(t))}" for t in topics)
         return printable(" ".join(message.split("\n")))
     if isinstance(exc, OSError) and (exc.filename is not None or exc.errno in _FILE_ERRNOS):
         where = f"{exc.filename}: " if exc.filename is not None else ""

@@ -25,6 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "InputArg",
+    "OdomTopicOption",
     "ParamsOption",
     "PresetOption",
     "SetOption",
@@ -47,6 +48,14 @@ InputArg = Annotated[
 ]
 TopicOption = Annotated[
     str | None, typer.Option("--topic", "-t", help="LaserScan topic (default: the only one).")
+]
+OdomTopicOption = Annotated[
+    str | None,
+    typer.Option(
+        "--odom-topic",
+        help="Odometry of a bag's scan poses: a nav_msgs/Odometry topic, or tf for /tf "
+        "(default: the only Odometry topic, /tf when there is none).",
+    ),
 ]
 PresetOption = Annotated[
     str | None,

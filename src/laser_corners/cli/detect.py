@@ -10,6 +10,7 @@ import typer
 from laser_corners.cli.app import app
 from laser_corners.cli.common import (
     InputArg,
+    OdomTopicOption,
     TopicOption,
     image_file,
     new_table,
@@ -88,6 +89,7 @@ def detect(
         ),
     ] = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     compression: Annotated[
         str | None,
         typer.Option(
@@ -127,6 +129,7 @@ def detect(
             on_open=opened,
             progress=update,
             compression=compression,
+            odom_topic=odom_topic,
         )
     finally:
         stop_progress(bar)
@@ -163,6 +166,11 @@ def info(input_path: InputArg, topic: TopicOption = None) -> None:
         console.print("several LaserScan topics; pick one for detect/plot with:")
         for source in sources:
             console.print(f"  --topic {quoted(source.topic)}", highlight=False)
+    odometry = list(getattr(sources[0], "odom_topics", []))
+    if len(odometry) > 1:  # a listing reads none of them: say how to choose
+        console.print("several Odometry topics; pick the scan poses' odometry with:")
+        for name in odometry:
+            console.print(f"  --odom-topic {quoted(name)}", highlight=False)
 
 
 def _head_table(input_path: Path, description: dict[str, Any]) -> Any:
@@ -225,21 +233,27 @@ def plot(
         Path | None, typer.Option("--output", "-o", help="PNG to write (default INPUT_scanN.png).")
     ] = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     *,
     choice: ParamsChoice,
 ) -> None:
     """Plot one scan: points, per-point candidates and keypoints (sensor frame)."""
     default = Path(f"{input_path.name.split('.')[0]}_scan{scan_index}.png")
     output, kind = image_file(output or default)
-    n_keypoints, n_candidates = _plot_scan(input_path, scan_index, (output, kind), topic, choice)
+    topics = (topic, odom_topic)
+    n_keypoints, n_candidates = _plot_scan(input_path, scan_index, (output, kind), topics, choice)
     typer.echo(f"wrote {output} ({n_keypoints} keypoints, {n_candidates} candidates)")
 
 
 def _plot_scan(
-    input_path: Path, index: int, output: tuple[Path, str], topic: str | None, choice: Any
+    input_path: Path,
+    index: int,
+    output: tuple[Path, str],
+    topics: tuple[str | None, str | None],
+    choice: Any,
 ) -> tuple[int, int]:
     """Plot scan ``index`` with its candidates and keypoints into ``output`` (a path and an
-    image format); the counts."""
+    image format); the counts. ``topics``: the LaserScan topic and the odometry."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -248,7 +262,7 @@ def _plot_scan(
     from laser_corners.pipeline import open_recording, scan_at
     from laser_corners.viz.plots import plot_scan
 
-    with open_recording(input_path, topic, choice) as recording:
+    with open_recording(input_path, topics[0], choice, odom_topic=topics[1]) as recording:
         scan = recording.first if index == 0 else scan_at(recording.source, index)
         keypoints, candidates = recording.detector.detect(scan, return_candidates=True)
     fig, ax = plt.subplots(figsize=(8, 8))

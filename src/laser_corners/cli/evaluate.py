@@ -21,6 +21,7 @@ from rich.table import Table
 from laser_corners.cli.app import evaluate_app, fail
 from laser_corners.cli.common import (
     InputArg,
+    OdomTopicOption,
     ParamsOption,
     PresetOption,
     SetOption,
@@ -146,6 +147,7 @@ def evaluate_real_command(
         Path, typer.Option("--output", "-o", help="Folder for the figures, arrays and report.md.")
     ] = Path("report"),
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     preset: PresetOption = None,
     params_file: ParamsOption = None,
     set_: SetOption = None,
@@ -200,7 +202,7 @@ def evaluate_real_command(
     )
     new_folder(output)
     t0 = time.perf_counter()
-    scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
+    scans, pose_source = load_scans(input_path, topic, max_scans, trajectory, odom_topic)
     relations_path = relations if relations is not None else default_relations(input_path)
     result = evaluate_real(
         scans,

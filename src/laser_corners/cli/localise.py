@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from laser_corners.cli.app import app, fail
-from laser_corners.cli.common import InputArg, TopicOption, new_folder
+from laser_corners.cli.common import InputArg, OdomTopicOption, TopicOption, new_folder
 from laser_corners.cli.kernels import SlamKernelCommand
 
 if TYPE_CHECKING:
@@ -90,6 +90,7 @@ def localise_command(
     set_: _Set = None,
     config: _Config = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     mount: _Mount = None,
 ) -> None:
     """Localise a recording with odometry in a map: global localisation with no initial pose,
@@ -119,6 +120,7 @@ def localise_command(
             input_path,
             options,
             topic=topic,
+            odom_topic=odom_topic,
             start_scan=start_scan,
             stop_scan=stop_scan,
             initial_pose=pose,

@@ -15,7 +15,7 @@ import typer
 from rich.console import Console
 
 from laser_corners.cli.app import evaluate_app
-from laser_corners.cli.common import InputArg, TopicOption, new_folder, quoted
+from laser_corners.cli.common import InputArg, OdomTopicOption, TopicOption, new_folder, quoted
 from laser_corners.cli.evaluate import TrajectoryOption, method_list
 from laser_corners.cli.kernels import KernelCommand
 
@@ -55,6 +55,7 @@ def evaluate_loops_command(
         ),
     ] = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     trajectory: TrajectoryOption = None,
 ) -> None:
     """Place recognition with FLIRT's protocol on a log with corrected poses.
@@ -65,7 +66,7 @@ def evaluate_loops_command(
     """
     # the library is imported after the options are parsed, so that --help stays instant
     from laser_corners.eval.loops import LoopsConfig, evaluate_loops
-    from laser_corners.eval.real import ODOMETRY_POSES, load_scans
+    from laser_corners.eval.real import load_scans
     from laser_corners.viz.loops_report import loops_rows, write_loops_report
 
     console = Console(stderr=True)
@@ -80,8 +81,8 @@ def evaluate_loops_command(
     new_folder(output)
     with _Phases(console) as progress:
         progress(f"reading {input_path.name}", 0, None)
-        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory)
-        if pose_source == ODOMETRY_POSES:
+        scans, pose_source = load_scans(input_path, topic, max_scans, trajectory, odom_topic)
+        if pose_source.endswith("/tf"):  # a bag's odometry (eval.real.ODOMETRY_POSES)
             progress.warn(
                 f"the poses are the bag's raw odometry ({pose_source}), not ground truth: "
                 "a correct match counts as wrong where odometry drifted, so precision means "

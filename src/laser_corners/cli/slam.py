@@ -15,7 +15,13 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from laser_corners.cli.app import app, evaluate_app, fail
-from laser_corners.cli.common import InputArg, TopicOption, check_number, new_folder
+from laser_corners.cli.common import (
+    InputArg,
+    OdomTopicOption,
+    TopicOption,
+    check_number,
+    new_folder,
+)
 from laser_corners.cli.kernels import SlamKernelCommand
 
 if TYPE_CHECKING:
@@ -75,9 +81,14 @@ def _progress_bar() -> Any:
 
 
 def _run(
-    input_path: Path, options: SlamOptions, topic: str | None, stop_scan: int | None
+    input_path: Path,
+    options: SlamOptions,
+    topics: tuple[str | None, str | None],
+    stop_scan: int | None,
 ) -> tuple[SlamResult, float]:
-    """``run_slam`` under a progress bar showing the real-time factor; the result, wall s."""
+    """``run_slam`` under a progress bar showing the real-time factor; the result, wall s.
+
+    ``topics``: the LaserScan topic and the odometry (``--topic``, ``--odom-topic``)."""
     from laser_corners.slam import run_slam
 
     bar = _progress_bar()
@@ -95,7 +106,14 @@ def _run(
         bar.update(task, completed=done, total=total, rtf=rtf)
 
     try:
-        result = run_slam(input_path, options, topic=topic, progress=progress, stop_scan=stop_scan)
+        result = run_slam(
+            input_path,
+            options,
+            topic=topics[0],
+            odom_topic=topics[1],
+            progress=progress,
+            stop_scan=stop_scan,
+        )
     finally:
         bar.stop()
     return result, time.perf_counter() - start
@@ -165,6 +183,7 @@ def slam_command(
     ],
     relations: _Relations = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     set_: _Set = None,
     config: _Config = None,
     stop_scan: _StopScan = None,
@@ -193,7 +212,7 @@ def slam_command(
     table = read_relations(relations) if relations is not None else None
     folder = new_folder(output)
     try:
-        result, wall = _run(input_path, options, topic, stop_scan)
+        result, wall = _run(input_path, options, (topic, odom_topic), stop_scan)
     except KeyboardInterrupt:  # before the first scan (run_slam keeps later interrupts)
         typer.echo(f"interrupted before the first scan; nothing written to {folder}", err=True)
         raise typer.Exit(130) from None

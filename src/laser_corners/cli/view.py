@@ -10,6 +10,7 @@ import typer
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import (
     InputArg,
+    OdomTopicOption,
     TopicOption,
     with_params_choice,
 )
@@ -44,6 +45,7 @@ def view(
         int | None, typer.Option("--max-scans", min=1, help="Stop after this many scans.")
     ] = None,
     topic: TopicOption = None,
+    odom_topic: OdomTopicOption = None,
     *,
     choice: ParamsChoice,
 ) -> None:
@@ -61,6 +63,7 @@ def view(
             connect=connect,
             every=every,
             max_scans=max_scans,
+            odom_topic=odom_topic,
         )
     except ViewerUnavailableError as exc:
         hint = "" if save is not None else "; use --save FILE.rrd (no display needed)"

@@ -113,8 +113,9 @@ class RealEvaluation:
 
 
 ODOMETRY_POSES = "/odom + /tf"
-"""The pose source :func:`load_scans` names for a bag's odometry (raw, drifting: not ground
-truth)."""
+"""The pose source :func:`load_scans` names for a bag's odometry on ``/odom`` (raw, drifting:
+not ground truth); another Odometry topic is named the same way (``/wheel_odom + /tf``), the
+odometry of ``/tf`` alone ``/tf``: every bag odometry ends with ``/tf``."""
 
 
 def load_scans(
@@ -122,15 +123,19 @@ def load_scans(
     topic: str | None = None,
     max_scans: int | None = None,
     trajectory: Path | None = None,
+    odom_topic: str | None = None,
 ) -> tuple[list[LaserScan], str]:
     """Read the scans (at most ``max_scans``) and attach poses; returns them and the pose source.
+
+    A bag's poses come from its odometry ``odom_topic`` (an Odometry topic or ``"tf"``;
+    default: the only one, see :func:`laser_corners.io.open_scans`).
 
     Raises
     ------
     InputError
         No scans, or no scan with a pose and no trajectory to give them one.
     """
-    source = open_scans(path, topic=topic)
+    source = open_scans(path, topic=topic, odom_topic=odom_topic)
     scans = list(islice(iter(source), max_scans))
     if not scans:
         raise no_scan_error(source)
@@ -142,7 +147,8 @@ def load_scans(
     elif source.kind == "carmen":
         pose_source = "laser poses of the log"
     elif source.kind in ("ros1", "ros2", "mcap"):
-        pose_source = ODOMETRY_POSES
+        odometry = getattr(source, "odom_topic", None)
+        pose_source = "/tf" if odometry in (None, "/tf") else f"{odometry} + /tf"
     else:
         pose_source = "poses of the recording"
     if not any(s.pose is not None for s in scans):

@@ -55,21 +55,33 @@ MAX_SKIP_EXAMPLES = 5
 
 
 class TopicChoiceError(InputError):
-    """A bag has several LaserScan topics and none was chosen.
+    """A bag has several LaserScan (or Odometry) topics and none was chosen.
 
     Attributes
     ----------
     path : Path
         The bag.
     topics : list of str
-        Its LaserScan topics, one per line of the message.
+        Its LaserScan (Odometry) topics, one per line of the message.
+    option : str
+        The option that chooses: ``--topic`` (``--odom-topic`` for the odometry); the CLI
+        prints one ``OPTION TOPIC`` line per topic.
     """
 
-    def __init__(self, path: Path, topics: list[str]) -> None:
+    def __init__(
+        self,
+        path: Path,
+        topics: list[str],
+        what: str = "LaserScan",
+        option: str = "--topic",
+        also: str = "",
+    ) -> None:
         self.path = path
         self.topics = list(topics)
+        self.option = option
         lines = "".join(f"\n  {t}" for t in self.topics)
-        super().__init__(f"{path}: {len(self.topics)} LaserScan topics; choose one of:{lines}")
+        head = f"{path}: {len(self.topics)} {what} topics; choose one of{also}:"
+        super().__init__(head + lines)
 
 
 def read_head(path: Path, size: int = 64) -> bytes:

@@ -76,7 +76,9 @@ def detect_kind(path: str | Path) -> SourceKind:
     )
 
 
-def open_scans(path: str | Path, topic: str | None = None) -> ScanSource:
+def open_scans(
+    path: str | Path, topic: str | None = None, *, odom_topic: str | None = None
+) -> ScanSource:
     """Open a recording of 2D laser scans; the kind is inferred from the path and content.
 
     Parameters
@@ -87,6 +89,10 @@ def open_scans(path: str | Path, topic: str | None = None) -> ScanSource:
         file), an ``.npz`` or a ``.csv`` of scans (layouts in ``docs/io-and-cli.md``).
     topic : str, optional
         The ``sensor_msgs/LaserScan`` topic of a bag. Default: the only LaserScan topic.
+    odom_topic : str, optional
+        The odometry of a bag's scan poses: a ``nav_msgs/Odometry`` topic, or ``"tf"`` for
+        ``/tf``. Default: the only Odometry topic, ``/tf`` when there is none. Other kinds
+        have no choice (a CARMEN log's poses are those of its laser lines).
 
     Returns
     -------
@@ -97,8 +103,9 @@ def open_scans(path: str | Path, topic: str | None = None) -> ScanSource:
     ------
     InputError
         Missing, empty, unreadable or corrupt file, unknown kind, a topic that is not a
-        LaserScan, several LaserScan topics and no ``topic``, or ``topic`` given for a file
-        without topics.
+        LaserScan (an odometry topic that is not an Odometry), several LaserScan (Odometry)
+        topics and no ``topic`` (``odom_topic``): a ``TopicChoiceError``, or ``topic`` or
+        ``odom_topic`` given for a file without topics.
 
     Examples
     --------
@@ -109,9 +116,15 @@ def open_scans(path: str | Path, topic: str | None = None) -> ScanSource:
     path = Path(path)
     kind = detect_kind(path)
     if kind in BAG_KINDS:
-        return BagSource(path, kind, topic)
+        return BagSource(path, kind, topic, odom_topic=odom_topic)
     if topic is not None:
         raise InputError(f"{path}: a {kind} file has no topics; a topic applies to bags only")
+    if odom_topic is not None:
+        poses = "the laser lines' poses" if kind == "carmen" else "its own poses"
+        raise InputError(
+            f"{path}: a {kind} file has no odometry topics (it gives {poses}); "
+            "an odometry topic applies to bags only"
+        )
     if kind == "carmen":
         return CarmenSource(path)
     return NpzSource(path) if kind == "npz" else CsvSource(path)

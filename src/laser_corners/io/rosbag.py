@@ -5,11 +5,15 @@ reader's typestore (from the bag's own definitions, else a stock typestore from
 ``get_typestore``), so no ROS installation is needed. A ROS 1 bag whose index rosbags refuses
 is read from its chunk records (:mod:`laser_corners.io.ros1.chunks`).
 
-Sensor pose (:mod:`laser_corners.io.poses`): when the bag has a ``nav_msgs/msg/Odometry``
-topic, each scan gets the pose of its frame in the odometry frame, interpolated at its stamp.
-Without one, the odometry is read from ``/tf`` (:func:`tf_odometry`): the transform that
-changes over the bag nearest above the scan frame in the tf tree (``odom -> base_link`` under
-a ``map -> odom``), whose parent is the odometry frame.
+Sensor pose (:mod:`laser_corners.io.poses`): each scan gets the pose of its frame in the
+odometry frame, interpolated at its stamp. The odometry source (``odom_topic``): a
+``nav_msgs/msg/Odometry`` topic by name, or :data:`TF_ODOMETRY_CHOICE` (``"tf"``) for ``/tf``;
+by default the only Odometry topic, ``/tf`` when there is none, and with several of them
+a :class:`~laser_corners.io.base.TopicChoiceError` for ``--odom-topic`` (the reader does not
+choose).
+From ``/tf`` (:func:`tf_odometry`), the odometry is the transform that changes over the bag
+nearest above the scan frame in the tf tree (``odom -> base_link`` under a ``map -> odom``),
+whose parent is the odometry frame.
 
 Speed: the bag is read in one pass (scans, odometry and tf in log-time order, each chunk
 decompressed once); a scan waits in a small look-ahead buffer until an odometry sample stamped
@@ -75,10 +79,12 @@ from laser_corners.io.ros1.runs import (
 )
 from laser_corners.scan import LaserScan, Pose2D
 
-__all__ = ["TF_ODOMETRY", "BagSource", "tf_odometry"]
+__all__ = ["TF_ODOMETRY", "TF_ODOMETRY_CHOICE", "BagSource", "tf_odometry"]
 
 TF_ODOMETRY = "/tf"
-"""``BagSource.odom_topic`` when the odometry is read from ``/tf`` (no Odometry topic)."""
+"""``BagSource.odom_topic`` when the odometry is read from ``/tf``."""
+TF_ODOMETRY_CHOICE = "tf"
+"""The ``odom_topic`` value (``--odom-topic tf``) that takes the odometry from ``/tf``."""
 
 Edge = tuple[str, str]
 """A tf edge: parent frame, child frame."""
@@ -146,9 +152,9 @@ def tf_odometry(
         return edge, sorted(dynamic[edge])
     listed = ", ".join(f"{p} -> {c}" for p, c in sorted(dynamic))
     raise InputError(
-        f"{where}: no nav_msgs/Odometry topic, and /tf has several moving transforms "
-        f"({listed}) none of which is above the scan frame {laser!r}: add an Odometry topic "
-        "or the missing /tf_static link"
+        f"{where}: odometry from /tf, which has several moving transforms ({listed}) "
+        f"none of which is above the scan frame {laser!r}: add the missing /tf_static link "
+        "or an Odometry topic"
     )
 
 
@@ -165,7 +171,12 @@ class BagSource(ScanSource):
         The LaserScan topic; default: the only one.
     strict : bool
         With False, several LaserScan topics and no ``topic`` pick the first one instead of
-        raising (for listings such as ``laser-corners info``).
+        raising, and several Odometry topics and no ``odom_topic`` read no odometry (for
+        listings such as ``laser-corners info``).
+    odom_topic : str, optional
+        The odometry: a ``nav_msgs/msg/Odometry`` topic, or ``"tf"`` for ``/tf``. Default:
+        the only Odometry topic, ``/tf`` when there is none; several raise a
+        :class:`~laser_corners.io.base.TopicChoiceError` (``option="--odom-topic"``).
 
     Attributes
     ----------
@@ -173,9 +184,12 @@ class BagSource(ScanSource):
         Every topic of the bag: message type and message count.
     laser_topics : list of str
         The ``sensor_msgs/msg/LaserScan`` topics.
+    odom_topics : list of str
+        The ``nav_msgs/msg/Odometry`` topics.
     odom_topic : str or None
         The odometry topic used for poses; :data:`TF_ODOMETRY` when the odometry comes from
-        ``/tf`` (set to None on the first read when ``/tf`` has no moving transform).
+        ``/tf`` (set to None on the first read when ``/tf`` has no moving transform, unless
+        it was asked for: then that read raises :class:`InputError`).
     tf_odometry : tuple of (str, str) or None
         ``(odometry frame, base frame)`` of the ``/tf`` odometry, once read.
     mounts : dict of str to Pose2D or None
@@ -195,7 +209,13 @@ class BagSource(ScanSource):
     per-message path through rosbags, e.g. to compare them)."""
 
     def __init__(
-        self, path: Path, kind: SourceKind, topic: str | None = None, strict: bool = True
+        self,
+        path: Path,
+        kind: SourceKind,
+        topic: str | None = None,
+        strict: bool = True,
+        *,
+        odom_topic: str | None = None,
     ) -> None:
         super().__init__(path, topic)
         self.kind = kind
@@ -216,15 +236,44 @@ class BagSource(ScanSource):
             self.topic = self.laser_topics[0]  # ``strict=False``: listing, not reading
         else:
             self.topic = self._choose_topic(topic)
-        odoms = sorted(t for t, (m, _) in self.topics.items() if m == ODOMETRY)
-        self.odom_topic: str | None = "/odom" if "/odom" in odoms else (odoms[0] if odoms else None)
+        self.odom_topics = sorted(t for t, (m, _) in self.topics.items() if m == ODOMETRY)
         self.tf_topics = [
             t for t in ("/tf_static", "/tf") if self.topics.get(t, ("",))[0] == TFMESSAGE
         ]
         self.tf_odometry: Edge | None = None
         self._tf_samples: list[OdomSample] | None = None
-        if self.odom_topic is None and TF_ODOMETRY in self.tf_topics:
-            self.odom_topic = TF_ODOMETRY  # resolved (or dropped) by _read_tf_odometry
+        self._tf_asked = odom_topic in (TF_ODOMETRY_CHOICE, TF_ODOMETRY)
+        # a TF_ODOMETRY choice is resolved (or dropped) by _read_tf_odometry
+        self.odom_topic: str | None = self._choose_odometry(odom_topic, strict)
+
+    def _choose_odometry(self, asked: str | None, strict: bool) -> str | None:
+        """The odometry topic (:data:`TF_ODOMETRY` for ``/tf``) for ``odom_topic=asked``."""
+        has_tf = TF_ODOMETRY in self.tf_topics
+        if asked is None:
+            if len(self.odom_topics) > 1:
+                if strict:
+                    also = f" (or {TF_ODOMETRY_CHOICE} for the odometry on /tf)"
+                    raise TopicChoiceError(
+                        self.path, self.odom_topics, ODOMETRY, "--odom-topic", also
+                    )
+                return None  # a listing: no odometry is read
+            if self.odom_topics:
+                return self.odom_topics[0]
+            return TF_ODOMETRY if has_tf else None
+        found = f"{ODOMETRY} topics: {', '.join(self.odom_topics) or 'none'}"
+        found += f"; /tf: {'yes' if has_tf else 'none'}"
+        if self._tf_asked:
+            if not has_tf:
+                raise InputError(f"{self.path}: odometry {asked!r}: no /tf topic; {found}")
+            return TF_ODOMETRY
+        if asked not in self.topics:
+            raise InputError(f"{self.path}: no odometry topic {asked!r} in the bag; {found}")
+        msgtype = self.topics[asked][0]
+        if msgtype != ODOMETRY:
+            raise InputError(
+                f"{self.path}: odometry topic {asked} is a {msgtype}, not a {ODOMETRY}; {found}"
+            )
+        return asked
 
     def _read_tf_odometry(self, reader: Any) -> None:
         """With the odometry from ``/tf``: read the tf topics once for :func:`tf_odometry`
@@ -261,6 +310,8 @@ class BagSource(ScanSource):
                     moving.setdefault((parent, child), []).append(sample)
         moving = {edge: samples for edge, samples in moving.items() if edge[1] not in fixed}
         chosen = tf_odometry(laser, static, moving, self.path)
+        if chosen is None and self._tf_asked:
+            raise InputError(f"{self.path}: odometry 'tf': no /tf transform changes over the bag")
         if chosen is None:
             self.odom_topic = None
             self._tf_samples = []
@@ -519,6 +570,8 @@ class BagSource(ScanSource):
         info["topics"] = {t: {"type": m, "count": n} for t, (m, n) in sorted(self.topics.items())}
         info["duration_s"] = round((self.end_ns - self.start_ns) * 1e-9, 3)
         info["odometry"] = self.odom_topic
+        if self.odom_topic is None and len(self.odom_topics) > 1:
+            info["odometry"] = f"not chosen: {', '.join(self.odom_topics)} (--odom-topic)"
         if self.tf_odometry is not None:
             info["odometry"] = f"/tf {self.tf_odometry[0]} -> {self.tf_odometry[1]}"
         info["index"] = "unreadable; read from its chunks" if self.from_chunks else "ok"

@@ -69,6 +69,7 @@ def run_localise(
     options: LocaliseOptions | None = None,
     *,
     topic: str | None = None,
+    odom_topic: str | None = None,
     start_scan: int = 0,
     stop_scan: int | None = None,
     initial_pose: ArrayLike | None = None,
@@ -86,6 +87,8 @@ def run_localise(
     options : LocaliseOptions, optional
     topic : str, optional
         LaserScan topic of a bag (default: the only one).
+    odom_topic : str, optional
+        Odometry of a bag: a ``nav_msgs/Odometry`` topic or ``"tf"`` (as ``run_slam``).
     start_scan, stop_scan : int
         Use the scans ``start_scan <= i < stop_scan`` of the recording.
     initial_pose : array of 3, optional
@@ -101,7 +104,7 @@ def run_localise(
         The map folder is bad, or the recording has no odometry.
     """
     options = options or LocaliseOptions()
-    with open_recording(path, topic) as rec:
+    with open_recording(path, topic, odom_topic=odom_topic) as rec:
         require_odometry(rec, path)
         recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id)
         loc = Localiser(map_data, options, mount=recorded)

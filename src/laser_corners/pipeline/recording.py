@@ -1,10 +1,11 @@
 """Open a recording and resolve its detector parameters (what every front end does first).
 
-``open_recording(path, topic, choice)`` opens the file (any kind :func:`laser_corners.io.open_scans`
-reads), reads its first scan (an :class:`~laser_corners.errors.InputError` "FILE: no readable
-scan" when there is none), resolves the :class:`ParamsChoice` against that scan (the ``auto``
-and ``robust`` presets adapt to it) and builds the detector. ``detect``, ``plot``, ``view`` and
-``batch`` all start here.
+``open_recording(path, topic, choice, odom_topic=...)`` opens the file (any kind
+:func:`laser_corners.io.open_scans` reads, with the odometry ``odom_topic`` of a bag), reads
+its first scan (an :class:`~laser_corners.errors.InputError` "FILE: no readable scan" when
+there is none), resolves the :class:`ParamsChoice` against that scan (the ``auto`` and
+``robust`` presets adapt to it) and builds the detector. ``detect``, ``plot``, ``view``,
+``batch``, ``slam`` and ``localise`` all start here.
 """
 
 from __future__ import annotations
@@ -106,6 +107,8 @@ def open_recording(
     path: str | Path,
     topic: str | None = None,
     params: ParamsChoice | DetectorParams | None = None,
+    *,
+    odom_topic: str | None = None,
 ) -> Recording:
     """Open a recording, read its first scan and resolve the parameters against it.
 
@@ -117,6 +120,9 @@ def open_recording(
         The LaserScan topic of a bag (default: the only one).
     params : ParamsChoice or DetectorParams, optional
         The parameter choice (default: the ``paper`` preset).
+    odom_topic : str, optional
+        The odometry of a bag: a ``nav_msgs/Odometry`` topic or ``"tf"`` (default: the only
+        Odometry topic, else ``/tf``; several: a ``TopicChoiceError``).
 
     Returns
     -------
@@ -129,7 +135,7 @@ def open_recording(
     InvalidParamsError
         The parameters are invalid for this recording.
     """
-    source = open_scans(path, topic)
+    source = open_scans(path, topic, odom_topic=odom_topic)
     scans = iter(source)
     first = next(scans, None)
     if first is None:
@@ -169,9 +175,10 @@ def scan_at(source: ScanSource, index: int) -> LaserScan:
     )
 
 
-def _bag_listing(path: Path, kind: str) -> ScanSource:
-    """A bag source that picks the first of several LaserScan topics instead of failing."""
-    return BagSource(path, kind, None, strict=False)  # type: ignore[arg-type]
+def _bag_listing(path: Path, kind: str, topic: str | None = None) -> ScanSource:
+    """A bag source that picks the first of several LaserScan topics instead of failing (and
+    reads no odometry when there are several Odometry topics)."""
+    return BagSource(path, kind, topic, strict=False)  # type: ignore[arg-type]
 
 
 def laser_topics(path: str | Path) -> list[str]:
@@ -196,8 +203,10 @@ def laser_topic_sources(path: str | Path, topic: str | None = None) -> list[Scan
     """
     path = Path(path)
     kind = detect_kind(path)
-    if kind not in ("ros1", "ros2", "mcap") or topic is not None:
+    if kind not in ("ros1", "ros2", "mcap"):
         return [open_scans(path, topic)]
-    listing = _bag_listing(path, kind)
+    listing = _bag_listing(path, kind, topic)
     topics = list(getattr(listing, "laser_topics", []))
-    return [listing] if len(topics) <= 1 else [open_scans(path, t) for t in topics]
+    if topic is not None or len(topics) <= 1:
+        return [listing]
+    return [_bag_listing(path, kind, t) for t in topics]

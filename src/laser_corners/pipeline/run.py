@@ -107,6 +107,7 @@ def detect_file(
     progress: Callable[[RunSummary], None] | None = None,
     threads: int = 1,
     compression: str | None = None,
+    odom_topic: str | None = None,
 ) -> DetectRun:
     """Detect keypoints in every scan of ``path`` and write them to ``output``.
 
@@ -130,6 +131,8 @@ def detect_file(
     compression : {"lz4", "bz2", "none"}, optional
         Chunk compression of a ``.bag`` output (default
         :data:`~laser_corners.io.bagwriter.BAG_COMPRESSION`).
+    odom_topic : str, optional
+        Odometry of a bag (map-frame columns): an Odometry topic or ``"tf"``.
 
     Returns
     -------
@@ -142,7 +145,7 @@ def detect_file(
         Damage found after scans were written ends in an ``InputError`` that says what the
         output keeps (it is kept, complete up to the damage, under its final name).
     """
-    recording = open_recording(path, topic, params)
+    recording = open_recording(path, topic, params, odom_topic=odom_topic)
     if on_open is not None:
         on_open(recording)
     out = Path(output) if output is not None else None

@@ -68,7 +68,8 @@ class MappingConfig(Options):
     mount : list of float
         Base -> laser ``[x, y, yaw]``; empty: from ``/tf_static`` (identity without it).
     odom_topic : str
-        A ``nav_msgs/Odometry`` topic to take odometry from; empty: ``/tf``.
+        A ``nav_msgs/Odometry`` topic to take odometry from; empty (or ``tf``, the value
+        ``--odom-topic`` takes for it): ``/tf``.
     map_frame, odom_frame, base_frame : str
         Frame names; ``odom_frame`` / ``base_frame`` empty: taken from the first odometry.
     map_period : float
@@ -107,6 +108,11 @@ class MappingConfig(Options):
         if mount and (len(mount) != 3 or not all(math.isfinite(v) for v in mount)):
             raise ValueError(f"expected [x, y, yaw], got {mount}")
         return mount
+
+    @field_validator("odom_topic")
+    @classmethod
+    def _odom_topic(cls, topic: str) -> str:
+        return "" if topic in ("tf", "/tf") else topic  # the odometry on /tf, as the CLI's
 
     @field_validator("map")
     @classmethod

@@ -35,6 +35,7 @@ def run_slam(
     options: SlamOptions | None = None,
     *,
     topic: str | None = None,
+    odom_topic: str | None = None,
     progress: Callable[[int, int | None, float], None] | None = None,
     stop_scan: int | None = None,
 ) -> SlamResult:
@@ -47,6 +48,9 @@ def run_slam(
     options : SlamOptions, optional
     topic : str, optional
         The LaserScan topic of a bag (default: the only one).
+    odom_topic : str, optional
+        The odometry of a bag: a ``nav_msgs/Odometry`` topic or ``"tf"`` (default: the only
+        Odometry topic, else ``/tf``; several: an error listing them).
     progress : callable, optional
         Called after every scan with ``(scans done, scans total or None, scan stamp)``.
     stop_scan : int, optional
@@ -63,7 +67,7 @@ def run_slam(
         No readable scan, or no scan with odometry.
     """
     options = options or SlamOptions()
-    with open_recording(path, topic) as rec:
+    with open_recording(path, topic, odom_topic=odom_topic) as rec:
         require_odometry(rec, path)
         recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id) or (0.0, 0.0, 0.0)
         mount = np.asarray(options.mount if options.mount is not None else recorded)

@@ -256,12 +256,13 @@ def view_recording(
     connect: str | None = None,
     every: int = 1,
     max_scans: int | None = None,
+    odom_topic: str | None = None,
 ) -> ViewSummary:
     """Open a recording and stream it to rerun (what ``laser-corners view`` runs).
 
     Parameters
     ----------
-    path, topic, params
+    path, topic, params, odom_topic
         As :func:`laser_corners.pipeline.open_recording`.
     save, connect
         As :func:`open_recording_stream` (neither: spawn a viewer).
@@ -272,7 +273,7 @@ def view_recording(
     -------
     ViewSummary
     """
-    opened = open_recording(path, topic, params)
+    opened = open_recording(path, topic, params, odom_topic=odom_topic)
     recording = open_recording_stream(opened.path.name, save=save, connect=connect)
     try:
         return stream_scans(opened, None, recording, every=every, max_scans=max_scans)
