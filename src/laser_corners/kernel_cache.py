@@ -6,7 +6,8 @@ walk of ``kernel/neighbourhood.py``): after an edit to one file, kernels of othe
 the old code until their cache files were deleted. :func:`use_keyed_cache` (run by
 ``import laser_corners``, before any kernel module is imported) points numba at
 ``<base>/laser-corners-<key>``, where the key hashes the contents of every source file of the
-package that mentions numba (and the Python version): any edit to a kernel gives a fresh
+package that imports numba (and the Python version; a file that only names numba in a
+docstring or a help text does not count): any edit to a kernel gives a fresh
 folder, so no kernel can be loaded with another file's old code. numba's own index still
 checks numba's version. ``<base>`` is ``NUMBA_CACHE_DIR`` when set (so an empty folder there
 still means a cold cache), else the package's ``__pycache__`` when writable, else the user's
@@ -50,7 +51,7 @@ def _sources(folder: str, prefix: str = "") -> list[tuple[str, os.DirEntry]]:
 
 
 def kernel_key(package: Path = PACKAGE) -> str:
-    """Hash of the contents of the package's source files that mention numba, with their
+    """Hash of the contents of the package's source files that import numba, with their
     paths relative to the package, and the Python version (16 hex digits)."""
     import hashlib  # only when the memo misses (importing hashlib costs milliseconds)
 
@@ -59,7 +60,7 @@ def kernel_key(package: Path = PACKAGE) -> str:
     for name, entry in _sources(str(package)):
         with open(entry.path, "rb") as source:
             data = source.read()
-        if b"numba" in data:
+        if b"import numba" in data or b"from numba" in data:  # a kernel file, not a mention
             digest.update(name.encode() + b"\0" + data + b"\0")
     return digest.hexdigest()
 

@@ -63,8 +63,9 @@ def test_an_edit_to_a_called_kernel_file_is_seen_by_its_cached_callers(tmp_path:
 
 
 def test_the_key_follows_kernel_sources_only(tmp_path: Path) -> None:
-    """The key changes with any file that mentions numba (a kernel, the walk of
-    ``kernel/neighbourhood.py``), not with others (the command line's help texts)."""
+    """The key changes with any file that imports numba (a kernel, the walk of
+    ``kernel/neighbourhood.py``), not with others, even those that name numba in a help
+    text (``cli/batch.py``'s ``--threads``)."""
     from laser_corners.kernel_cache import kernel_key
 
     package = tmp_path / "laser_corners"
@@ -75,6 +76,10 @@ def test_the_key_follows_kernel_sources_only(tmp_path: Path) -> None:
     plain = package / "params.py"
     assert b"numba" not in plain.read_bytes()
     plain.write_text(plain.read_text() + "\n# a comment\n")
+    assert kernel_key(package) == key
+    helped = package / "cli" / "batch.py"
+    assert b"numba" in helped.read_bytes() and b"import numba" not in helped.read_bytes()
+    helped.write_text(helped.read_text() + "\n# a comment\n")
     assert kernel_key(package) == key
     walk = package / "kernel" / "neighbourhood.py"
     walk.write_text(walk.read_text() + "\n# a comment\n")

@@ -64,12 +64,15 @@ class BatchJob:
         File name of the result inside the output folder.
     size : int
         Size of the input in bytes (larger jobs are started first).
+    odom_topic : str or None
+        The odometry of a bag (``nav_msgs/Odometry`` topic or ``"tf"``; None: the only one).
     """
 
     input: str
     topic: str | None
     output: str
     size: int = 0
+    odom_topic: str | None = None
 
     @property
     def key(self) -> str:

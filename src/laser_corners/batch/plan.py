@@ -56,6 +56,7 @@ def plan_jobs(
     inputs: Iterable[str | Path],
     topic: str | None = None,
     reserved: dict[str, str] | None = None,
+    odom_topic: str | None = None,
 ) -> list[BatchJob]:
     """The jobs for ``inputs``: one per recording, one per LaserScan topic of a bag with several.
 
@@ -69,6 +70,9 @@ def plan_jobs(
     reserved : dict of str to str, optional
         Output names already used in the folder, by job key (from the manifest): a job keeps
         its earlier name; other jobs never take it.
+    odom_topic : str, optional
+        The odometry of every bag (a ``nav_msgs/Odometry`` topic or ``"tf"``; other kinds
+        have none). Default: each bag's only one.
 
     Returns
     -------
@@ -77,7 +81,7 @@ def plan_jobs(
         reader's one-line error, and the manifest records it).
     """
     reserved = dict(reserved or {})
-    wanted: list[tuple[str, str | None, str, int]] = []  # key parts, base name, size
+    wanted: list[tuple[str, str | None, str, int, str | None]] = []  # + size, odometry
     seen: set[str] = set()
     for item in inputs:
         path = Path(item).expanduser().resolve()
@@ -102,15 +106,16 @@ def plan_jobs(
                 continue
             seen.add(key)
             base = _stem(path) + (f".{_topic_part(one_topic)}" if one_topic else "")
-            wanted.append((str(path), one_topic, base, size // len(topics)))
+            odom = odom_topic if kind in _BAG_KINDS else None
+            wanted.append((str(path), one_topic, base, size // len(topics), odom))
     # names: the earlier name of the job, else the base name unless it clashes (with another
     # input of this run or a name used in the folder before), else base-<hash of the key>
     counts: dict[str, int] = {}
-    for _, _, base, _ in wanted:
+    for _, _, base, _, _ in wanted:
         counts[base] = counts.get(base, 0) + 1
     taken = {name: key for key, name in reserved.items()}
     jobs = []
-    for input_path, one_topic, base, size in wanted:
+    for input_path, one_topic, base, size, odom in wanted:
         key = input_path + (f"#{one_topic}" if one_topic else "")
         name = reserved.get(key)
         if name is None:
@@ -118,7 +123,7 @@ def plan_jobs(
             if counts[base] > 1 or taken.get(name, key) != key:
                 name = f"{base}-{short_hash(key)}.parquet"
             taken[name] = key
-        jobs.append(BatchJob(input_path, one_topic, name, size))
+        jobs.append(BatchJob(input_path, one_topic, name, size, odom))
     return jobs
 
 
@@ -183,6 +188,7 @@ def plan_inputs(
     inputs: Iterable[str | Path],
     topic: str | None = None,
     reserved: dict[str, str] | None = None,
+    odom_topic: str | None = None,
 ) -> tuple[list[BatchJob], list[SkippedInput]]:
     """:func:`plan_jobs` for the recordings of ``inputs``, and the inputs that are not one."""
     recordings: list[str | Path] = []
@@ -193,4 +199,4 @@ def plan_inputs(
             recordings.append(item)
         else:
             skipped.append(SkippedInput(str(item), reason))
-    return plan_jobs(recordings, topic, reserved), skipped
+    return plan_jobs(recordings, topic, reserved, odom_topic), skipped

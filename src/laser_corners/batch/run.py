@@ -44,6 +44,7 @@ def run_batch(
     *,
     params: ParamsChoice | DetectorParams | None = None,
     topic: str | None = None,
+    odom_topic: str | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     threads: int | None = None,
@@ -65,6 +66,9 @@ def run_batch(
         another one, so its results always share one choice.
     topic : str, optional
         LaserScan topic of the bags (default: each of their LaserScan topics).
+    odom_topic : str, optional
+        Odometry of the bags: a ``nav_msgs/Odometry`` topic or ``"tf"`` (default: each bag's
+        only one; a bag with several fails with one line naming them).
     workers : int, optional
         Worker processes (default: the number of CPU cores). With 1 and no ``scheduler`` the
         jobs run in this process.
@@ -108,7 +112,7 @@ def run_batch(
     _claim_folder(outdir, choice)
     n_workers, threads, prefetch = _resources(workers, scheduler, threads, prefetch)
     manifest = Manifest(outdir)
-    pending, report = _plan(manifest, outdir, inputs, topic, n_workers)
+    pending, report = _plan(manifest, outdir, inputs, (topic, odom_topic), n_workers)
     if on_plan is not None:
         on_plan(pending, report.already_done)
     deliver = _recorder(manifest, report, on_result)
@@ -163,11 +167,17 @@ def _resources(
 
 
 def _plan(
-    manifest: Manifest, outdir: Path, inputs: list[str | Path], topic: str | None, n_workers: int
+    manifest: Manifest,
+    outdir: Path,
+    inputs: list[str | Path],
+    topics: tuple[str | None, str | None],
+    n_workers: int,
 ) -> tuple[list[BatchJob], BatchReport]:
-    """The jobs still to run (largest first) and a report holding those already done."""
+    """The jobs still to run (largest first) and a report holding those already done;
+    ``topics``: the LaserScan and the odometry topic."""
     records = manifest.load()
-    jobs, skipped = plan_inputs(inputs, topic, reserved={k: r.output for k, r in records.items()})
+    reserved = {k: r.output for k, r in records.items()}
+    jobs, skipped = plan_inputs(inputs, topics[0], reserved, odom_topic=topics[1])
     completed = manifest.completed(outdir)
     pending = sorted((job for job in jobs if job.key not in completed), key=lambda job: -job.size)
     report = BatchReport(

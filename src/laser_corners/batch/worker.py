@@ -145,7 +145,7 @@ def run_job(
     recording: Recording | None = None
     try:
         output.discard()  # a leftover of an interrupted run
-        recording = open_recording(job.input, job.topic, params)
+        recording = open_recording(job.input, job.topic, params, odom_topic=job.odom_topic)
         result.read_seconds = time.perf_counter() - start
         result.startup_seconds = warm_up(recording.detector, recording.first, n_threads)
         writer = _open_writer(recording, partial, job)

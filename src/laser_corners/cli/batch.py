@@ -8,7 +8,13 @@ from typing import TYPE_CHECKING, Annotated, Any
 import typer
 
 from laser_corners.cli.app import app, fail
-from laser_corners.cli.common import new_table, quoted, stop_progress, with_params_choice
+from laser_corners.cli.common import (
+    OdomTopicOption,
+    new_table,
+    quoted,
+    stop_progress,
+    with_params_choice,
+)
 from laser_corners.cli.kernels import KernelCommand
 from laser_corners.errors import MissingDependencyError
 
@@ -73,6 +79,7 @@ def batch(
     scheduler: _Scheduler = None,
     threads: _Threads = None,
     topic: _Topic = None,
+    odom_topic: OdomTopicOption = None,
     *,
     choice: ParamsChoice,
 ) -> None:
@@ -109,6 +116,7 @@ def batch(
             outdir,
             params=choice,
             topic=topic,
+            odom_topic=odom_topic,
             workers=workers,
             scheduler=scheduler,
             threads=threads,
