@@ -15,7 +15,7 @@ ROS1_DEBS := ros-core python3-rospy python3-rosbag python3-sensor-msgs python3-g
 $(VENV)/.base: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -e .
-	$(VENV)/bin/laser-corners warmup   # numba compiles the kernels once here (26-35 s), not in the first run
+	$(VENV)/bin/laser-corners warmup   # numba compiles the kernels once here (1-2 min on 2 cores, see README), not in the first run
 	touch $@
 
 # The test extra includes the ros2 extra: ROS 2 Jazzy's rclpy and messages as PyPI wheels, so
