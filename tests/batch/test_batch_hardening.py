@@ -145,7 +145,12 @@ def test_ctrl_c_keeps_every_finished_output_in_the_manifest(tmp_path: Path) -> N
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGINT)  # Ctrl-C reaches the batch and its workers
-        process.wait(timeout=120)
+        try:
+            process.wait(timeout=120)
+        except subprocess.TimeoutExpired:  # a hang fails the test, and leaves no process
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+            raise
     assert process.returncode in (0, 130)
     records = [json.loads(line) for line in manifest.read_text(encoding="utf-8").splitlines()]
     recorded = {r["output"] for r in records if r["status"] == "done"}

@@ -20,7 +20,12 @@ from urllib.parse import urlsplit
 
 from laser_corners.batch.manifest import BatchJob, JobResult
 from laser_corners.batch.plan import short_hash
-from laser_corners.batch.worker import die_with_parent, failed_result, run_job
+from laser_corners.batch.worker import (
+    failed_result,
+    run_job,
+    run_pooled_job,
+    start_pool_worker,
+)
 from laser_corners.errors import ClusterError, MissingDependencyError, first_line
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline import ParamsChoice
@@ -69,7 +74,8 @@ def run_pool(
 
     Jobs are handed out only as workers free up, so after Ctrl-C no queued job starts; a
     worker that dies fails its job (and the jobs running beside it) and the pool is renewed.
-    Workers die with this process (:func:`~laser_corners.batch.worker.die_with_parent`).
+    Workers die with this process and take Ctrl-C only while they run a job
+    (:func:`~laser_corners.batch.worker.start_pool_worker`).
     """
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -80,7 +86,7 @@ def run_pool(
 
     def new_pool() -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
-            workers, mp_context=context, initializer=die_with_parent, initargs=(os.getpid(),)
+            workers, mp_context=context, initializer=start_pool_worker, initargs=(os.getpid(),)
         )
 
     pool = new_pool()
@@ -90,7 +96,7 @@ def run_pool(
         while waiting or running:
             while waiting and len(running) < workers:
                 job = waiting.pop(0)
-                running[pool.submit(run_job, job, outdir, params, threads, prefetch)] = job
+                running[pool.submit(run_pooled_job, job, outdir, params, threads, prefetch)] = job
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             broken = False
             for future in done:

@@ -32,7 +32,7 @@ from laser_corners.pipeline import (
     warm_up,
 )
 
-__all__ = ["die_with_parent", "failed_result", "run_job"]
+__all__ = ["die_with_parent", "failed_result", "run_job", "run_pooled_job", "start_pool_worker"]
 
 _PR_SET_PDEATHSIG = 1
 
@@ -41,6 +41,24 @@ def _watch_parent(parent: int, period: float = 0.5) -> None:
     while os.getppid() == parent:
         time.sleep(period)
     os.kill(os.getpid(), signal.SIGKILL)
+
+
+def start_pool_worker(parent: int) -> None:
+    """Initializer of a pool worker: it dies with ``parent``, and Ctrl-C reaches it only while
+    it runs a job (:func:`run_pooled_job`). An idle worker that took Ctrl-C while reading the
+    pool's call queue died holding the queue's lock, and the other workers and the pool's
+    shutdown then waited on it for ever (seen once in a full test run)."""
+    die_with_parent(parent)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def run_pooled_job(*args: object) -> JobResult:
+    """:func:`run_job` in a pool worker, with Ctrl-C stopping it (ignored again after)."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return run_job(*args)  # type: ignore[arg-type]
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def die_with_parent(parent: int | None = None) -> None:
