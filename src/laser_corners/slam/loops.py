@@ -20,10 +20,18 @@ from laser_corners.pose import between_many, compose, invert, relative_pose
 from laser_corners.slam.align import PointMap, icp, match_share
 from laser_corners.slam.correlative import ScoreGrid, search
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints, transform
+from laser_corners.slam.points import ScanPoints, rotate, transform
 from laser_corners.slam.result import LoopClosure
 
-__all__ = ["ClosureGate", "SubmapCache", "candidates", "query_points", "thin_points", "verify"]
+__all__ = [
+    "ClosureGate",
+    "SubmapCache",
+    "candidates",
+    "query_points",
+    "submap_points",
+    "thin_points",
+    "verify",
+]
 
 SEARCH_RESOLUTION = 0.15
 """Cell size (m) of the correlative search grid (refined by ICP afterwards)."""
@@ -75,16 +83,23 @@ def _submap(
     members = [
         i for i in range(lo, hi) if travelled[k] - travelled[i] > options.loop_recent_distance
     ]
-    rel = between_many(estimate[j], estimate[members])
+    return submap_points(j, members, points, estimate)
+
+
+def submap_points(
+    anchor: int, members: list[int], points: list[ScanPoints], estimate: NDArray[np.float64]
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Points (all), points with normals and their normals of the keyframes ``members`` at
+    their ``estimate``, in keyframe ``anchor``'s frame (a loop closure's or the refinement
+    pass's submap)."""
+    rel = between_many(estimate[anchor], estimate[members])
     all_xy, line_xy, normals = [], [], []
     for i, pose in zip(members, rel, strict=True):
         p = points[i]
-        c, s = np.cos(pose[2]), np.sin(pose[2])
-        rot = np.array([[c, s], [-s, c]])
-        moved = p.xy @ rot + pose[:2]
+        moved = transform(p.xy, pose)
         all_xy.append(moved)
         line_xy.append(moved[p.has_normal])
-        normals.append(p.normals[p.has_normal] @ rot)
+        normals.append(rotate(p.normals[p.has_normal], pose[2]))
     return np.concatenate(all_xy), np.concatenate(line_xy), np.concatenate(normals)
 
 

@@ -27,8 +27,9 @@ from numpy.typing import NDArray
 from laser_corners.pose import between_many, relative_pose
 from laser_corners.slam.align import PointMap, icp
 from laser_corners.slam.backend import Backend
+from laser_corners.slam.loops import submap_points
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints, rotate, transform
+from laser_corners.slam.points import ScanPoints
 
 __all__ = ["RefineLinks", "refine", "refine_links"]
 
@@ -67,16 +68,8 @@ def _submap(
     the anchor, in the anchor's frame."""
     lo = max(0, anchor - block - block // 2)
     hi = min(len(points), anchor + block + block // 2 + 1)
-    rel = between_many(estimate[anchor], estimate[lo:hi])
-    all_xy, line_xy, normals = [], [], []
-    for p, pose in zip(points[lo:hi], rel, strict=True):
-        moved = transform(p.xy, pose)
-        all_xy.append(moved)
-        line_xy.append(moved[p.has_normal])
-        normals.append(rotate(p.normals[p.has_normal], pose[2]))
-    every = np.concatenate(all_xy)
-    line = PointMap.build(np.concatenate(line_xy), np.concatenate(normals))
-    return line, PointMap.build(every, np.zeros_like(every))
+    every, line_xy, normals = submap_points(anchor, list(range(lo, hi)), points, estimate)
+    return PointMap.build(line_xy, normals), PointMap.build(every, np.zeros_like(every))
 
 
 def _pairs(
