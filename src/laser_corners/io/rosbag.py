@@ -266,14 +266,19 @@ class BagSource(ScanSource):
             if not has_tf:
                 raise InputError(f"{self.path}: odometry {asked!r}: no /tf topic; {found}")
             return TF_ODOMETRY
-        if asked not in self.topics:
-            raise InputError(f"{self.path}: no odometry topic {asked!r} in the bag; {found}")
-        msgtype = self.topics[asked][0]
-        if msgtype != ODOMETRY:
+        return self._named_topic(asked, ODOMETRY, "odometry topic", found)
+
+    def _named_topic(self, topic: str, wanted: str, label: str, found: str) -> str:
+        """``topic`` when the bag has it with messages of type ``wanted``, else one line
+        naming it (as ``label``) and ending with ``found`` (what the bag has instead)."""
+        if topic not in self.topics:
+            raise InputError(f"{self.path}: no {label} {topic!r} in the bag; {found}")
+        msgtype = self.topics[topic][0]
+        if msgtype != wanted:
             raise InputError(
-                f"{self.path}: odometry topic {asked} is a {msgtype}, not a {ODOMETRY}; {found}"
+                f"{self.path}: {label} {topic} is a {msgtype}, not a {wanted}; {found}"
             )
-        return asked
+        return topic
 
     def _read_tf_odometry(self, reader: Any) -> None:
         """With the odometry from ``/tf``: read the tf topics once for :func:`tf_odometry`
@@ -319,19 +324,9 @@ class BagSource(ScanSource):
         self.tf_odometry, self._tf_samples = chosen
 
     def _choose_topic(self, topic: str | None) -> str:
-        found = ", ".join(self.laser_topics) or "none"
         if topic is not None:
-            if topic not in self.topics:
-                raise InputError(
-                    f"{self.path}: no topic {topic!r} in the bag; LaserScan topics: {found}"
-                )
-            msgtype = self.topics[topic][0]
-            if msgtype != LASERSCAN:
-                raise InputError(
-                    f"{self.path}: topic {topic} is a {msgtype}, not a {LASERSCAN}; "
-                    f"LaserScan topics: {found}"
-                )
-            return topic
+            found = f"LaserScan topics: {', '.join(self.laser_topics) or 'none'}"
+            return self._named_topic(topic, LASERSCAN, "topic", found)
         if not self.laser_topics:
             listed = ", ".join(f"{t} ({m})" for t, (m, _) in sorted(self.topics.items()))
             raise InputError(f"{self.path}: no {LASERSCAN} topic; topics: {listed or 'none'}")
