@@ -188,3 +188,60 @@ def test_stopped_job_removes_its_partial_even_when_the_writer_fails_to_close(
     else:
         assert run_job(job, out, threads=1).status == "failed"
     assert sorted(p.name for p in out.iterdir() if p.name != "errors") == []
+
+
+# ------------------------------------------- an output is named only once it is recorded
+@pytest.mark.parametrize("where", ["here", "pool"])
+def test_an_output_keeps_its_temporary_name_until_the_batch_records_it(
+    tmp_path: Path, where: str
+) -> None:
+    """CI at f3790ad: a pool worker finished and renamed a job that Ctrl-C had kept from the
+    manifest (handed out an instant before the parent was stopped), so a finished output
+    had no record. Now only the batch renames, after recording: a result that never reaches
+    ``deliver`` leaves no output under its final name."""
+    from laser_corners.batch.executors import run_here, run_pool
+    from laser_corners.pipeline import ParamsChoice
+
+    logs = [_room_log(tmp_path / f"log{i}.clf", 30) for i in range(2)]
+    jobs = [BatchJob(str(log), None, f"{log.stem}.parquet") for log in logs]
+    out = tmp_path / "out"
+    out.mkdir()
+    came_back = []
+
+    def stopped_before_recording(result: object) -> None:
+        came_back.append(result)
+        raise KeyboardInterrupt  # Ctrl-C as the first result comes back
+
+    with pytest.raises(KeyboardInterrupt):
+        if where == "here":
+            run_here(jobs, out, ParamsChoice(), 1, stopped_before_recording)
+        else:
+            run_pool(jobs, out, ParamsChoice(), 2, 1, stopped_before_recording)
+    assert came_back and came_back[0].status == "done"
+    assert not list(out.glob("*.parquet"))  # finished, not recorded: not under its name
+
+
+def test_ctrl_c_while_a_job_is_recorded_keeps_the_record_and_the_output_together(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C arriving while the manifest takes a record waits for the rename, then stops."""
+    logs = [_room_log(tmp_path / f"log{i}.clf", 30 + i) for i in range(2)]
+    append = Manifest.append
+
+    def append_then_ctrl_c(self: Manifest, result: object) -> None:
+        append(self, result)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(Manifest, "append", append_then_ctrl_c)
+    out = tmp_path / "out"
+    # Python's own handler, as in a terminal (a background job inherits SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        report = run_batch(logs, out, workers=1, threads=1)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert report.interrupted and len(report.results) == 1
+    records = Manifest(out).load()
+    assert [r.output for r in records.values()] == [report.results[0].output]
+    assert sorted(p.name for p in out.glob("*.parquet")) == [report.results[0].output]
+    assert not list(out.glob("*.partial"))

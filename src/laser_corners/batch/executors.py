@@ -1,9 +1,12 @@
 """Where jobs run: in this process, on a pool of spawned processes, or on a Dask cluster.
 
 Every executor hands each :class:`~laser_corners.batch.manifest.JobResult` to ``deliver`` as
-its job ends (the batch appends it to the manifest at once). After Ctrl-C an executor stops
-starting jobs, waits for the running ones and delivers every result that came back before
-re-raising, so no finished output is missing from the manifest.
+its job ends. Jobs run with ``publish=False``: a finished job's output stays
+``NAME.parquet.partial`` until ``deliver`` has recorded it in the manifest and renamed it
+(:meth:`~laser_corners.batch.manifest.Manifest.record`), so a result lost to Ctrl-C (a job
+handed to a worker an instant before, a result not yet delivered) leaves no output under its
+final name. After Ctrl-C an executor stops starting jobs, waits for the running ones and
+delivers every result that came back before re-raising.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ def run_here(
 ) -> None:
     """Run the jobs one after the other in this process."""
     for job in jobs:
-        deliver(run_job(job, outdir, params, threads, prefetch))
+        deliver(run_job(job, outdir, params, threads, prefetch, publish=False))
 
 
 def _result_of(future: Any, job: BatchJob) -> JobResult | None:
@@ -96,7 +99,8 @@ def run_pool(
         while waiting or running:
             while waiting and len(running) < workers:
                 job = waiting.pop(0)
-                running[pool.submit(run_pooled_job, job, outdir, params, threads, prefetch)] = job
+                future = pool.submit(run_pooled_job, job, outdir, params, threads, prefetch, False)
+                running[future] = job
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             broken = False
             for future in done:
@@ -211,6 +215,7 @@ def run_dask(
                 params,
                 threads,
                 prefetch,
+                False,  # publish: the batch renames the output once it has recorded it
                 key=f"laser-corners-{short_hash(job.key)}-{time.time_ns()}",
                 pure=False,
             ): job

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from laser_corners.errors import OutputError
 from laser_corners.io.partial import PARTIAL_SUFFIX  # re-exported: batch's temporary names
 
 __all__ = [
@@ -237,6 +238,34 @@ class Manifest:
             handle.write(("\n" if torn else "") + json.dumps(result.to_record()) + "\n")
             handle.flush()
             os.fsync(handle.fileno())
+
+    def record(self, result: JobResult) -> None:
+        """Append ``result``, then give a done job's output its final name.
+
+        Workers leave a finished job's output as ``NAME.parquet.partial``
+        (:func:`~laser_corners.batch.worker.run_job` with ``publish=False``); it is renamed
+        here, after its record is on disk, so an output under its final name always has its
+        record, also when the run is stopped or killed between the two (a record whose output
+        is missing is not :meth:`completed`: the job runs again).
+
+        Raises
+        ------
+        OutputError
+            The output cannot be renamed (it is kept as ``NAME.parquet.partial``).
+        """
+        self.append(result)
+        if result.status != "done":
+            return
+        folder = self.path.parent
+        partial = folder / (result.output + PARTIAL_SUFFIX)
+        if partial.exists():
+            try:
+                os.replace(partial, folder / result.output)
+            except OSError as exc:
+                raise OutputError(
+                    f"{folder / result.output}: cannot give the output its name "
+                    f"({exc.strerror}); it is kept as {partial}"
+                ) from None
 
     def completed(self, outdir: Path) -> dict[str, JobResult]:
         """Records of jobs that are done and whose output still exists."""

@@ -8,11 +8,19 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from laser_corners.batch.executors import check_scheduler, run_dask, run_here, run_pool
-from laser_corners.batch.manifest import PARAMS_NAME, BatchJob, BatchReport, JobResult, Manifest
+from laser_corners.batch.manifest import (
+    PARAMS_NAME,
+    PARTIAL_SUFFIX,
+    BatchJob,
+    BatchReport,
+    JobResult,
+    Manifest,
+)
 from laser_corners.batch.plan import check_globs, plan_inputs
 from laser_corners.errors import OutputError
 from laser_corners.params import DetectorParams
 from laser_corners.pipeline import ParamsChoice, as_choice
+from laser_corners.pipeline.interrupt import stop_requests
 
 __all__ = ["run_batch"]
 
@@ -126,10 +134,13 @@ def _recorder(
     """What happens to each result as its job ends: manifest, report, then ``on_result``."""
 
     def deliver(result: JobResult) -> None:
-        manifest.append(result)  # flushed and synced: a killed run keeps the record
-        report.results.append(result)
+        with stop_requests() as stop:  # Ctrl-C waits until the record and the rename are done
+            manifest.record(result)  # flushed and synced: a killed run keeps the record
+            report.results.append(result)
         if on_result is not None:
             on_result(result)
+        if stop.is_set():
+            raise KeyboardInterrupt
 
     return deliver
 
@@ -149,6 +160,8 @@ def _run_jobs(
         _dispatch(pending, outdir, choice, *how, report, deliver)
     except KeyboardInterrupt:
         report.interrupted = True
+        for job in pending:  # finished but not recorded: not a result (a re-run makes it)
+            (outdir / (job.output + PARTIAL_SUFFIX)).unlink(missing_ok=True)
     finally:
         report.seconds = time.perf_counter() - start
 

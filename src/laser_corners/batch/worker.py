@@ -125,14 +125,17 @@ def run_job(
     params: ParamsChoice | DetectorParams | None = None,
     threads: int | None = 1,
     prefetch: bool = True,
+    publish: bool = True,
 ) -> JobResult:
     """Detect keypoints in every scan of one job's recording and write its Parquet file.
 
     The output is written to ``<name>.parquet.partial`` and renamed to ``<name>.parquet`` when
-    complete. Known errors (:class:`~laser_corners.errors.LaserCornersError`, such as a
-    damaged file) and unexpected ones give a ``failed`` result instead of raising; the
-    traceback of an unexpected one goes to ``errors/<name>.txt``. Ctrl-C removes the partial
-    file and propagates.
+    complete (with ``publish``; the batch's executors leave the rename to
+    :meth:`~laser_corners.batch.manifest.Manifest.record`, after the job's record). Known
+    errors (:class:`~laser_corners.errors.LaserCornersError`, such as a damaged file) and
+    unexpected ones give a ``failed`` result instead of raising; the traceback of an
+    unexpected one goes to ``errors/<name>.txt``. Ctrl-C removes the partial file and
+    propagates.
 
     Parameters
     ----------
@@ -148,6 +151,9 @@ def run_job(
         leave numba's setting.
     prefetch : bool
         Read in a thread of its own while detecting (see :mod:`laser_corners.pipeline`).
+    publish : bool
+        Rename the complete output to ``<name>.parquet``; with False a ``done`` job leaves it
+        as ``<name>.parquet.partial`` for the caller to rename once it has recorded the job.
 
     Returns
     -------
@@ -174,7 +180,8 @@ def run_job(
         result.detect_seconds = summary.detect_seconds
         result.write_seconds = summary.write_seconds
         result.reader_seconds = summary.reader_seconds
-        output.publish()
+        if publish:
+            output.publish()
         result.status = "done"
     except KeyboardInterrupt:
         _abandon(writer, output)
