@@ -17,12 +17,12 @@ Inputs that exist but are not recordings (a ``.relations`` file, a README) are s
 with a one-line reason in :attr:`BatchReport.skipped`; they are not failures.
 
 Resuming: a job whose input (and topic) has a ``done`` record in the manifest and whose
-Parquet file exists is skipped. A job writes ``<name>.parquet.partial``; the batch renames it to
-``<name>.parquet`` only after the writer closed and the job's record is in the manifest, so a
-partial file is never taken for a result and a named one always has its record; a leftover ``.partial`` is overwritten when its job runs again. A job that fails
-(a known error: one line; anything else: the exception's first line, with the traceback in
-``errors/<name>.txt``) is recorded as ``failed`` and the other jobs go on; the next run
-retries it.
+Parquet file exists is skipped. A job writes ``<name>.parquet.partial``; the batch renames it
+to ``<name>.parquet`` only after the writer closed, as it records the job in the manifest, so
+a partial file is never taken for a result and a named one always has its record; a leftover
+``.partial`` is overwritten when its job runs again. A job that fails (a known error: one
+line; anything else: the exception's first line, with the traceback in ``errors/<name>.txt``)
+is recorded as ``failed`` and the other jobs go on; the next run retries it.
 
 Where the time goes is recorded per job: ``read_seconds`` (the reader: file decoding and
 :class:`~laser_corners.LaserScan` construction), ``detect_seconds`` (the numba kernel),

@@ -2,7 +2,7 @@
 
 Every executor hands each :class:`~laser_corners.batch.manifest.JobResult` to ``deliver`` as
 its job ends. Jobs run with ``publish=False``: a finished job's output stays
-``NAME.parquet.partial`` until ``deliver`` has recorded it in the manifest and renamed it
+``NAME.parquet.partial`` until ``deliver`` renames it as it records the job in the manifest
 (:meth:`~laser_corners.batch.manifest.Manifest.record`), so a result lost to Ctrl-C (a job
 handed to a worker an instant before, a result not yet delivered) leaves no output under its
 final name. After Ctrl-C an executor stops starting jobs, waits for the running ones and
@@ -86,10 +86,14 @@ def run_pool(
 
     # spawn: a forked child would inherit the parent's numba (OpenMP) thread pool
     context = multiprocessing.get_context("spawn")
+    stopping = context.Event()  # set on Ctrl-C: a job handed out meanwhile does not start
 
     def new_pool() -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
-            workers, mp_context=context, initializer=start_pool_worker, initargs=(os.getpid(),)
+            workers,
+            mp_context=context,
+            initializer=start_pool_worker,
+            initargs=(os.getpid(), stopping),
         )
 
     pool = new_pool()
@@ -113,6 +117,7 @@ def run_pool(
                 pool.shutdown(wait=True, cancel_futures=True)
                 pool = new_pool()
     except BaseException:
+        stopping.set()
         pool.shutdown(wait=True, cancel_futures=True)  # the running jobs end (or stop)
         for future, job in running.items():
             result = _result_of(future, job)

@@ -13,7 +13,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from laser_corners.errors import OutputError
 from laser_corners.io.partial import PARTIAL_SUFFIX  # re-exported: batch's temporary names
 
 __all__ = [
@@ -240,32 +239,28 @@ class Manifest:
             os.fsync(handle.fileno())
 
     def record(self, result: JobResult) -> None:
-        """Append ``result``, then give a done job's output its final name.
+        """Give a done job's output its final name, then append ``result``.
 
         Workers leave a finished job's output as ``NAME.parquet.partial``
-        (:func:`~laser_corners.batch.worker.run_job` with ``publish=False``); it is renamed
-        here, after its record is on disk, so an output under its final name always has its
-        record, also when the run is stopped or killed between the two (a record whose output
-        is missing is not :meth:`completed`: the job runs again).
-
-        Raises
-        ------
-        OutputError
-            The output cannot be renamed (it is kept as ``NAME.parquet.partial``).
+        (:func:`~laser_corners.batch.worker.run_job` with ``publish=False``); the batch renames
+        it here, as it records the job (with Ctrl-C held off between the two), so an output
+        under its final name always has its record, and a record of a done job its output (a
+        ``kill -9`` between the two leaves a complete output without a record: the job runs
+        again). An output that cannot be renamed makes the job ``failed``, with that reason.
         """
-        self.append(result)
-        if result.status != "done":
-            return
-        folder = self.path.parent
-        partial = folder / (result.output + PARTIAL_SUFFIX)
-        if partial.exists():
+        if result.status == "done":
+            folder = self.path.parent
+            partial = folder / (result.output + PARTIAL_SUFFIX)
             try:
-                os.replace(partial, folder / result.output)
+                if partial.exists():
+                    os.replace(partial, folder / result.output)
             except OSError as exc:
-                raise OutputError(
+                result.status = "failed"
+                result.error = (
                     f"{folder / result.output}: cannot give the output its name "
                     f"({exc.strerror}); it is kept as {partial}"
-                ) from None
+                )
+        self.append(result)
 
     def completed(self, outdir: Path) -> dict[str, JobResult]:
         """Records of jobs that are done and whose output still exists."""

@@ -15,6 +15,7 @@ import threading
 import time
 import traceback
 from pathlib import Path
+from typing import Any
 
 from laser_corners.batch.manifest import PARTIAL_SUFFIX, BatchJob, JobResult
 from laser_corners.citation import CITATION
@@ -43,19 +44,28 @@ def _watch_parent(parent: int, period: float = 0.5) -> None:
     os.kill(os.getpid(), signal.SIGKILL)
 
 
-def start_pool_worker(parent: int) -> None:
+_stopping: Any = None  # the pool's "stop" event, in a pool worker (start_pool_worker)
+
+
+def start_pool_worker(parent: int, stopping: Any = None) -> None:
     """Initializer of a pool worker: it dies with ``parent``, and Ctrl-C reaches it only while
     it runs a job (:func:`run_pooled_job`). An idle worker that took Ctrl-C while reading the
     pool's call queue died holding the queue's lock, and the other workers and the pool's
-    shutdown then waited on it for ever (seen once in a full test run)."""
+    shutdown then waited on it for ever (seen once in a full test run). ``stopping`` (a
+    multiprocessing event the batch sets on Ctrl-C) stops a job handed out as the Ctrl-C
+    came, which the idle worker ignored, before it starts."""
+    global _stopping
     die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _stopping = stopping
 
 
 def run_pooled_job(*args: object) -> JobResult:
     """:func:`run_job` in a pool worker, with Ctrl-C stopping it (ignored again after)."""
     signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
+        if _stopping is not None and _stopping.is_set():
+            raise KeyboardInterrupt  # the batch was stopped as this job was handed out
         return run_job(*args)  # type: ignore[arg-type]
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -131,7 +141,7 @@ def run_job(
 
     The output is written to ``<name>.parquet.partial`` and renamed to ``<name>.parquet`` when
     complete (with ``publish``; the batch's executors leave the rename to
-    :meth:`~laser_corners.batch.manifest.Manifest.record`, after the job's record). Known
+    :meth:`~laser_corners.batch.manifest.Manifest.record`, which records the job with it). Known
     errors (:class:`~laser_corners.errors.LaserCornersError`, such as a damaged file) and
     unexpected ones give a ``failed`` result instead of raising; the traceback of an
     unexpected one goes to ``errors/<name>.txt``. Ctrl-C removes the partial file and
