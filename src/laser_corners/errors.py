@@ -51,7 +51,11 @@ class ClusterError(LaserCornersError):
 
 
 def first_line(exc: BaseException) -> str:
-    """The first line of an exception's message (its class name when the message is empty)."""
+    """The first line of an exception's message (its class name when the message is empty);
+    an error whose message spans lines (a list of topics) gives its own ``one_line()``."""
+    one_line = getattr(exc, "one_line", None)
+    if callable(one_line):
+        return str(one_line())
     text = str(exc).strip()
     return text.splitlines()[0] if text else type(exc).__name__
 

@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from laser_corners.batch import run_batch
 from laser_corners.cli import app
+from laser_corners.errors import OutputError
 from laser_corners.sim import World
 from sim_drives import write_drive_bag
 
@@ -36,7 +37,9 @@ def test_batch_takes_the_named_odometry_and_fails_a_bag_with_several_unnamed(
     bag = _bag(tmp_path / "two.bag")
     unnamed = run_batch([bag], tmp_path / "unnamed", workers=1)
     assert [r.status for r in unnamed.results] == ["failed"]
-    assert "--odom-topic" in unnamed.results[0].error or "choose" in unnamed.results[0].error
+    error = unnamed.results[0].error  # one line naming the choices and the option
+    assert "\n" not in error and "/odom" in error and "/wheel_odom" in error, error
+    assert "--odom-topic" in error, error
     means = {}
     for name in SOURCES:
         outdir = tmp_path / name.strip("/")
@@ -53,3 +56,15 @@ def test_cli_batch_has_the_odom_topic_option(tmp_path: Path) -> None:
     )
     assert result.exit_code == 1, result.output  # the job fails: this bag has no /tf odometry
     assert "tf" in result.output
+
+
+def test_a_folder_made_with_one_odometry_refuses_another(tmp_path: Path) -> None:
+    """Resuming with another ``--odom-topic`` would mix two odometries in one folder."""
+    bag = _bag(tmp_path / "two.bag")
+    outdir = tmp_path / "out"
+    assert run_batch([bag], outdir, workers=1, odom_topic="/odom").results[0].status == "done"
+    for other in ("/wheel_odom", None):
+        with pytest.raises(OutputError, match="another --odom-topic"):
+            run_batch([bag], outdir, workers=1, odom_topic=other)
+    again = run_batch([bag], outdir, workers=1, odom_topic="/odom")  # the same: resumes
+    assert again.results == [] and len(again.already_done) == 1

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from collections.abc import Callable, Iterable
@@ -25,8 +26,9 @@ from laser_corners.pipeline.interrupt import stop_requests
 __all__ = ["run_batch"]
 
 
-def _claim_folder(outdir: Path, choice: ParamsChoice) -> None:
-    """Create ``outdir`` and record the parameter choice; refuse a folder of another choice."""
+def _claim_folder(outdir: Path, choice: ParamsChoice, odom_topic: str | None) -> None:
+    """Create ``outdir`` and record the parameter choice (and the odometry, when one is
+    named); refuse a folder of another choice."""
     try:
         outdir.mkdir(parents=True, exist_ok=True)
     except FileExistsError:
@@ -34,11 +36,13 @@ def _claim_folder(outdir: Path, choice: ParamsChoice) -> None:
     except OSError as exc:
         raise OutputError(f"{outdir}: cannot create the output folder ({exc.strerror})") from None
     described = choice.describe()
+    if odom_topic is not None:  # the keypoints' map columns depend on it
+        described += f"odom_topic: {json.dumps(odom_topic)}\n"
     params_file = outdir / PARAMS_NAME
     if params_file.exists() and params_file.read_text(encoding="utf-8") != described:
         raise OutputError(
-            f"{outdir}: holds results made with other parameters (see {params_file}); "
-            "use another output folder, or delete this one to start over"
+            f"{outdir}: holds results made with other parameters or another --odom-topic "
+            f"(see {params_file}); use another output folder, or delete this one to start over"
         )
     try:
         params_file.write_text(described, encoding="utf-8")
@@ -71,7 +75,7 @@ def run_batch(
         Output folder (created). Running again on the same folder skips finished jobs.
     params : ParamsChoice or DetectorParams, optional
         Parameters (default: the ``paper`` preset). The folder records the choice and refuses
-        another one, so its results always share one choice.
+        another one, so its results always share one choice (and one ``odom_topic``).
     topic : str, optional
         LaserScan topic of the bags (default: each of their LaserScan topics).
     odom_topic : str, optional
@@ -117,7 +121,7 @@ def run_batch(
     choice = as_choice(params)
     check_globs(inputs)  # the inputs and the scheduler first: nothing is written before
     check_scheduler(scheduler, timeout)
-    _claim_folder(outdir, choice)
+    _claim_folder(outdir, choice, odom_topic)
     n_workers, threads, prefetch = _resources(workers, scheduler, threads, prefetch)
     manifest = Manifest(outdir)
     pending, report = _plan(manifest, outdir, inputs, (topic, odom_topic), n_workers)

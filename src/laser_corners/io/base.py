@@ -79,9 +79,16 @@ class TopicChoiceError(InputError):
         self.path = path
         self.topics = list(topics)
         self.option = option
+        self.what = what
         lines = "".join(f"\n  {t}" for t in self.topics)
         head = f"{path}: {len(self.topics)} {what} topics; choose one of{also}:"
         super().__init__(head + lines)
+
+    def one_line(self) -> str:
+        """The message on one line (a batch manifest's record), the topics listed in it."""
+        names = ", ".join(self.topics)
+        count = f"{len(self.topics)} {self.what} topics"
+        return f"{self.path}: {count} ({names}); choose with {self.option}"
 
 
 def read_head(path: Path, size: int = 64) -> bytes:
