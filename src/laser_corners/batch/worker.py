@@ -162,8 +162,7 @@ def run_job(
     prefetch : bool
         Read in a thread of its own while detecting (see :mod:`laser_corners.pipeline`).
     publish : bool
-        Rename the complete output to ``<name>.parquet``; with False a ``done`` job leaves it
-        as ``<name>.parquet.partial`` for the caller to rename once it has recorded the job.
+        Rename the output; with False a ``done`` job leaves it ``<name>.parquet.partial``.
 
     Returns
     -------
