@@ -82,6 +82,13 @@ class SlamOptions(Options):
     ``final_optimisation``). Off by default: on intel it lowered the relation error (0.0242
     -> 0.0230 m), on fr079 with the bag's mounting and on aces it raised it slightly
     (docs/slam.md, "The refinement pass")."""
+    rescan_final: bool = True
+    """After the final optimisation (and the refinement pass), re-register every scan by the
+    front end's ICP against the keyframes around it at their final estimates
+    (``local_map_keyframes``, half before and half after), from its blended pose; kept when
+    it passes the tracking's and the closures' checks (:mod:`~laser_corners.slam.rescan`).
+    Keeps every scan's thinned points (about 2 KB a scan) for it. On: it lowered the relation
+    error on every Freiburg log (docs/slam.md, "Every scan re-registered")."""
     refine_every: int = Field(1, ge=1, le=1000)
     """The refinement pass re-aligns every n-th keyframe."""
     refine_candidates: int = Field(3, ge=1, le=20)
