@@ -111,3 +111,13 @@ def test_slam_rescan_lowers_the_relation_error() -> None:
     # measured: 0.0067 -> 0.0062 m, 0.073 -> 0.049 deg
     assert on.trans_mean < 0.95 * off.trans_mean, (off, on)
     assert on.rot_deg_mean < 0.8 * off.rot_deg_mean, (off, on)
+
+
+@pytest.mark.parametrize("override", ["scan_alignment=false", "front_end=corners"])
+def test_no_scan_pass_without_the_front_ends_icp(override) -> None:
+    truth = np.array(straight((1.5, 1.5), (4.5, 1.5)))
+    stamps = np.arange(len(truth)) / RATE
+    slam = Slam(OPTIONS.with_overrides([override]))
+    drive_slam(slam, two_rooms(), truth, truth, stamps, np.random.default_rng(3))
+    result = slam.result()
+    assert result.counts["rescan_tried"] == 0 and result.counts["scans"] == len(truth)

@@ -11,7 +11,8 @@ noise (``match_sigma_*``: the blended pose is such an alignment). The result rep
 blended pose when it passes the tracking's and the loop closure's checks: at least
 ``min_overlap`` of the scan's points on the map, the alignment not degenerate (a corridor),
 and a move of less than ``loop_agree_xy`` / ``loop_agree_yaw`` (a larger one is a wrong match:
-the map is consistent already). Keyframe estimates are not changed.
+the map is consistent already). Keyframe estimates are not changed. :class:`~.slam.Slam`
+runs it only where its front end runs ICP.
 
 One ICP per scan, one map per keyframe (its scans share it); the scans' thinned points are
 kept for it (about 2 KB a scan: 120-160 points of 16 bytes on the Freiburg logs).

@@ -146,7 +146,9 @@ class Slam:
         self._ref: list[int] = []
         self._rel: list[NDArray] = []
         self._ms: list[float] = []
-        self._scan_xy: list[NDArray] = []  # every scan's points, for rescan_final
+        opt = self.options  # the scan pass re-runs the front end's ICP: only with it
+        self._rescan = opt.rescan_final and opt.scan_alignment and opt.front_end != "corners"
+        self._scan_xy: list[NDArray] = []  # every scan's points, for the scan pass
         self.pose: NDArray[np.float64] | None = None
         self._anchor = np.zeros(3)  # the last keyframe's pose in the tracking frame
         self._last_odom = np.zeros(3)
@@ -216,7 +218,7 @@ class Slam:
         self._odom.append(odo)
         self._ref.append(len(self.kf) - 1)
         self._rel.append(np.array(relative_pose(self._anchor, self.pose)))
-        if opt.rescan_final:
+        if self._rescan:
             self._scan_xy.append(pts.xy)
         self._ms.append((time.perf_counter() - start) * 1e3)
         self.counts["scans"] += 1
@@ -531,7 +533,7 @@ class Slam:
         poses = blend_poses(
             np.asarray(self._stamps), ref, np.asarray(self._rel), self._links, self.kf
         )
-        if not self.options.rescan_final:
+        if not self._rescan:
             return poses
         surface = SURFACE_SPACINGS * self.options.point_spacing
         poses, counts = rescan(self._scan_xy, poses, ref, self.kf, self.options, surface)
