@@ -55,12 +55,16 @@ class KeyframeStore:
     def local_map(self, n: int) -> tuple[PointMap, PointMap]:
         """The last ``n`` keyframes at their estimates: line points with normals (for ICP)
         and every point (for the overlap)."""
-        first = max(0, len(self.points) - n)
-        chosen = self.points[first:]
+        return self.span_map(max(0, len(self.points) - n), len(self.points))
+
+    def span_map(self, first: int, stop: int) -> tuple[PointMap, PointMap]:
+        """Keyframes ``first`` to ``stop`` (excluded) at their estimates, as
+        :meth:`local_map`."""
+        chosen = self.points[first:stop]
         xy = np.concatenate([p.xy for p in chosen])
         normals = np.concatenate([p.normals for p in chosen])
         line = np.concatenate([p.has_normal for p in chosen])
-        owner = np.repeat(np.arange(first, len(self.points)), [len(p.xy) for p in chosen])
+        owner = np.repeat(np.arange(first, first + len(chosen)), [len(p.xy) for p in chosen])
         pose = self.estimate[owner]
         c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
         moved = np.column_stack(

@@ -79,9 +79,17 @@ class SlamOptions(Options):
     its final estimate to the submaps of its spatial neighbours (within ``loop_radius``, at
     any time), add the alignments that pass the loop closure's checks as robust relative-pose
     factors and solve once more (:mod:`~laser_corners.slam.refine`; needs
-    ``final_optimisation``). Off by default: on intel it lowered the relation error (0.0242
-    -> 0.0230 m), on fr079 with the bag's mounting and on aces it raised it slightly
-    (docs/slam.md, "The refinement pass")."""
+    ``final_optimisation``). Off by default: with ``rescan_final`` it lowered intel's relation
+    error (0.0187 -> 0.0180 m) but raised fr079's with the bag's mounting (0.0619 -> 0.0630 m)
+    and aces' (0.0339 -> 0.0342 m; docs/slam.md, "Every scan re-registered")."""
+    rescan_final: bool = True
+    """After the final optimisation (and the refinement pass), re-register every scan by the
+    front end's ICP against the keyframes around it at their final estimates
+    (``local_map_keyframes``, half before and half after), from its blended pose; kept when
+    it passes the tracking's and the closures' checks (:mod:`~laser_corners.slam.rescan`).
+    Keeps every scan's thinned points (about 2 KB a scan) for it. Only with the front end's
+    ICP (``scan_alignment``, ``front_end`` ``scan`` or ``both``). On: it lowered the relation
+    error on every Freiburg log (docs/slam.md, "Every scan re-registered")."""
     refine_every: int = Field(1, ge=1, le=1000)
     """The refinement pass re-aligns every n-th keyframe."""
     refine_candidates: int = Field(3, ge=1, le=20)

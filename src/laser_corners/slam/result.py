@@ -62,7 +62,10 @@ class SlamResult:
     stamps : ndarray, shape (N,)
         Scan stamps (s), one per scan fed (skipped scans are not in it).
     poses : ndarray, shape (N, 3)
-        Base (odometry child frame) pose in the map frame, final estimate.
+        Base (odometry child frame) pose in the map frame, final estimate (with
+        ``rescan_final``, re-registered against the final map: a keyframe's scan pose differs
+        from its ``keyframe_poses`` row, on intel and aces by 7 mm median, 3 cm at the 95th
+        percentile).
     odometry : ndarray, shape (N, 3)
         Raw odometry base pose.
     keyframes : ndarray of int, shape (K,)

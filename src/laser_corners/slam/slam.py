@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.keypoints import Keypoints
-from laser_corners.pose import between_many, compose, compose_many, relative_pose, wrap_angle
+from laser_corners.pose import compose, relative_pose, wrap_angle
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.backend import Backend
@@ -42,6 +42,7 @@ from laser_corners.slam.relocalise import (
     occupancy_keys,
     scan_conflict,
 )
+from laser_corners.slam.rescan import blend_poses, rescan
 from laser_corners.slam.result import Landmarks, LoopClosure, SlamResult
 
 __all__ = ["Slam"]
@@ -87,6 +88,8 @@ COUNT_KEYS = (
     "refine_tried",
     "refine_links",
     "refine_pruned",
+    "rescan_tried",
+    "rescan_kept",
     "landmarks",
     "landmark_observations",
     "corner_registrations",
@@ -143,6 +146,9 @@ class Slam:
         self._ref: list[int] = []
         self._rel: list[NDArray] = []
         self._ms: list[float] = []
+        opt = self.options  # the scan pass re-runs the front end's ICP: only with it
+        self._rescan = opt.rescan_final and opt.scan_alignment and opt.front_end != "corners"
+        self._scan_xy: list[NDArray] = []  # every scan's points, for the scan pass
         self.pose: NDArray[np.float64] | None = None
         self._anchor = np.zeros(3)  # the last keyframe's pose in the tracking frame
         self._last_odom = np.zeros(3)
@@ -212,6 +218,8 @@ class Slam:
         self._odom.append(odo)
         self._ref.append(len(self.kf) - 1)
         self._rel.append(np.array(relative_pose(self._anchor, self.pose)))
+        if self._rescan:
+            self._scan_xy.append(pts.xy)
         self._ms.append((time.perf_counter() - start) * 1e3)
         self.counts["scans"] += 1
         return self.pose.copy(), self._covariance()
@@ -519,26 +527,18 @@ class Slam:
         )
 
     def _scan_poses(self) -> NDArray[np.float64]:
-        """Final pose of every scan: its pose relative to the keyframe before it, moved with
-        that keyframe's and the next keyframe's final estimates, blended by time, so the
-        correction a keyframe link absorbed is spread over the scans along it (no jumps)."""
+        """Final pose of every scan (:func:`.rescan.blend_poses`), with ``rescan_final``
+        re-registered against the final map (:func:`.rescan.rescan`)."""
         ref = np.asarray(self._ref)
-        rel = np.asarray(self._rel)
-        estimate = self.kf.estimate
-        from_a = compose_many(estimate[ref], rel)
-        nxt = np.minimum(ref + 1, len(self.kf) - 1)
-        has_next = (ref + 1 < len(self.kf)) & np.array(
-            [self._links[j] is not None for j in nxt], dtype=bool
+        poses = blend_poses(
+            np.asarray(self._stamps), ref, np.asarray(self._rel), self._links, self.kf
         )
-        links = np.array([link if link is not None else np.zeros(3) for link in self._links])
-        from_b = compose_many(estimate[nxt], between_many(links[nxt], rel))
-        kst = np.asarray(self.kf.stamps)
-        span = np.maximum(kst[nxt] - kst[ref], 1e-9)
-        w = np.where(has_next, np.clip((np.asarray(self._stamps) - kst[ref]) / span, 0, 1), 0.0)
-        out = from_a.copy()
-        out[:, :2] += w[:, None] * (from_b[:, :2] - from_a[:, :2])
-        out[:, 2] = wrap_angle(from_a[:, 2] + w * wrap_angle(from_b[:, 2] - from_a[:, 2]))
-        return out
+        if not self._rescan:
+            return poses
+        surface = SURFACE_SPACINGS * self.options.point_spacing
+        poses, counts = rescan(self._scan_xy, poses, ref, self.kf, self.options, surface)
+        self.counts.update(counts)
+        return poses
 
     def _prune(self, closure: LoopClosure) -> None:
         """Mark an accepted closure as dropped by the final optimisation."""
