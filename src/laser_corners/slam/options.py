@@ -87,7 +87,7 @@ class SlamOptions(Options):
     front end's ICP against the keyframes around it at their final estimates
     (``local_map_keyframes``, half before and half after), from its blended pose; kept when
     it passes the tracking's and the closures' checks (:mod:`~laser_corners.slam.rescan`).
-    Keeps every scan's thinned points (about 2 KB a scan) for it. Only with the front end's
+    Keeps every scan's thinned points (float32, about 1 KB a scan) for it. Only with the front end's
     ICP (``scan_alignment``, ``front_end`` ``scan`` or ``both``). On: it lowered the relation
     error on every Freiburg log (docs/slam.md, "Every scan re-registered")."""
     refine_every: int = Field(1, ge=1, le=1000)
