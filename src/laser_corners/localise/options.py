@@ -63,8 +63,13 @@ class LocaliseOptions(Options):
     """Position step (m) of the global search lattice (around the keyframe positions)."""
     global_yaw_step: float = Field(0.035, ge=0.005, le=0.5)
     """Heading step (rad) of the global search."""
-    global_reach: float = Field(0.75, ge=0.0, le=10.0)
-    """The global search looks at positions within this distance (m) of a keyframe."""
+    global_reach: float = Field(3.0, ge=0.0, le=10.0)
+    """The global search looks at positions within this distance (m) of a keyframe. A robot
+    of a later visit drives where the mapping robot did not (across a room, along the other
+    side of a hall) while its scans fit the map: aces' later visit, scans fitting 0.87-0.99 at
+    1.6-10 m from every keyframe, never searched with 0.75 m. A few metres: a room's or a wide
+    corridor's width; the cost grows with the positions (2-4x those of 0.75 m), paid only
+    while searching."""
     max_hypotheses: int = Field(24, ge=1, le=500)
     """Hypotheses followed at most (the worst are dropped)."""
     hypothesis_agreement: float = Field(0.5, ge=0.0, le=1.0)
