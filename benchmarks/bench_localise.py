@@ -32,7 +32,10 @@ metric interpolates the joined trajectory across the scans without an estimate, 
 the relations whose two stamps have a pose (within 0.1 s), with ``posed``/``relations``
 their share; ``held`` fills every scan from the first fix on with the last estimate's
 map -> odom applied to the odometry (the pose a robot would use, as the ROS node's ``/tf``
-gives it) and leaves out the relations with a stamp before the first fix.
+gives it) and leaves out the relations with a stamp before the first fix. *Gaps
+dead-reckoned in the window*: the interpolated score again, with the scans that have no
+estimate while a lost track's search window is open (``Localiser.window``, issue 20) given the
+window's dead-reckoned pose; the localiser does not report these poses (no estimate there).
 
 Timings are of this machine under whatever else runs on it (2 cores shared).
 """
@@ -203,6 +206,7 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     held_t, held_p = [], []  # every scan from the first fix on: the estimate, else the
     map_to_odom = None  # last map -> odom applied to the odometry (what a robot would use)
     cpu_tracking = []  # CPU ms of the scans given while tracking (anchored or local)
+    dead_t, dead_p = [], []  # no estimate, a lost track's window open: its dead-reckoned pose
     for i in range(half, len(scans)):
         tracking = loc.status == "tracking"
         cpu = time.process_time()
@@ -215,6 +219,9 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
             est_i.append(i)
             est_s.append(e.status)
             map_to_odom = e.map_to_odom
+        elif loc.window is not None:
+            dead_t.append(stamps[i])
+            dead_p.append(loc.window.pose)
         if map_to_odom is not None:
             held_t.append(stamps[i])
             held_p.append(compose_many(map_to_odom, odo[i]))
@@ -228,6 +235,14 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     rel = relations[(relations[:, 0] >= t_half) | (relations[:, 1] >= t_half)]
     spanning = (rel[:, 0] < t_half) | (rel[:, 1] < t_half)
     ours = relation_metrics(joined_t, joined_p, rel)
+    # the same with the lost tracks' dead-reckoned poses filling the gaps while the window is
+    # open (the localiser gives no estimate there: what a caller could do with Localiser.window)
+    order = np.argsort(np.r_[joined_t, dead_t], kind="stable")
+    dead = relation_metrics(
+        np.r_[joined_t, dead_t][order],
+        np.vstack([joined_p, np.reshape(dead_p, (-1, 3))])[order],
+        rel,
+    )
     full = relation_metrics(full_traj[0], full_traj[1], rel)
     # only the relations whose two stamps have a pose (no interpolation across a gap)
     have = np.r_[map_t[first], np.array(est_t)]
@@ -254,6 +269,8 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "covered": ours.n_covered,
         "joined_trans": ours.trans_mean,
         "joined_rot": ours.rot_deg_mean,
+        "dead_reckoned": len(dead_t),
+        "joined_dead_trans": dead.trans_mean,
         "full_trans": full.trans_mean,
         "full_rot": full.rot_deg_mean,
         "spanning_trans": relation_metrics(joined_t, joined_p, rel[spanning]).trans_mean,
@@ -265,8 +282,14 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "held_trans": ours_held.trans_mean,
         "held_full_trans": full_held.trans_mean,
         "first_fix_travel": loc.fixes[0].travel if loc.fixes else None,
+        "reacquired": loc.counts["reacquired"],
         "fixes": [
-            {"scan": half + f.scan_index, "travel": f.travel, "error": float(e)}
+            {
+                "scan": half + f.scan_index,
+                "travel": f.travel,
+                "error": float(e),
+                "window": f.windowed,
+            }
             for f, e in zip(
                 loc.fixes,
                 [err[est_i.index(half + f.scan_index)] for f in loc.fixes],
@@ -392,11 +415,12 @@ def table(results: list[dict]) -> list[str]:
     lines += [
         "",
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
-        "| ratio | spanning m | posed relations (spanning) | posed: joined / full m, ratio "
+        "| ratio | gaps dead-reckoned in the window: m, ratio (poses) | spanning m "
+        "| posed relations (spanning) | posed: joined / full m, ratio "
         "| held relations: joined / full m, ratio "
         "| first fix travel m | estimates / scans (local) | lost | wrong (local) "
         "| error median / p95 m | error share: worst 5 % of relations, gap relations |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         if "later" not in r:
@@ -408,6 +432,8 @@ def table(results: list[dict]) -> list[str]:
             f"| {r['log']} | {v['relations']} ({v['spanning']}) | {v['covered']} "
             f"| {v['joined_trans']:.4f} / {v['joined_rot']:.3f} "
             f"| {v['full_trans']:.4f} / {v['full_rot']:.3f} | {ratio:.2f} "
+            f"| {v['joined_dead_trans']:.4f}, {v['joined_dead_trans'] / v['full_trans']:.2f} "
+            f"({v['dead_reckoned']}) "
             f"| {v['spanning_trans']:.4f} | {v['posed']} ({v['posed_spanning']}) "
             f"| {v['posed_trans']:.4f} / {v['posed_full_trans']:.4f}, "
             f"{v['posed_trans'] / v['posed_full_trans']:.2f} "

@@ -2,7 +2,8 @@
 
 :class:`Localiser` is the incremental API (``add(scan, odometry, stamp) -> estimate``),
 :func:`run_localise` runs it over a recording. Modules: :mod:`~.options`, :mod:`~.mapmodel`
-(the map's point maps and the global search), :mod:`~.localiser`, :mod:`~.run`.
+(the map's point maps and the global search), :mod:`~.hypotheses` (the fix rule),
+:mod:`~.window` (the search window of a lost track), :mod:`~.localiser`, :mod:`~.run`.
 """
 
 from laser_corners.localise.localiser import Localiser, LocaliserEstimate

@@ -35,8 +35,14 @@ Three states (:attr:`Localiser.status`):
     together gets a ``"local"`` estimate (chained to the last anchored pose, covariance
     growing); once the map explains it again the estimate is anchored again.
 ``lost``
-    ``lost_scans`` such scans in a row: the fix is dropped and the global search starts again
-    (a kidnapped robot); the next fix is reported as ``relocalised``.
+    ``lost_scans`` such scans in a row: the fix is dropped and the search starts again; the
+    next fix is reported as ``relocalised``. Unless the loss followed an odometry or time
+    jump, the search first looks only inside the *window* of the lost track's dead-reckoned
+    pose (:mod:`.window`: 3σ of an uncertainty growing with the travel), where a winner needs
+    ``reacquire_travel`` instead of ``fix_travel``, is scored among the points the map could
+    explain and is not judged on the scans since the loss; once the window is wider than
+    ``reacquire_xy`` / ``reacquire_yaw``, the global search over the whole map takes over (a
+    kidnapped robot).
 """
 
 from __future__ import annotations
@@ -44,17 +50,19 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.freespace import Support
+from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
 from laser_corners.localise.local import Fit, LocalMap, fuse
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.pose import between_many, compose_many, invert_many, poses_apart
+from laser_corners.localise.window import Window
+from laser_corners.pose import between_many, compose_many, invert_many
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, icp, match_share
 from laser_corners.slam.mapfile import SavedMap, load_map
@@ -124,39 +132,6 @@ class LocaliserEstimate:
 
 
 @dataclass
-class Hypothesis:
-    """A candidate pose chained by odometry, with its recent agreements."""
-
-    pose: NDArray[np.float64]
-    born: int
-    recent: deque = field(default_factory=deque)
-    travel: float = 0.0
-    scans: int = 0
-    conflict: deque = field(default_factory=deque)
-    """Recent shares of beams contradicting the map's free space (``freespace``)."""
-    outside: deque = field(default_factory=deque)
-    """Recent shares of beams ending where the map saw nothing."""
-    loose: deque = field(default_factory=deque)
-    """Recent shares of beams contradicting any evidence of the map (``Support.loose``)."""
-
-    def score(self) -> float:
-        """Mean recent agreement."""
-        return float(np.mean(self.recent)) if self.recent else 0.0
-
-    def remember(self, agreement: float, support: Support, window: int) -> None:
-        """Append one scan's agreement and free-space support, keep the last ``window``."""
-        for queue, value in (
-            (self.recent, agreement),
-            (self.conflict, support.conflict),
-            (self.outside, support.outside),
-            (self.loose, support.loose),
-        ):
-            queue.append(value)
-            while len(queue) > window:
-                queue.popleft()
-
-
-@dataclass
 class Fix:
     """A fix (first or after lost): where, when and after how much travel."""
 
@@ -165,6 +140,8 @@ class Fix:
     travel: float
     """Odometry travel (m) since the search started."""
     pose: tuple[float, float, float]
+    windowed: bool = False
+    """Found inside the window of the lost track's dead-reckoned pose (``localise.window``)."""
 
 
 class Localiser:
@@ -203,6 +180,7 @@ class Localiser:
         self.counts["refused_free_space"] = 0
         self.counts["refused_history"] = 0
         self.counts["local"] = 0
+        self.counts["reacquired"] = 0
         self.local = LocalMap(self.map.grid, GLOBAL_SIGMA)
         """Recent scans' points the map does not explain (tracking into unmapped space)."""
         self._recent: deque = deque(maxlen=self.options.recent_scans)
@@ -218,6 +196,9 @@ class Localiser:
         self._search_travel = 0.0
         self._history: deque = deque()
         """Scans of the current search kept for the history check: (travel, points, odometry)."""
+        self.window: Window | None = None
+        """The lost track's dead-reckoned pose, searched around while it is narrow enough."""
+        self._since_jump = 0
 
     @property
     def status(self) -> str:
@@ -230,6 +211,7 @@ class Localiser:
         if covariance is not None:
             self._cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
         self.hypotheses = []
+        self.window = None
         self._bad = 0
         self._recent.clear()
         self._conflicts.clear()
@@ -302,6 +284,7 @@ class Localiser:
         recent scans), or none (counts towards lost)."""
         assert self.pose is not None
         opt = self.options
+        self._since_jump = 0 if jump else self._since_jump + 1
         prior = self._prior(delta, jump)
         pred = compose_many(self.pose, delta)
         fit = self._fused(pts.xy, pred, prior, jump)
@@ -429,9 +412,13 @@ class Localiser:
     def _lose(self, index: int) -> None:
         """Drop the fix: back to the global search, with the predicted pose as the first
         hypothesis (a robot that stops agreeing with the map is most often still where the
-        odometry says: a look-alike elsewhere must then beat it by ``fix_margin``)."""
+        odometry says: a look-alike elsewhere must then beat it by ``fix_margin``). Unless the
+        loss followed an odometry or time jump, the search stays inside the window of the
+        dead-reckoned pose while it is narrow enough (``localise.window``)."""
         assert self.pose is not None
         self.hypotheses = [Hypothesis(self.pose.copy(), index)]
+        recent_jump = self._since_jump <= self.options.lost_scans
+        self.window = None if recent_jump else Window.from_covariance(self.pose, self._cov)
         self.pose = None
         self._searching = "lost"
         self._bad = 0
@@ -450,6 +437,7 @@ class Localiser:
             self.hypotheses = []
             self._since_search = 0
             self._history.clear()
+        self._move_window(delta, jump)
         step = math.hypot(delta[0], delta[1]) + 0.5 * abs(delta[2])
         self._search_travel += step
         self._remember(pts.xy, odo)
@@ -457,8 +445,13 @@ class Localiser:
         if self._since_search % opt.global_every == 0:
             self._propose(scan, pts.xy, index)
         self._since_search += 1
-        winner = self._winner()
-        if winner is not None and not self._history_fits(winner, odo):
+        needed = opt.fix_travel if self.window is None else opt.reacquire_travel
+        winner = choose_winner(self.hypotheses, opt, needed)
+        # inside the window the winner continues the lost track by odometry: the scans since
+        # the loss are those that did not fit the map (a blocked view, a closed door), and
+        # judging it on them would refuse every right fix there
+        history = self.window is None
+        if winner is not None and history and not self._history_fits(winner, odo):
             self.hypotheses.remove(winner)
             self.counts["refused_history"] += 1
             winner = None
@@ -470,10 +463,40 @@ class Localiser:
         self._recent.clear()  # the usual agreement of the new track: its hypothesis's, not 1.0
         self._recent.extend(winner.recent)
         self.local.clear()
-        self.fixes.append(Fix(index, stamp, self._search_travel, tuple(winner.pose.tolist())))
+        windowed = self.window is not None
+        self.counts["reacquired"] += windowed
+        self.window = None
+        pose = tuple(winner.pose.tolist())
+        self.fixes.append(Fix(index, stamp, self._search_travel, pose, windowed))
         self._cov = np.diag([0.05, 0.05, 0.02]) ** 2
         agreement = winner.recent[-1]
         return self._estimate(odo, index, stamp, "relocalised", agreement)
+
+    def _move_window(self, delta: NDArray, jump: bool) -> None:
+        """Move the lost track's window by the odometry step; close it (global search from
+        now on) across a jump or once it is wider than ``reacquire_xy`` / ``reacquire_yaw``."""
+        if self.window is None:
+            return
+        opt = self.options
+        self.window.move(delta, opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+        if jump or not self.window.open(opt.reacquire_xy, opt.reacquire_yaw):
+            self.window = None
+            for h in self.hypotheses:  # scored from now on as the global search scores
+                h.recent.clear()
+
+    def _agreement(self, xy: NDArray, pose: NDArray, mapped: float) -> float:
+        """A hypothesis's agreement: ``mapped`` (the share of the scan's points near a map
+        point); inside a lost track's window, where the robot often sees space the map does
+        not cover, the share among the points the map could explain when more than
+        ``partly_outside`` of them are far from every map point, as a tracked scan is
+        judged (``Fit.explained``). The global search keeps the plain share: among the
+        explainable points only, a look-alike that puts the scan off the map would gain."""
+        if self.window is None or len(xy) == 0:
+            return mapped
+        unmapped = float(np.mean(self.local.unexplained(transform(xy, pose))))
+        if unmapped <= self.options.partly_outside:
+            return mapped
+        return min(1.0, mapped / max(1.0 - unmapped, 0.05))
 
     def _follow(self, xy: NDArray, delta: NDArray, step: float) -> None:
         """Move every hypothesis by the odometry step, align it, score it, prune, merge."""
@@ -482,7 +505,9 @@ class Localiser:
         for h in self.hypotheses:
             aligned, agreement = self._align(xy, compose_many(h.pose, delta), prior)
             h.pose = aligned.pose
-            h.remember(agreement, self._support(h.pose, xy), opt.recent_scans)
+            h.remember(
+                self._agreement(xy, h.pose, agreement), self._support(h.pose, xy), opt.recent_scans
+            )
             h.travel += step
             h.scans += 1
         alive = [
@@ -491,8 +516,9 @@ class Localiser:
             if h.score() >= opt.hypothesis_agreement
             and np.mean(h.conflict) <= opt.max_conflict
             and np.mean(h.loose) <= opt.max_loose_conflict
+            and (self.window is None or self.window.contains(h.pose))
         ]
-        self.hypotheses = self._merged(alive)
+        self.hypotheses = merged(alive, self.options)
 
     def _remember(self, xy: NDArray, odo: NDArray) -> None:
         """Keep this scan for the history check when the robot moved ``HISTORY_STEP`` since
@@ -534,63 +560,30 @@ class Localiser:
         window = np.convolve(conflicts, np.ones(n) / n, "valid")
         return float(window.max()) <= opt.track_conflict
 
-    def _merged(self, hypotheses: list[Hypothesis]) -> list[Hypothesis]:
-        """Oldest first; a hypothesis meeting an older one is dropped; at most
-        ``max_hypotheses`` (best recent agreement) are kept."""
-        opt = self.options
-        kept: list[Hypothesis] = []
-        for h in sorted(hypotheses, key=lambda h: h.born):
-            if all(poses_apart(h.pose, k.pose, opt.distinct_xy, opt.distinct_yaw) for k in kept):
-                kept.append(h)
-        kept.sort(key=lambda h: -h.score())
-        return kept[: opt.max_hypotheses]
-
     def _propose(self, scan: LaserScan, xy: NDArray, index: int) -> None:
-        """Global search: new hypotheses from its best poses, refined by ICP."""
+        """Global search (or the window's, after a lost track): new hypotheses from its best
+        poses, refined by ICP."""
         opt = self.options
         self.counts["searches"] += 1
         coarse = scan_points(scan, self.mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
-        found = self.map.global_search(coarse.xy, opt.global_yaw_step, opt.global_candidates)
+        if self.window is None:
+            found = self.map.global_search(coarse.xy, opt.global_yaw_step, opt.global_candidates)
+        else:
+            found = self.map.window_search(
+                coarse.xy,
+                self.window.pose,
+                *self.window.half_widths,
+                opt.global_yaw_step,
+                opt.global_candidates,
+                (opt.distinct_xy, opt.distinct_yaw),
+            )
         prior = np.diag(1.0 / np.array([1.0, 1.0, 0.3]) ** 2)
         fresh = []
         for guess, _ in found:
             aligned, agreement = self._align(xy, guess, prior)
             if agreement >= opt.hypothesis_agreement and self._fits(aligned.pose, xy):
                 h = Hypothesis(aligned.pose, index)
+                agreement = self._agreement(xy, h.pose, agreement)
                 h.remember(agreement, self._support(h.pose, xy), opt.recent_scans)
                 fresh.append(h)
-        self.hypotheses = self._merged(self.hypotheses + fresh)
-
-    def _winner(self) -> Hypothesis | None:
-        """The hypothesis that wins clearly, or None (see the module notes)."""
-        opt = self.options
-        if not self.hypotheses:
-            return None
-        best = max(self.hypotheses, key=lambda h: h.score())
-        # (b) a scan partly outside the map: the lead must hold over a longer travel
-        outside = float(np.mean(best.outside))
-        travel = opt.fix_travel * (opt.outside_travel if outside > opt.partly_outside else 1.0)
-        if (
-            best.travel < travel
-            or float(np.mean(best.conflict)) > opt.max_conflict
-            or best.conflict[-1] > opt.max_conflict
-            or float(np.mean(best.loose)) > opt.max_loose_conflict
-            or best.scans < opt.fix_scans
-            or best.score() < opt.fix_agreement
-        ):
-            return None
-        for rival in self.hypotheses:
-            if rival is not best and _lead(best, rival) < opt.fix_margin:
-                return None
-        return best
-
-
-def _lead(best: Hypothesis, rival: Hypothesis) -> float:
-    """Mean lead in agreement of ``best`` over ``rival`` on the scans both have scored (the
-    last ones); a rival scored on fewer than 3 scans is not beaten yet."""
-    k = min(len(best.recent), len(rival.recent))
-    if k < 3:
-        return -1.0
-    a = list(best.recent)[-k:]
-    b = list(rival.recent)[-k:]
-    return float(np.mean(np.subtract(a, b)))
+        self.hypotheses = merged(self.hypotheses + fresh, opt)

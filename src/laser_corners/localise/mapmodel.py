@@ -45,6 +45,9 @@ LOCAL_POINTS = 80
 LOCAL_YAW_STEP = 0.02
 """Heading step (rad) of the local (recovery) search: 0.2 m at 10 m, within the likelihood's
 width."""
+WINDOW_STEP = 0.2
+"""Position step (m) of the window search after a lost track (finer than the global lattice:
+the window is small)."""
 WALL_CLEARANCE = 0.15
 """Candidate positions closer than this (m) to a map point are not searched."""
 
@@ -104,21 +107,10 @@ class MapModel:
     def _lattice(self, centres: NDArray, options: LocaliseOptions) -> NDArray[np.float64]:
         """Lattice positions within ``global_reach`` of a keyframe, clear of the walls."""
         step = options.global_resolution
-        n = math.floor(options.global_reach / step)
-        off = step * np.arange(-n, n + 1)
-        ox, oy = np.meshgrid(off, off)
-        disc = np.column_stack([ox.ravel(), oy.ravel()])
-        disc = disc[np.hypot(disc[:, 0], disc[:, 1]) <= options.global_reach + 1e-9]
+        disc = _disc(options.global_reach, step)
         cells = np.round(centres / step).astype(np.int64)[:, None, :]
         cells = cells + np.round(disc / step).astype(np.int64)[None]
-        xy = np.unique(cells.reshape(-1, 2), axis=0) * step
-        ix = np.floor((xy - self.grid.origin) / self.grid.resolution).astype(np.int64)
-        rows, cols = self.grid.score.shape
-        inside = (ix[:, 0] >= 0) & (ix[:, 0] < cols) & (ix[:, 1] >= 0) & (ix[:, 1] < rows)
-        xy, ix = xy[inside], ix[inside]
-        wall = math.exp(-0.5 * (WALL_CLEARANCE / GLOBAL_SIGMA) ** 2)
-        clear = self.grid.score[ix[:, 1], ix[:, 0]] < wall
-        return np.ascontiguousarray(xy[clear], dtype=np.float64)
+        return self._clear(np.unique(cells.reshape(-1, 2), axis=0) * step)
 
     def local_search(
         self, points: NDArray[np.float64], centre: NDArray[np.float64], xy: float, yaw: float
@@ -160,17 +152,72 @@ class MapModel:
         1 m or 0.3 rad apart, with their mean likelihood."""
         if len(points) == 0 or len(self.positions) == 0:
             return []
-        points = _subsample(points)
         yaws = np.arange(-math.pi, math.pi, yaw_step)
-        best, arg = self._score(points, self.positions, yaws)
+        return self._best(_subsample(points), self.positions, yaws, count, (1.0, 0.3))
+
+    def window_search(
+        self,
+        points: NDArray[np.float64],
+        centre: NDArray[np.float64],
+        xy: float,
+        yaw: float,
+        yaw_step: float,
+        count: int,
+        apart: tuple[float, float],
+    ) -> list[tuple[NDArray[np.float64], float]]:
+        """The global search restricted to a window: the ``count`` best poses of ``points``
+        (base frame) within ``xy`` (m, a disc) and ``yaw`` (rad) of ``centre``, on a lattice of
+        :data:`WINDOW_STEP` clear of the walls, at least ``apart`` (m, rad) apart.
+
+        Used after a lost track, around its dead-reckoned pose: the prior excludes the
+        look-alikes elsewhere in the map, and the lattice does not need a keyframe nearby.
+        """
+        if len(points) == 0:
+            return []
+        positions = self._clear(_disc(xy, WINDOW_STEP) + np.asarray(centre[:2], float))
+        if len(positions) == 0:
+            return []
+        k = math.ceil(yaw / yaw_step)
+        yaws = centre[2] + yaw_step * np.arange(-k, k + 1)
+        return self._best(_subsample(points), positions, yaws, count, apart)
+
+    def _clear(self, xy: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The positions of ``xy`` on the likelihood grid and not inside a wall."""
+        ix = np.floor((xy - self.grid.origin) / self.grid.resolution).astype(np.int64)
+        rows, cols = self.grid.score.shape
+        inside = (ix[:, 0] >= 0) & (ix[:, 0] < cols) & (ix[:, 1] >= 0) & (ix[:, 1] < rows)
+        xy, ix = xy[inside], ix[inside]
+        wall = math.exp(-0.5 * (WALL_CLEARANCE / GLOBAL_SIGMA) ** 2)
+        clear = self.grid.score[ix[:, 1], ix[:, 0]] < wall
+        return np.ascontiguousarray(xy[clear], dtype=np.float64)
+
+    def _best(
+        self,
+        points: NDArray[np.float64],
+        positions: NDArray[np.float64],
+        yaws: NDArray[np.float64],
+        count: int,
+        apart: tuple[float, float],
+    ) -> list[tuple[NDArray[np.float64], float]]:
+        """The ``count`` best (position, heading) poses, at least ``apart`` (m, rad) apart."""
+        best, arg = self._score(points, positions, yaws)
         chosen: list[tuple[NDArray[np.float64], float]] = []
         for p in np.argsort(-best):
-            pose = np.array([*self.positions[p], yaws[arg[p]]])
-            if all(poses_apart(pose, q, 1.0, 0.3) for q, _ in chosen):
+            pose = np.array([*positions[p], yaws[arg[p]]])
+            if all(poses_apart(pose, q, *apart) for q, _ in chosen):
                 chosen.append((pose, float(best[p])))
                 if len(chosen) == count:
                     break
         return chosen
+
+
+def _disc(radius: float, step: float) -> NDArray[np.float64]:
+    """Offsets (K, 2) of a square lattice of ``step`` within ``radius`` of the origin."""
+    n = math.floor(radius / step + 1e-9)
+    off = step * np.arange(-n, n + 1)
+    ox, oy = np.meshgrid(off, off)
+    disc = np.column_stack([ox.ravel(), oy.ravel()])
+    return disc[np.hypot(disc[:, 0], disc[:, 1]) <= radius + 1e-9]
 
 
 def _subsample(points: NDArray[np.float64], most: int = GLOBAL_POINTS) -> NDArray[np.float64]:

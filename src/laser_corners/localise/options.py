@@ -63,8 +63,13 @@ class LocaliseOptions(Options):
     """Position step (m) of the global search lattice (around the keyframe positions)."""
     global_yaw_step: float = Field(0.035, ge=0.005, le=0.5)
     """Heading step (rad) of the global search."""
-    global_reach: float = Field(0.75, ge=0.0, le=10.0)
-    """The global search looks at positions within this distance (m) of a keyframe."""
+    global_reach: float = Field(3.0, ge=0.0, le=10.0)
+    """The global search looks at positions within this distance (m) of a keyframe. A robot
+    of a later visit drives where the mapping robot did not (across a room, along the other
+    side of a hall) while its scans fit the map: aces' later visit, scans fitting 0.87-0.99 at
+    1.6-10 m from every keyframe, never searched with 0.75 m. A few metres: a room's or a wide
+    corridor's width; the cost grows with the positions (2-4x those of 0.75 m), paid only
+    while searching."""
     max_hypotheses: int = Field(24, ge=1, le=500)
     """Hypotheses followed at most (the worst are dropped)."""
     hypothesis_agreement: float = Field(0.5, ge=0.0, le=1.0)
@@ -117,6 +122,21 @@ class LocaliseOptions(Options):
     """Hypotheses closer than this (m) and ``distinct_yaw`` are one (the younger is merged)."""
     distinct_yaw: float = Field(0.2, ge=0.0, le=3.2)
     """See ``distinct_xy`` (rad)."""
+    reacquire_xy: float = Field(3.0, ge=0.0, le=100.0)
+    """After a lost track (not across an odometry or time jump), the search looks only inside
+    the window of the dead-reckoned pose (``localise.window``) while its position's 3σ is
+    within this (m) and its heading's within ``reacquire_yaw``; past either, the global search
+    takes over. A few metres: a room or a corridor's stretch, where the few look-alikes left
+    are told apart by the hypotheses' lead."""
+    reacquire_yaw: float = Field(1.0, ge=0.0, le=3.2)
+    """See ``reacquire_xy`` (rad). The heading's 3σ grows by ``odometry_sigma_yaw`` per metre
+    and per radian (linearly, 3x that), so it reaches 1 rad after some 5 m of driving with
+    turns, about when the position's reaches ``reacquire_xy``; a look-alike elsewhere is
+    metres away, which the position limit excludes."""
+    reacquire_travel: float = Field(1.0, ge=0.0, le=100.0)
+    """Odometry travel (m, turns 0.5 m per radian) a winner inside the window must have
+    survived (``fix_travel`` outside it): the window already excludes the far look-alikes
+    that the global search's travel is there to tell apart."""
     odometry_jump: float = Field(1.0, ge=0.01, le=1000.0)
     """An odometry step (m, or rad) larger than this between two scans: the prediction is not
     trusted and the scan is searched for around the last pose with a wide prior."""

@@ -1,0 +1,119 @@
+"""Hypotheses of the search for a pose in the map: :class:`Hypothesis`, :func:`merged` and
+:func:`choose_winner` (the fix rule of :class:`~laser_corners.localise.Localiser`).
+
+A hypothesis is a candidate pose chained by odometry, with its recent agreements and
+free-space shares. The fix is declared only when one hypothesis has survived enough travel and
+scans, agrees at least ``fix_agreement`` without contradicting the map's free space, and leads
+every other surviving hypothesis by ``fix_margin`` on average over the scans both were scored
+on: in a symmetric or ambiguous map several hypotheses keep agreeing and no fix is given.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.localise.freespace import Support
+from laser_corners.localise.options import LocaliseOptions
+from laser_corners.pose import poses_apart
+
+__all__ = ["Hypothesis", "choose_winner", "merged"]
+
+
+@dataclass
+class Hypothesis:
+    """A candidate pose chained by odometry, with its recent agreements."""
+
+    pose: NDArray[np.float64]
+    born: int
+    recent: deque = field(default_factory=deque)
+    travel: float = 0.0
+    scans: int = 0
+    conflict: deque = field(default_factory=deque)
+    """Recent shares of beams contradicting the map's free space (``freespace``)."""
+    outside: deque = field(default_factory=deque)
+    """Recent shares of beams ending where the map saw nothing."""
+    loose: deque = field(default_factory=deque)
+    """Recent shares of beams contradicting any evidence of the map (``Support.loose``)."""
+
+    def score(self) -> float:
+        """Mean recent agreement."""
+        return float(np.mean(self.recent)) if self.recent else 0.0
+
+    def remember(self, agreement: float, support: Support, window: int) -> None:
+        """Append one scan's agreement and free-space support, keep the last ``window``."""
+        for queue, value in (
+            (self.recent, agreement),
+            (self.conflict, support.conflict),
+            (self.outside, support.outside),
+            (self.loose, support.loose),
+        ):
+            queue.append(value)
+            while len(queue) > window:
+                queue.popleft()
+
+
+def merged(hypotheses: list[Hypothesis], options: LocaliseOptions) -> list[Hypothesis]:
+    """Oldest first; a hypothesis meeting an older one (``distinct_xy`` and ``distinct_yaw``)
+    is dropped; at most ``max_hypotheses`` (best recent agreement) are kept."""
+    kept: list[Hypothesis] = []
+    for h in sorted(hypotheses, key=lambda h: h.born):
+        apart = (options.distinct_xy, options.distinct_yaw)
+        if all(poses_apart(h.pose, k.pose, *apart) for k in kept):
+            kept.append(h)
+    kept.sort(key=lambda h: -h.score())
+    return kept[: options.max_hypotheses]
+
+
+def choose_winner(
+    hypotheses: list[Hypothesis], options: LocaliseOptions, travel: float
+) -> Hypothesis | None:
+    """The hypothesis that wins clearly, or None.
+
+    Parameters
+    ----------
+    hypotheses : list of Hypothesis
+        The surviving hypotheses (every one a rival of the best).
+    options : LocaliseOptions
+    travel : float
+        Odometry travel (m) the winner must have survived: ``fix_travel`` for the global
+        search, ``reacquire_travel`` inside a lost track's window; times ``outside_travel``
+        when its recent scans end partly outside the map (the lead must hold longer).
+
+    Returns
+    -------
+    Hypothesis or None
+    """
+    opt = options
+    if not hypotheses:
+        return None
+    best = max(hypotheses, key=lambda h: h.score())
+    outside = float(np.mean(best.outside))
+    travel *= opt.outside_travel if outside > opt.partly_outside else 1.0
+    if (
+        best.travel < travel
+        or float(np.mean(best.conflict)) > opt.max_conflict
+        or best.conflict[-1] > opt.max_conflict
+        or float(np.mean(best.loose)) > opt.max_loose_conflict
+        or best.scans < opt.fix_scans
+        or best.score() < opt.fix_agreement
+    ):
+        return None
+    for rival in hypotheses:
+        if rival is not best and _lead(best, rival) < opt.fix_margin:
+            return None
+    return best
+
+
+def _lead(best: Hypothesis, rival: Hypothesis) -> float:
+    """Mean lead in agreement of ``best`` over ``rival`` on the scans both have scored (the
+    last ones); a rival scored on fewer than 3 scans is not beaten yet."""
+    k = min(len(best.recent), len(rival.recent))
+    if k < 3:
+        return -1.0
+    a = list(best.recent)[-k:]
+    b = list(rival.recent)[-k:]
+    return float(np.mean(np.subtract(a, b)))
