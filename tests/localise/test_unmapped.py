@@ -109,17 +109,23 @@ def test_free_space_knows_the_unmapped_half(half_map) -> None:
     assert wrong.loose >= wrong.conflict and true.loose >= true.conflict
 
 
-def test_no_wrong_pose_in_the_unmapped_half_and_a_fix_back_in_the_map(half_map) -> None:
-    # the global search only near the mapping robot's path (the left room): the right room's
-    # look-alike is what it finds there, and must be refused
-    drive = crossing()
-    loc = Localiser(half_map, LocaliseOptions(global_reach=0.75))
+def _cross(loc: Localiser, drive: np.ndarray) -> list:
+    """Feed the crossing's scans; the (index, estimate) pairs, none more than 0.5 m off."""
     scans = scans_along(two_rooms(), drive, 11)
     odo = noisy_odometry(drive, 11)
     estimates = [loc.add(s, o, i / RATE) for i, (s, o) in enumerate(zip(scans, odo, strict=True))]
     got = [(i, e) for i, e in enumerate(estimates) if e is not None]
     off = [np.hypot(*(e.pose[:2] - drive[i, :2])) for i, e in got]
     assert max(off, default=0.0) < 0.5, f"{sum(d > 0.5 for d in off)} estimates > 0.5 m off"
+    return got
+
+
+def test_no_wrong_pose_in_the_unmapped_half_and_a_fix_back_in_the_map(half_map) -> None:
+    # the global search only near the mapping robot's path (the left room): the right room's
+    # look-alike is what it finds there, and must be refused
+    drive = crossing()
+    loc = Localiser(half_map, LocaliseOptions(global_reach=0.75))
+    got = _cross(loc, drive)
     assert all(drive[i, 0] < 10.5 for i, _ in got)  # nothing in the unmapped room
     assert loc.fixes, "no fix back in the mapped room"
     # from part of the right room the look-alike is perfect (the block out of view): the fix
@@ -135,10 +141,5 @@ def test_the_search_reaching_through_the_door_fixes_only_a_true_pose(half_map) -
     # into the right room, where the robot is: a pose there may be given, never a wrong one
     drive = crossing()
     loc = Localiser(half_map)
-    scans = scans_along(two_rooms(), drive, 11)
-    odo = noisy_odometry(drive, 11)
-    estimates = [loc.add(s, o, i / RATE) for i, (s, o) in enumerate(zip(scans, odo, strict=True))]
-    got = [(i, e) for i, e in enumerate(estimates) if e is not None]
-    off = [np.hypot(*(e.pose[:2] - drive[i, :2])) for i, e in got]
-    assert max(off, default=0.0) < 0.5, f"{sum(d > 0.5 for d in off)} estimates > 0.5 m off"
+    got = _cross(loc, drive)
     assert loc.fixes and len(got) >= 0.8 * (len(drive) - loc.fixes[0].scan_index)

@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.pose import wrap_angle
+from laser_corners.pose import relative_pose, wrap_angle
 
 __all__ = ["Alignment", "PointMap", "icp", "match_share"]
 
@@ -281,6 +281,21 @@ class Alignment:
         of the translational information is below ``ratio`` times the larger."""
         ev = np.linalg.eigvalsh(self.information[:2, :2])
         return bool(ev[-1] <= 0 or ev[0] < ratio * ev[-1])
+
+    def confirms(
+        self, start: NDArray[np.float64], min_overlap: float, max_xy: float, max_yaw: float
+    ) -> bool:
+        """Whether this alignment, from ``start``, is a small and well-constrained correction:
+        at least ``min_overlap`` of the points matched, not :meth:`degenerate`, and ``start``
+        moved by at most ``max_xy`` (m) and ``max_yaw`` (rad). The check of the passes that
+        re-align against a map that is consistent already (``refine``, ``rescan``)."""
+        moved = relative_pose(start, self.pose)
+        return (
+            self.overlap >= min_overlap
+            and not self.degenerate()
+            and math.hypot(moved[0], moved[1]) <= max_xy
+            and abs(moved[2]) <= max_yaw
+        )
 
 
 def match_share(

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.pose import between_many, relative_pose
+from laser_corners.pose import between_many
 from laser_corners.slam.align import PointMap, icp
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.loops import submap_points
@@ -137,13 +137,8 @@ def refine_links(
             iterations=options.icp_iterations,
             overlap_map=every,
         )
-        moved = relative_pose(guesses[i], aligned.pose)
-        if (
-            aligned.overlap >= options.loop_min_score
-            and not aligned.degenerate()
-            and np.hypot(moved[0], moved[1]) <= options.loop_agree_xy
-            and abs(moved[2]) <= options.loop_agree_yaw
-        ):
+        agree = (options.loop_agree_xy, options.loop_agree_yaw)
+        if aligned.confirms(guesses[i], options.loop_min_score, *agree):
             keep.append(i)
             measured.append(aligned.pose)
     idx = np.asarray(keep, dtype=np.int64)

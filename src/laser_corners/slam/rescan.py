@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.pose import between_many, compose_many, relative_pose, wrap_angle
+from laser_corners.pose import between_many, compose_many, wrap_angle
 from laser_corners.slam.align import icp
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.options import SlamOptions
@@ -122,13 +122,8 @@ def rescan(
                 overlap_map=every,
                 surface=surface,
             )
-            moved = relative_pose(out[i], aligned.pose)
-            if (
-                aligned.overlap >= options.min_overlap
-                and not aligned.degenerate()
-                and np.hypot(moved[0], moved[1]) <= options.loop_agree_xy
-                and abs(moved[2]) <= options.loop_agree_yaw
-            ):
+            agree = (options.loop_agree_xy, options.loop_agree_yaw)
+            if aligned.confirms(out[i], options.min_overlap, *agree):
                 out[i] = aligned.pose
                 kept += 1
     return out, {"rescan_tried": tried, "rescan_kept": kept}
