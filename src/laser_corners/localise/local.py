@@ -36,7 +36,7 @@ from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.correlative import ScoreGrid
 from laser_corners.slam.points import ScanPoints, rotate, transform
 
-__all__ = ["Fit", "LocalMap", "fuse"]
+__all__ = ["Fit", "LocalMap", "explained_share", "fuse"]
 
 UNEXPLAINED = 0.25
 """A scan point farther than this (m) from every map point is one the map does not explain
@@ -70,10 +70,16 @@ class Fit:
         sees space the map does not cover), the share among the points the two could
         explain (near a map point, or local): entering unmapped space, the newly seen
         part of the scan is explained by nothing yet."""
-        both = self.mapped + self.local
-        if self.unmapped <= partly:
-            return min(1.0, both)
-        return min(1.0, both / max(1.0 - self.unmapped + self.local, 0.05))
+        return explained_share(self.mapped, self.local, self.unmapped, partly)
+
+
+def explained_share(mapped: float, local: float, unmapped: float, partly: float) -> float:
+    """:meth:`Fit.explained` of the shares ``mapped`` (near a map point), ``local`` (near a
+    local point) and ``unmapped`` (far from every map point) of a scan's points."""
+    both = mapped + local
+    if unmapped <= partly:
+        return min(1.0, both)
+    return min(1.0, both / max(1.0 - unmapped + local, 0.05))
 
 
 class LocalMap:
@@ -107,13 +113,7 @@ class LocalMap:
 
     def unexplained(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Which of the map-frame points ``xy`` (N, 2) no map point explains."""
-        g = self.grid
-        ix = np.floor((xy - g.origin) / g.resolution).astype(np.int64)
-        rows, cols = g.score.shape
-        inside = (ix[:, 0] >= 0) & (ix[:, 0] < cols) & (ix[:, 1] >= 0) & (ix[:, 1] < rows)
-        score = np.zeros(len(xy), dtype=np.float32)
-        score[inside] = g.score[ix[inside, 1], ix[inside, 0]]
-        return score < self.threshold
+        return self.grid.at(xy, outside=0.0) < self.threshold
 
     def add(self, pose: NDArray[np.float64], pts: ScanPoints, step: float) -> None:
         """Count ``step`` of travel; keep the scan's unexplained points at ``pose`` when the

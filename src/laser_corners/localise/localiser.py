@@ -58,7 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.freespace import Support
 from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
-from laser_corners.localise.local import Fit, LocalMap, fuse
+from laser_corners.localise.local import Fit, LocalMap, explained_share, fuse
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.window import Window
@@ -494,9 +494,7 @@ class Localiser:
         if self.window is None or len(xy) == 0:
             return mapped
         unmapped = float(np.mean(self.local.unexplained(transform(xy, pose))))
-        if unmapped <= self.options.partly_outside:
-            return mapped
-        return min(1.0, mapped / max(1.0 - unmapped, 0.05))
+        return explained_share(mapped, 0.0, unmapped, self.options.partly_outside)
 
     def _follow(self, xy: NDArray, delta: NDArray, step: float) -> None:
         """Move every hypothesis by the odometry step, align it, score it, prune, merge."""

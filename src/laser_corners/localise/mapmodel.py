@@ -183,12 +183,8 @@ class MapModel:
 
     def _clear(self, xy: NDArray[np.float64]) -> NDArray[np.float64]:
         """The positions of ``xy`` on the likelihood grid and not inside a wall."""
-        ix = np.floor((xy - self.grid.origin) / self.grid.resolution).astype(np.int64)
-        rows, cols = self.grid.score.shape
-        inside = (ix[:, 0] >= 0) & (ix[:, 0] < cols) & (ix[:, 1] >= 0) & (ix[:, 1] < rows)
-        xy, ix = xy[inside], ix[inside]
         wall = math.exp(-0.5 * (WALL_CLEARANCE / GLOBAL_SIGMA) ** 2)
-        clear = self.grid.score[ix[:, 1], ix[:, 0]] < wall
+        clear = self.grid.at(xy, outside=np.inf) < wall  # off the grid: not searched
         return np.ascontiguousarray(xy[clear], dtype=np.float64)
 
     def _best(

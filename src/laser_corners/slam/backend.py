@@ -50,6 +50,11 @@ def _diag(sx: float, sy: float, syaw: float) -> object:
     return gtsam.noiseModel.Diagonal.Sigmas(np.array([sx, sy, syaw]))
 
 
+def _robust(noise: object) -> object:
+    """``noise`` under the Huber kernel of loop closures and landmark observations."""
+    return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise)
+
+
 class Backend:
     """Incremental pose graph over keyframes (and landmarks)."""
 
@@ -100,11 +105,7 @@ class Backend:
     ) -> None:
         """A relative-pose factor ``X(a)^-1 X(b) = relative``; ``robust``: a loop closure,
         under a Huber kernel (bounded pull), kept apart so :meth:`optimise` can prune it."""
-        noise = _diag(*sigmas)
-        if robust:
-            noise = gtsam.noiseModel.Robust.Create(
-                gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise
-            )
+        noise = _robust(_diag(*sigmas)) if robust else _diag(*sigmas)
         rel = gtsam.Pose2(*map(float, relative))
         factor = gtsam.BetweenFactorPose2(X(a), X(b), rel, noise)
         if robust:
@@ -130,10 +131,7 @@ class Backend:
     ) -> None:
         """A bearing-range factor from keyframe ``keyframe`` (base frame) to ``landmark``,
         noise ``cov`` (2x2, bearing rad and range m) under a Huber kernel."""
-        noise = gtsam.noiseModel.Robust.Create(
-            gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K),
-            gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov, dtype=np.float64)),
-        )
+        noise = _robust(gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov, dtype=np.float64)))
         self._add(
             gtsam.BearingRangeFactor2D(
                 X(keyframe), L(landmark), gtsam.Rot2(float(bearing)), float(rng), noise
@@ -258,10 +256,7 @@ class Backend:
         n_loops = len(self.loops)
         for i, (a, b, rel, noise) in enumerate(extra):
             if i + n_loops not in dropped:
-                robust = gtsam.noiseModel.Robust.Create(
-                    gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise
-                )
-                graph.add(gtsam.BetweenFactorPose2(X(a), X(b), rel, robust))
+                graph.add(gtsam.BetweenFactorPose2(X(a), X(b), rel, _robust(noise)))
         return graph
 
     @property

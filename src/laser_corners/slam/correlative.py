@@ -43,6 +43,16 @@ class ScoreGrid:
         score = np.exp(-0.5 * (dist / sigma) ** 2).astype(np.float32)
         return cls(score, lo, resolution)
 
+    def at(self, xy: NDArray[np.float64], outside: float) -> NDArray[np.float64]:
+        """The score of the cell of each point of ``xy`` (N, 2), ``outside`` for a point
+        off the grid."""
+        ix = np.floor((xy - self.origin) / self.resolution).astype(np.int64)
+        rows, cols = self.score.shape
+        inside = (ix[:, 0] >= 0) & (ix[:, 0] < cols) & (ix[:, 1] >= 0) & (ix[:, 1] < rows)
+        score = np.full(len(xy), outside, dtype=np.float64)
+        score[inside] = self.score[ix[inside, 1], ix[inside, 0]]
+        return score
+
 
 @numba.njit(cache=True)
 def _best(
