@@ -56,9 +56,10 @@ from scipy.spatial import cKDTree
 from laser_corners.eval.relations import read_relations, relation_metrics
 from laser_corners.io.trajectory import read_tum
 from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise.smooth import smooth
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many, invert_many
-from laser_corners.slam import run_slam
+from laser_corners.slam import Slam, run_slam
 from laser_corners.slam.mapfile import load_map
 from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
 
@@ -100,6 +101,8 @@ def drive(loc, scans, odo, stamps, order, ref) -> dict:
     """Feed the scans ``order``; score against ``ref`` (N, 3) poses by scan index."""
     rows = []
     travel = 0.0
+    slam = Slam(mount=loc.mount) if loc.options.smooth else None
+    estimates = []
     for n, i in enumerate(order):
         if n:
             d = between_many(odo[order[n - 1]], odo[i])
@@ -108,9 +111,33 @@ def drive(loc, scans, odo, stamps, order, ref) -> dict:
         cpu = time.process_time()
         e = loc.add(scans[i], odo[i], stamps[i])
         cpu = (time.process_time() - cpu) * 1e3
+        if slam is not None:
+            slam.add(scans[i], odo[i], stamps[i])
+        if e is not None:
+            estimates.append(e)
         err = pose_error(e.pose, ref[i]) if e is not None else (math.inf, math.inf)
         rows.append((i, travel, e is not None, *err, status, loc.ms_per_scan[-1], cpu))
-    return {"rows": rows}
+    if slam is None:
+        return {"rows": rows, "smoothed": None}
+    positions = np.array([e.scan_index for e in estimates], dtype=np.int64)
+    sm = smooth(estimates, positions, slam.result(), loc.options)
+    errors = [pose_error(p, ref[order[k]]) for k, p in zip(sm.index, sm.poses, strict=True)]
+    return {"rows": rows, "smoothed": (sm.index, np.array(errors).reshape(-1, 2))}
+
+
+def smoothed_score(smoothed, first: int | None, n_scans: int) -> dict | None:
+    """Of the smoothed poses (``drive``): the share of the scans from ``first`` on within
+    0.3 m / 3° of the reference, and the poses more than 0.5 m off."""
+    if smoothed is None:
+        return None
+    index, err = smoothed
+    good = (index >= (first or 0)) & (err[:, 0] <= 0.3) & (err[:, 1] <= 3.0)
+    after = n_scans - first if first is not None else 0
+    return {
+        "share_within": float(good.sum() / after) if after else 0.0,
+        "wrong": int((err[:, 0] > 0.5).sum()),
+        "placed": len(index),
+    }
 
 
 def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[dict]:
@@ -118,7 +145,8 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
     for s in starts:
         loc = Localiser(saved, options)
         order = np.arange(s, min(s + n_scans, len(scans)))
-        rows = drive(loc, scans, odo, stamps, order, ref)["rows"]
+        driven = drive(loc, scans, odo, stamps, order, ref)
+        rows = driven["rows"]
         got = [k for k, r in enumerate(rows) if r[2]]
         first = got[0] if got else None
         after = rows[first:] if first is not None else []
@@ -140,6 +168,7 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
                 "ms_tracking_median": float(np.median(tracked)) if tracked else None,
                 "cpu_ms_tracking_mean": float(np.mean(cpu)) if cpu else None,
                 "ms_all_mean": float(np.mean([r[6] for r in rows])),
+                "smoothed": smoothed_score(driven["smoothed"], first, len(rows)),
             }
         )
     return out
@@ -158,7 +187,8 @@ def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
         odo2 = odo.copy()
         odo2[after] = compose_many(shift, odo[after])
         loc = Localiser(saved, options)
-        rows = drive(loc, scans, odo2, stamps, np.r_[before, after], ref)["rows"]
+        driven = drive(loc, scans, odo2, stamps, np.r_[before, after], ref)
+        rows = driven["rows"]
         later = rows[300:]
         lost_at = next((k for k, r in enumerate(later) if r[5] != "tracking"), None)
         fixes = [f for f in loc.fixes if f.scan_index >= 300]
@@ -170,6 +200,7 @@ def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
                 "relocalised": bool(fixes),
                 "reloc_travel": fixes[0].travel if fixes else None,
                 "wrong": sum(r[2] and r[3] > 0.5 for r in rows),
+                "smoothed": smoothed_score(driven["smoothed"], None, len(rows)),
             }
         )
     return out
@@ -202,6 +233,9 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
+    slam = Slam(mount=loc.mount) if options.smooth else None
+    slam_cpu = 0.0
+    estimates: list = []
     est_t, est_p, est_i, est_s = [], [], [], []
     held_t, held_p = [], []  # every scan from the first fix on: the estimate, else the
     map_to_odom = None  # last map -> odom applied to the odometry (what a robot would use)
@@ -213,7 +247,12 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         e = loc.add(scans[i], odo[i], stamps[i])
         if tracking:
             cpu_tracking.append((time.process_time() - cpu) * 1e3)
+        if slam is not None:
+            cpu = time.process_time()
+            slam.add(scans[i], odo[i], stamps[i])
+            slam_cpu += time.process_time() - cpu
         if e is not None:
+            estimates.append(e)
             est_t.append(stamps[i])
             est_p.append(e.pose)
             est_i.append(i)
@@ -263,7 +302,23 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
     kept = rel[~gap.any(axis=1)]
     ours_held = relation_metrics(held_tt, held_pp, kept)
     full_held = relation_metrics(full_traj[0], full_traj[1], kept)
+    smoothed = None
+    if slam is not None:
+        smoothed = smoothed_visit(
+            slam, estimates, options, (map_t[first], map_p[first]), rel, spanning, full_traj
+        )
+        smoothed["slam_cpu_ms_per_scan"] = slam_cpu * 1e3 / (len(scans) - half)
+        truth, dist = anchored_truth(map_t, map_p, *full_traj, smoothed.pop("stamps"))
+        off = np.array(
+            [pose_error(p, t)[0] for p, t in zip(smoothed.pop("poses"), truth, strict=True)]
+        )
+        smoothed["off_05"] = int((off > 0.5).sum())
+        # the reference is only as good as its anchor (the nearest first-half pose) is near
+        smoothed["off_05_near"] = int(((off > 0.5) & (dist < 2.0)).sum())
+        smoothed["near"] = int((dist < 2.0).sum())
+        smoothed["off_anchor_median"] = float(np.median(dist[off > 0.5])) if off.size else None
     return {
+        "smoothed": smoothed,
         "relations": len(rel),
         "spanning": int(spanning.sum()),
         "covered": ours.n_covered,
@@ -309,6 +364,36 @@ def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, opt
         "error_median": float(np.median(err)) if len(err) else None,
         "error_p95": float(np.percentile(err, 95)) if len(err) else None,
         "anchor_p95": float(np.percentile(anchor, 95)) if len(anchor) else None,
+    }
+
+
+def smoothed_visit(slam, estimates, options, first_half, rel, spanning, full_traj) -> dict:
+    """The smoothed trajectory (``localise.smooth``) of the second half joined to the map's
+    first half, scored as the joined one; its poses and stamps for the caller's check."""
+    result = slam.result()
+    cpu = time.process_time()
+    positions = np.array([e.scan_index for e in estimates], dtype=np.int64)
+    sm = smooth(estimates, positions, result, options)
+    solve_s = time.process_time() - cpu
+    joined_t, joined_p = np.r_[first_half[0], sm.stamps], np.vstack([first_half[1], sm.poses])
+
+    def ratio(mask: np.ndarray) -> list[float]:
+        ours = relation_metrics(joined_t, joined_p, rel[mask])
+        full = relation_metrics(full_traj[0], full_traj[1], rel[mask])
+        return [ours.trans_mean, ours.rot_deg_mean, full.trans_mean, full.rot_deg_mean]
+
+    return {
+        "all": ratio(np.ones(len(rel), bool)),
+        "spanning": ratio(spanning),
+        "within": ratio(~spanning),
+        "placed": len(sm.index),
+        "anchors": sm.anchors,
+        "closures": sm.closures,
+        "segments_dropped": sm.segments_dropped,
+        "cuts": len(result.cuts),
+        "solve_cpu_s": solve_s,
+        "stamps": sm.stamps,
+        "poses": sm.poses,
     }
 
 
@@ -412,6 +497,15 @@ def table(results: list[dict]) -> list[str]:
             f"| {np.mean(ms):.2f} / {np.mean(med):.2f} / {np.mean(p95):.2f}, {np.mean(cpu):.2f} "
             f"| {sum(x['relocalised'] for x in k)}/{len(k)} ({kt}) | {sum(x['wrong'] for x in k)} |"
         )
+    rows = [smoothed_same_log(r) for r in results if "same_log" in r]
+    if any(rows):
+        lines += [
+            "",
+            "| log | smoothed: share ≤0.3 m/3° | smoothed > 0.5 m off "
+            "| kidnaps: smoothed > 0.5 m off |",
+            "|---|---|---|---|",
+            *[row for row in rows if row],
+        ]
     lines += [
         "",
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
@@ -443,6 +537,47 @@ def table(results: list[dict]) -> list[str]:
             f"| {v['wrong']} ({v['wrong_local']}) "
             f"| {v['error_median']:.3f} / {v['error_p95']:.3f} "
             f"| {v['worst']['top5pct_share']:.2f}, {v['worst']['gap_share']:.2f} |"
+        )
+    lines += smoothed_table(results)
+    return lines
+
+
+def smoothed_same_log(r: dict) -> str:
+    """Same log and kidnaps with the smoothed trajectory: shares within 0.3 m / 3° and the
+    poses more than 0.5 m off."""
+    s = [x["smoothed"] for x in r["same_log"] if x.get("smoothed")]
+    k = [x["smoothed"] for x in r["kidnap"] if x.get("smoothed")]
+    if not s:
+        return ""
+    share = ", ".join(f"{x['share_within']:.3f}" for x in s)
+    return (
+        f"| {r['log']} | {share} | {sum(x['wrong'] for x in s)} "
+        f"| {sum(x['wrong'] for x in k)} ({sum(x['placed'] for x in k)} poses) |"
+    )
+
+
+def smoothed_table(results: list[dict]) -> list[str]:
+    """The later visit's smoothed trajectory (``localise.smooth``), one row per log."""
+    lines = [
+        "",
+        "| log | smoothed joined m / deg | full-log SLAM m / deg | ratio (rot) "
+        "| spanning ratio | within ratio | scans placed / second half | anchors | closures "
+        "| cuts (dropped) | poses > 0.5 m off (reference within 2 m of the half map: off / all)"
+        " | SLAM CPU ms/scan | solve CPU s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        v = r.get("later", {}).get("smoothed")
+        if not v:
+            continue
+        a, sp, wi = v["all"], v["spanning"], v["within"]
+        lines.append(
+            f"| {r['log']} | {a[0]:.4f} / {a[1]:.3f} | {a[2]:.4f} / {a[3]:.3f} "
+            f"| {a[0] / a[2]:.2f} ({a[1] / a[3]:.2f}) | {sp[0] / sp[2]:.2f} | {wi[0] / wi[2]:.2f} "
+            f"| {v['placed']} / {r['later']['scans']} | {v['anchors']} | {v['closures']} "
+            f"| {v['cuts']} ({v['segments_dropped']}) "
+            f"| {v['off_05']} ({v['off_05_near']} / {v['near']}) "
+            f"| {v['slam_cpu_ms_per_scan']:.2f} | {v['solve_cpu_s']:.2f} |"
         )
     return lines
 

@@ -57,6 +57,7 @@ def test_localise_writes_trajectory_summary_and_plot(mapped, tmp_path: Path) -> 
     result = _invoke("localise", map_dir, bag, "-o", out)
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in out.iterdir()) == [
+        "online.tum",
         "summary.json",
         "trajectory.png",
         "trajectory.tum",
@@ -64,15 +65,22 @@ def test_localise_writes_trajectory_summary_and_plot(mapped, tmp_path: Path) -> 
     summary = json.loads((out / "summary.json").read_text())
     fix = summary["first_fix"]
     assert fix is not None, summary
-    got_t, got_p = read_tum(out / "trajectory.tum")
-    assert got_t[0] == pytest.approx(fix["stamp"]) and got_t[0] >= stamps[0]
-    assert len(got_t) == summary["counts"]["estimates"] >= 0.8 * (len(stamps) - fix["scan_index"])
+    online_t, online_p = read_tum(out / "online.tum")
+    assert online_t[0] == pytest.approx(fix["stamp"]) and online_t[0] >= stamps[0]
+    estimates = summary["counts"]["estimates"]
+    assert len(online_t) == estimates >= 0.8 * (len(stamps) - fix["scan_index"])
     # local estimates (into unmapped space) are written too, and counted
-    assert 0 <= summary["counts"]["local"] <= summary["counts"]["estimates"]
+    assert 0 <= summary["counts"]["local"] <= estimates
+    # smoothed: every scan from the first fix on
+    got_t, got_p = read_tum(out / "trajectory.tum")
+    assert got_t[0] == pytest.approx(fix["stamp"])
+    assert len(got_t) == summary["smoothed"]["scans"] == len(stamps) - fix["scan_index"]
+    assert summary["smoothed"]["anchors"] > 0 and summary["smoothed"]["slam_ms_per_scan_mean"] > 0
     # the map's own trajectory is the reference: same frame
     map_t, map_p = read_tum(map_dir / "trajectory.tum")
-    ref = map_p[np.searchsorted(map_t, got_t)]
-    assert np.max(np.hypot(*(got_p[:, :2] - ref[:, :2]).T)) < 0.15
+    for t, p in ((online_t, online_p), (got_t, got_p)):
+        ref = map_p[np.searchsorted(map_t, t)]
+        assert np.max(np.hypot(*(p[:, :2] - ref[:, :2]).T)) < 0.15
     assert summary["ms_per_scan_mean"] > 0 and summary["lost"] == 0
     assert "first fix" in result.stdout
 
@@ -87,9 +95,10 @@ def test_initial_pose_and_start_scan(mapped, tmp_path: Path) -> None:
         "localise", map_dir, bag, "-o", out, "--initial-pose", pose, "--start-scan", start
     )
     assert result.exit_code == 0, result.output
-    got_t, got_p = read_tum(out / "trajectory.tum")
-    assert got_t[0] == pytest.approx(stamps[start])  # tracking from the first scan used
-    assert np.hypot(*(got_p[-1, :2] - map_p[-1, :2])) < 0.1
+    for name in ("online.tum", "trajectory.tum"):
+        got_t, got_p = read_tum(out / name)
+        assert got_t[0] == pytest.approx(stamps[start])  # tracking from the first scan used
+        assert np.hypot(*(got_p[-1, :2] - map_p[-1, :2])) < 0.1
     # no initial pose: the fix's scan index is the recording's
     result = _invoke("localise", map_dir, bag, "-o", tmp_path / "g", "--start-scan", start)
     assert result.exit_code == 0, result.output
@@ -142,6 +151,17 @@ def test_ctrl_c_keeps_the_poses_written_and_exits_130(mapped, tmp_path: Path, mo
     out = tmp_path / "out"
     result = _invoke("localise", map_dir, bag, "-o", out)
     assert result.exit_code == 130, result.output
-    stamps, poses = read_tum(out / "trajectory.tum")
-    assert stamps.tolist() == [100.0] and np.allclose(poses, [[1.0, 2.0, 0.5]])
+    for name in ("online.tum", "trajectory.tum"):  # no smoothing in this run: the estimates
+        stamps, poses = read_tum(out / name)
+        assert stamps.tolist() == [100.0] and np.allclose(poses, [[1.0, 2.0, 0.5]])
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+
+
+def test_smooth_false_writes_the_online_estimates(mapped, tmp_path: Path) -> None:
+    bag, map_dir, _, _ = mapped
+    out = tmp_path / "o"
+    result = _invoke("localise", map_dir, bag, "-o", out, "--set", "smooth=false")
+    assert result.exit_code == 0, result.output
+    online, smoothed = read_tum(out / "online.tum"), read_tum(out / "trajectory.tum")
+    assert np.array_equal(online[0], smoothed[0]) and np.allclose(online[1], smoothed[1])
+    assert json.loads((out / "summary.json").read_text())["smoothed"] is None

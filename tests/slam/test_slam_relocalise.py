@@ -63,6 +63,8 @@ def test_kidnapped_robot_is_relocalised(gap: float) -> None:
     assert np.median(err[:kidnap]) < 0.05
     assert np.median(after) < 0.1 and np.percentile(after[len(after) // 3 :], 95) < 0.1
     assert result.counts["lost"] + result.counts["time_jumps"] >= 1
+    # the graph was cut at the kidnap (SlamResult.cuts: where a new segment starts)
+    assert len(result.cuts) >= 1 and kidnap <= result.cuts[0] <= kidnap + 10, result.cuts
     assert result.counts["relocalisations_accepted"] >= 1
     assert result.counts["relocalisations_attempted"] >= result.counts["relocalisations_accepted"]
 

@@ -1,9 +1,11 @@
 """``localise MAP INPUT -o DIR``: the pose of a recording's robot in a map ``slam`` wrote.
 
 See docs/localise.md. Parses the options, makes one call (``localise.run_localise``) that
-writes ``trajectory.tum`` as the estimates come, then writes ``summary.json`` and
-``trajectory.png`` (:mod:`laser_corners.viz.localise`). Ctrl-C stops between two scans and
-keeps what was written (exit 130).
+writes ``online.tum`` as the estimates come (what the robot knew at each scan), then writes
+``trajectory.tum`` (the smoothed trajectory, ``localise.smooth``; the online estimates with
+``--set smooth=false``), ``summary.json`` and ``trajectory.png``
+(:mod:`laser_corners.viz.localise`). Ctrl-C stops between two scans and keeps what was
+written (exit 130).
 """
 
 from __future__ import annotations
@@ -96,8 +98,10 @@ def localise_command(
     """Localise a recording with odometry in a map: global localisation with no initial pose,
     tracking, relocalisation when lost.
 
-    Writes trajectory.tum (base pose in the map, from the first fix on), summary.json (first
-    fix, relocalisations, lost count, ms per scan) and trajectory.png into the output folder.
+    Writes trajectory.tum (base pose in the map from the first fix on, smoothed: each scan
+    placed using the whole recording), online.tum (the estimates as they came), summary.json
+    (first fix, relocalisations, lost count, ms per scan) and trajectory.png into the output
+    folder.
     """
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")
@@ -114,7 +118,7 @@ def localise_command(
     folder = new_folder(output)
     header = f"laser-corners localise {input_path} in {map_folder}: base pose in the map frame"
     start = time.perf_counter()
-    with TumWriter(folder / "trajectory.tum", header=header) as writer:
+    with TumWriter(folder / "online.tum", header=header + ", online") as writer:
         run = run_localise(
             saved,
             input_path,
@@ -127,7 +131,7 @@ def localise_command(
             on_estimate=lambda e: writer.write(e.stamp, e.pose),
         )
     summary = localise_summary(run, str(input_path), str(map_folder), time.perf_counter() - start)
-    write_localise_outputs(run, folder, saved.grid, summary)
+    write_localise_outputs(run, folder, saved.grid, summary, header)
     _report(Console(), summary, folder)
     if run.interrupted:
         typer.echo(f"interrupted; {folder} holds the poses up to there", err=True)

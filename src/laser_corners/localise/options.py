@@ -142,3 +142,19 @@ class LocaliseOptions(Options):
     trusted and the scan is searched for around the last pose with a wide prior."""
     time_jump: float = Field(5.0, ge=0.1, le=1e6)
     """A gap (s) between scan stamps larger than this is treated like an odometry jump."""
+    smooth: bool = True
+    """:func:`~laser_corners.localise.run_localise` also runs the SLAM front end over the
+    scans and places every scan from the first fix on in one pose graph: the localiser's
+    anchors on the SLAM's chain (``localise.smooth``). Offline only (it uses the scans after
+    each one); the CLI writes it as ``trajectory.tum`` and the causal estimates as
+    ``online.tum``."""
+    smooth_anchor_travel: float = Field(0.4, ge=0.0, le=100.0)
+    """One anchor per this travel (m, turns 0.5 m per radian): consecutive scans see the same
+    part of the map and share its error. The SLAM's keyframe spacing."""
+    smooth_step_xy: float = Field(0.002, ge=1e-5, le=1.0)
+    """Noise (m) of one step of the SLAM chain between consecutive scans (scan matching)."""
+    smooth_step_yaw: float = Field(0.001, ge=1e-6, le=1.0)
+    """Noise (rad) of one step of the SLAM chain."""
+    smooth_drift: float = Field(0.01, ge=0.0, le=1.0)
+    """Growth of the chain's step noise per metre travelled (m/m; rad per metre and per
+    radian turned: half of it): scan matching drifts about 1 % of the distance."""

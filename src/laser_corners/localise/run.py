@@ -18,9 +18,11 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.errors import InputError
 from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
+from laser_corners.localise.smooth import Smoothed, smooth
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
+from laser_corners.slam.slam import Slam
 
 __all__ = ["LocaliseRun", "run_localise"]
 
@@ -42,6 +44,13 @@ class LocaliseRun:
     odometry_stamps, odometry : ndarray
         Stamp and base odometry of every scan given.
     interrupted : bool
+    positions : ndarray of int
+        Index of each estimate's scan among the scans given (into ``odometry_stamps``).
+    smoothed : Smoothed or None
+        With ``options.smooth``: every scan from the first fix on placed by the localiser's
+        anchors on the SLAM's chain (:mod:`.smooth`); ``index`` into ``odometry_stamps``.
+    slam_ms_per_scan : ndarray
+        The SLAM's time per scan (with ``options.smooth``), apart from ``ms_per_scan``.
     """
 
     estimates: list[LocaliserEstimate]
@@ -51,6 +60,9 @@ class LocaliseRun:
     odometry_stamps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     odometry: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
     interrupted: bool = False
+    positions: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    smoothed: Smoothed | None = None
+    slam_ms_per_scan: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
 
     @property
     def stamps(self) -> NDArray[np.float64]:
@@ -110,27 +122,37 @@ def run_localise(
         loc = Localiser(map_data, options, mount=recorded)
         if initial_pose is not None:
             loc.set_pose(initial_pose)
-        run = _loop(loc, rec, start_scan, stop_scan, on_estimate, progress)
+        slam = Slam(mount=loc.mount) if options.smooth else None
+        run = _loop(loc, slam, rec, (start_scan, stop_scan), on_estimate, progress)
     if loc.counts["scans"] == 0 and not run.interrupted:
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
+    if slam is not None and slam.counts["scans"]:
+        result = slam.result(interrupted=run.interrupted)
+        run.slam_ms_per_scan = result.ms_per_scan
+        run.smoothed = smooth(run.estimates, run.positions, result, options)
     return run
 
 
-def _loop(loc, rec, start_scan, stop_scan, on_estimate, progress) -> LocaliseRun:
-    """Feed the scans; Ctrl-C stops between two scans."""
+def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
+    """Feed the scans (``span``: start and stop scan) to the localiser and the SLAM (when
+    smoothing); Ctrl-C stops between two scans."""
     estimates: list[LocaliserEstimate] = []
     stamps: list[float] = []
     index: list[int] = []
+    positions: list[int] = []
     odometry: list[NDArray] = []
     feed = OdometryFeed()
     try:
-        for i, scan, base in odometry_scans(rec, feed, start_scan, stop_scan):
+        for i, scan, base in odometry_scans(rec, feed, *span):
             estimate = loc.add(scan, base, float(scan.stamp))
+            if slam is not None:
+                slam.add(scan, base, float(scan.stamp))
             index.append(i)
             stamps.append(float(scan.stamp))
             odometry.append(base)
             if estimate is not None:
+                positions.append(estimate.scan_index)
                 estimate.scan_index = i  # the recording's index, not the localiser's
                 estimates.append(estimate)
                 if on_estimate is not None:
@@ -148,4 +170,5 @@ def _loop(loc, rec, start_scan, stop_scan, on_estimate, progress) -> LocaliseRun
         np.asarray(stamps, dtype=np.float64),
         np.asarray(odometry, dtype=np.float64).reshape(-1, 3),
         feed.interrupted,
+        np.asarray(positions, dtype=np.int64),
     )

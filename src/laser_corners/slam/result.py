@@ -91,6 +91,10 @@ class SlamResult:
         The final gtsam ``NonlinearFactorGraph`` (for :meth:`write_g2o`).
     values : object
         The final gtsam ``Values``.
+    cuts : ndarray of int
+        Indices (into ``stamps``) of the scans that start a new segment of the graph: a gap
+        the alignment did not bridge, or a scan that fit nothing (the step from the scan
+        before is not measured).
     """
 
     stamps: NDArray[np.float64]
@@ -108,6 +112,7 @@ class SlamResult:
     interrupted: bool = False
     graph: object = None
     values: object = None
+    cuts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def laser_poses(self) -> NDArray[np.float64]:

@@ -593,4 +593,7 @@ class Slam:
             interrupted=interrupted,
             graph=graph,
             values=values,
+            cuts=np.asarray(self.kf.scan_index, dtype=np.int64)[[x is None for x in self._links]][
+                1:
+            ],
         )

@@ -1,9 +1,10 @@
 """The output of ``laser-corners localise``: ``summary.json`` and ``trajectory.png``.
 
-``trajectory.tum`` is written while the run goes (by the CLI, one line per estimate, from the
+``online.tum`` is written while the run goes (by the CLI, one line per estimate, from the
 first fix on); this module writes the rest from a :class:`~laser_corners.localise.LocaliseRun`:
-the summary (first fix: stamp, scan index, travel; relocalisations; lost count; ms per scan
-mean / p95) and the trajectory drawn on the map's occupancy grid, fixes marked.
+``trajectory.tum`` (the smoothed trajectory, else the online estimates), the summary (first
+fix: stamp, scan index, travel; relocalisations; lost count; ms per scan mean / p95; the
+smoothing's numbers) and the trajectory drawn on the map's occupancy grid, fixes marked.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from matplotlib.figure import Figure
 
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.io.trajectory import write_tum
 from laser_corners.viz.slam import plot_slam_map, save_figure
 
 __all__ = ["localise_summary", "save_localise_map", "write_localise_outputs"]
@@ -46,6 +48,22 @@ def localise_summary(run: Any, source: str, map_folder: str, wall_s: float) -> d
         "ms_per_scan_p95": float(np.percentile(ms, 95)) if ms.size else None,
         "wall_s": round(float(wall_s), 3),
         "interrupted": bool(run.interrupted),
+        "smoothed": _smoothed_record(run),
+    }
+
+
+def _smoothed_record(run: Any) -> dict[str, Any] | None:
+    """The smoothing's numbers (``localise.smooth``), or None when it did not run."""
+    sm = getattr(run, "smoothed", None)
+    if sm is None:
+        return None
+    slam_ms = np.asarray(run.slam_ms_per_scan, dtype=np.float64)
+    return {
+        "scans": len(sm.index),
+        "anchors": sm.anchors,
+        "closures": sm.closures,
+        "segments_dropped": sm.segments_dropped,
+        "slam_ms_per_scan_mean": float(slam_ms.mean()) if slam_ms.size else None,
     }
 
 
@@ -69,13 +87,22 @@ def save_localise_map(
 
 
 def write_localise_outputs(
-    run: Any, folder: Path, grid: OccupancyGrid | None, summary: dict[str, Any]
+    run: Any, folder: Path, grid: OccupancyGrid | None, summary: dict[str, Any], header: str = ""
 ) -> dict[str, Path]:
-    """``summary.json`` and ``trajectory.png`` into ``folder`` (atomically)."""
-    paths = {"summary": folder / "summary.json", "plot": folder / "trajectory.png"}
+    """``trajectory.tum`` (smoothed when the run has it, else the online estimates),
+    ``summary.json`` and ``trajectory.png`` into ``folder`` (atomically)."""
+    paths = {
+        "trajectory": folder / "trajectory.tum",
+        "summary": folder / "summary.json",
+        "plot": folder / "trajectory.png",
+    }
+    sm = getattr(run, "smoothed", None)
+    stamps, poses = (sm.stamps, sm.poses) if sm is not None else (run.stamps, run.poses)
+    kind = "smoothed (localise.smooth)" if sm is not None else "online estimates"
+    write_tum(paths["trajectory"], stamps, poses, header=f"{header}, {kind}" if header else kind)
     with PartialOutput(paths["summary"], overwrite=True).writing() as temporary:
         temporary.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
     fixes = np.array([f.pose for f in run.fixes], dtype=np.float64).reshape(-1, 3)
     title = Path(summary["input"]).name + (" (interrupted)" if run.interrupted else "")
-    save_localise_map(paths["plot"], grid, run.poses, fixes, title)
+    save_localise_map(paths["plot"], grid, poses, fixes, title)
     return paths
