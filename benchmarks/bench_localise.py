@@ -506,7 +506,16 @@ def table(results: list[dict]) -> list[str]:
             "|---|---|---|---|",
             *[row for row in rows if row],
         ]
-    lines += [
+    lines += later_table(results)
+    lines += smoothed_table(results)
+    return lines
+
+
+def later_table(results: list[dict]) -> list[str]:
+    """The later visit's online (causal) estimates, one row per log."""
+    if not any("later" in r for r in results):
+        return []
+    lines = [
         "",
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
         "| ratio | gaps dead-reckoned in the window: m, ratio (poses) | spanning m "
@@ -538,7 +547,6 @@ def table(results: list[dict]) -> list[str]:
             f"| {v['error_median']:.3f} / {v['error_p95']:.3f} "
             f"| {v['worst']['top5pct_share']:.2f}, {v['worst']['gap_share']:.2f} |"
         )
-    lines += smoothed_table(results)
     return lines
 
 
@@ -558,6 +566,8 @@ def smoothed_same_log(r: dict) -> str:
 
 def smoothed_table(results: list[dict]) -> list[str]:
     """The later visit's smoothed trajectory (``localise.smooth``), one row per log."""
+    if not any(r.get("later", {}).get("smoothed") for r in results):
+        return []
     lines = [
         "",
         "| log | smoothed joined m / deg | full-log SLAM m / deg | ratio (rot) "
