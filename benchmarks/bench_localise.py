@@ -20,10 +20,11 @@ start the localiser runs 300 scans, then the input jumps ``--kidnap`` scans ahea
 odometry made continuous across the jump (a robot carried away: the odometry does not see
 it); reported: lost detected, relocalised, travel to the relocalisation, wrong estimates.
 
-**Later visit**: the first half of the scans is mapped (``stop_scan``), the second half is
-localised in it with no initial pose; the map's trajectory (first half) and the localiser's
-estimates (second half) are joined and scored with the relation metric on every relation
-with a stamp in the second half, beside the full-log SLAM's trajectory on the same relations;
+**Later visit**: the first half of the scans is mapped (``stop_scan``; ``--split`` another
+share), the second half is localised in it with no initial pose; the map's trajectory (first
+half) and the localiser's estimates (second half) are joined and scored with the relation
+metric on every relation with a stamp in the second half, beside the full-log SLAM's
+trajectory on the same relations;
 *wrong* = second-half estimates more than 0.5 m from the full-log SLAM's pose of the scan
 moved into the half map's frame through its nearest first-half pose (:func:`anchored_truth`:
 the two SLAM maps agree locally but can bend differently, aces by metres). The relation
@@ -226,10 +227,13 @@ def anchored_truth(half_t, half_p, full_t, full_p, stamps) -> tuple[np.ndarray, 
     return truth, dist
 
 
-def later_visit(path, cache, name, scans, odo, stamps, relations, full_traj, options) -> dict:
+def later_visit(
+    path, cache, name, scans, odo, stamps, relations, full_traj, options, split: float = 0.5
+) -> dict:
     """Map the first half, localise the second half (see the module notes)."""
-    half = len(scans) // 2
-    folder = cached_map(path, cache / f"{name}-half", stop_scan=half)
+    half = int(len(scans) * split)
+    tag = "half" if split == 0.5 else f"split{split:g}"
+    folder = cached_map(path, cache / f"{name}-{tag}", stop_scan=half)
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
@@ -443,7 +447,7 @@ def run_log(name: str, args, options) -> dict:
     if "later" not in args.protocols:
         return result
     result["later"] = later_visit(
-        path, args.cache, name, scans, odo, stamps, relations, traj, options
+        path, args.cache, name, scans, odo, stamps, relations, traj, options, args.split
     )
     return result
 
@@ -459,6 +463,9 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     parser.add_argument("--set", action="append", default=[])
     parser.add_argument("--protocols", nargs="+", default=["same", "later"])
+    parser.add_argument(
+        "--split", type=float, default=0.5, help="later visit: share of the scans mapped"
+    )
     args = parser.parse_args()
     options = LocaliseOptions().with_overrides(args.set) if args.set else LocaliseOptions()
     results = []
