@@ -21,9 +21,9 @@ every scan can be placed better, in one pose graph (gtsam, Levenberg-Marquardt):
 
 Every factor but the chain's steps is under a Huber kernel, and the steps are too: a step the
 anchors on both sides contradict by metres (the SLAM tracked a kidnap through) pulls with a
-bounded force. A chain segment with no anchor has no place in the map: its scans are left out.
-The output starts at the first anchored scan (the first fix): what the localiser reports from
-then on, each scan placed using every scan of the recording, before and after it.
+bounded force. A chain segment with no anchor has no place in the map: its scans are left out. Every other
+scan is placed, those before the first fix too (in hindsight: the chain ties them to the
+anchors after it), each using every scan of the recording, before and after it.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ class Smoothed:
     ----------
     index : ndarray of int, shape (S,)
         Indices (into the scans given to both the localiser and the SLAM) of the scans placed,
-        increasing, from the first anchored scan on.
+        increasing: every scan of a chain segment with an anchor.
     poses : ndarray, shape (S, 3)
         Their base poses in the map frame.
     stamps : ndarray, shape (S,)
@@ -60,7 +60,7 @@ class Smoothed:
     closures : int
         The SLAM's accepted loop closures used.
     segments_dropped : int
-        Chain segments (after the first anchor) left out: no anchor in them.
+        Chain segments left out: no anchor in them.
     """
 
     index: NDArray[np.int64]
@@ -147,7 +147,6 @@ def smooth(
         return Smoothed(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros(0))
     segment = _segments(len(chain), slam.cuts)
     anchored = np.isin(segment, segment[[i for i, _ in anchors]])
-    placed = anchored & (np.arange(len(chain)) >= anchors[0][0])
     graph = gtsam.NonlinearFactorGraph()
     _chain_factors(graph, steps, segment, anchored, opt)
     closures = _closure_factors(graph, slam, anchored)
@@ -160,10 +159,9 @@ def smooth(
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(100)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-    keep = np.flatnonzero(placed)
+    keep = np.flatnonzero(anchored)
     poses = np.array([[*_xyt(result.atPose2(X(int(i))))] for i in keep]).reshape(-1, 3)
-    after = segment[anchors[0][0] :]
-    dropped = len(np.setdiff1d(np.unique(after), segment[[i for i, _ in anchors]]))
+    dropped = len(np.setdiff1d(np.unique(segment), segment[[i for i, _ in anchors]]))
     return Smoothed(keep, poses, slam.stamps[keep], len(anchors), closures, dropped)
 
 
