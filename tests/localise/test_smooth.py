@@ -7,6 +7,7 @@ heading; the anchors are the true poses with 1 cm noise, as the localiser's esti
 
 from __future__ import annotations
 
+import itertools
 import math
 from types import SimpleNamespace
 
@@ -28,7 +29,7 @@ def block_drive() -> np.ndarray:
     """Poses (N, 3) around the block, counter-clockwise, heading along the path."""
     corners = np.array([[0, 0], [10, 0], [10, 6], [0, 6], [0, 0]], dtype=float)
     poses = []
-    for a, b in zip(corners[:-1], corners[1:], strict=True):
+    for a, b in itertools.pairwise(corners):
         n = round(np.hypot(*(b - a)) / STEP)
         t = np.arange(n)[:, None] / n
         heading = math.atan2(*(b - a)[::-1])
@@ -96,7 +97,7 @@ def test_local_estimates_are_not_anchors_and_the_scans_before_the_fix_are_placed
     truth = block_drive()
     wrong = estimates_at(truth, range(100, 150), status="local")
     for e in wrong:  # chained estimates a metre off: the smoother must not follow them
-        e.pose = e.pose + [1.0, 0.0, 0.0]
+        e.pose = e.pose + np.array([1.0, 0.0, 0.0])
     sm = run(wrong + estimates_at(truth, range(150, len(truth))), drifted_chain(truth))
     assert sm.index.tolist() == list(range(len(truth)))  # before the first anchor too
     assert position_error(sm.poses, truth).max() < 0.05

@@ -21,9 +21,9 @@ every scan can be placed better, in one pose graph (gtsam, Levenberg-Marquardt):
 
 Every factor but the chain's steps is under a Huber kernel, and the steps are too: a step the
 anchors on both sides contradict by metres (the SLAM tracked a kidnap through) pulls with a
-bounded force. A chain segment with no anchor has no place in the map: its scans are left out. Every other
-scan is placed, those before the first fix too (in hindsight: the chain ties them to the
-anchors after it), each using every scan of the recording, before and after it.
+bounded force. A chain segment with no anchor has no place in the map: its scans are left
+out. Every other scan is placed, those before the first fix too (in hindsight: the chain ties
+them to the anchors after it), each using every scan of the recording, before and after it.
 """
 
 from __future__ import annotations
