@@ -98,8 +98,9 @@ def localise_command(
     """Localise a recording with odometry in a map: global localisation with no initial pose,
     tracking, relocalisation when lost.
 
-    Writes trajectory.tum (base pose in the map from the first fix on, smoothed: each scan
-    placed using the whole recording), online.tum (the estimates as they came), summary.json
+    Writes trajectory.tum (base pose in the map of every scan tied to a fix, smoothed: each
+    scan placed using the whole recording), online.tum (the estimates as they came, from the
+    first fix on), summary.json
     (first fix, relocalisations, lost count, ms per scan) and trajectory.png into the output
     folder.
     """

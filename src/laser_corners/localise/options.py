@@ -144,7 +144,7 @@ class LocaliseOptions(Options):
     """A gap (s) between scan stamps larger than this is treated like an odometry jump."""
     smooth: bool = True
     """:func:`~laser_corners.localise.run_localise` also runs the SLAM front end over the
-    scans and places every scan from the first fix on in one pose graph: the localiser's
+    scans and places every scan (before the first fix too) in one pose graph: the localiser's
     anchors on the SLAM's chain (``localise.smooth``). Offline only (it uses the scans after
     each one); the CLI writes it as ``trajectory.tum`` and the causal estimates as
     ``online.tum``."""

@@ -47,7 +47,7 @@ class LocaliseRun:
     positions : ndarray of int
         Index of each estimate's scan among the scans given (into ``odometry_stamps``).
     smoothed : Smoothed or None
-        With ``options.smooth``: every scan from the first fix on placed by the localiser's
+        With ``options.smooth``: every scan (before the first fix too) placed by the localiser's
         anchors on the SLAM's chain (:mod:`.smooth`); ``index`` into ``odometry_stamps``.
     slam_ms_per_scan : ndarray
         The SLAM's time per scan (with ``options.smooth``), apart from ``ms_per_scan``.
