@@ -160,20 +160,23 @@ def span_jitter(rounds: int) -> None:
     }
     x, y, valid, lk, box, ps = tables[400_000]
     sentinel_walks(x, y, valid, lk, box, packed[1.0], ps, False)  # compile or load
-    times: dict[tuple[int, float], list[float]] = {c: [] for c in cases}
+    times: dict[tuple[int, float, bool], list[float]] = {}
     for _ in range(rounds):
         for n, f in cases:
             x, y, valid, lk, box, ps = tables[n]
-            t = time.thread_time()
-            sentinel_walks(x, y, valid, lk, box, packed[f], ps, False)
-            times[n, f].append((time.thread_time() - t) / n * 1e9)
-    print(f"sentinel walks, ns per point, best / median of {rounds} rounds (cases alternating)")
-    print("| beams | scales | span (beams, x 400k's) | jitter (beams, x 400k's) | ns/point |")
-    print("|---:|---:|---:|---:|---:|")
+            for screens in (False, True):
+                t = time.thread_time()
+                sentinel_walks(x, y, valid, lk, box, packed[f], ps, screens)
+                dt = (time.thread_time() - t) / n * 1e9
+                times.setdefault((n, f, screens), []).append(dt)
+    print(f"sentinel walks (+ their screens), ns per point, best / median of {rounds} rounds")
+    print("| beams | scales | span (x 400k's) | jitter (x 400k's) | walks | + screens |")
+    print("|---:|---:|---:|---:|---:|---:|")
     for n, f in cases:
         span, jitter = f * n / 400_000, n / 400_000
-        cell = f"{min(times[n, f]):.0f} / {np.median(times[n, f]):.0f}"
-        print(f"| {n:,} | x{f} | {span:.1f} | {jitter:.1f} | {cell} |")
+        cells = [times[n, f, w] for w in (False, True)]
+        cells = [f"{min(c):.0f} / {np.median(c):.0f}" for c in cells]
+        print(f"| {n:,} | x{f} | {span:.1f} | {jitter:.1f} | " + " | ".join(cells) + " |")
 
 
 def main() -> int:
