@@ -325,6 +325,68 @@ def bridging_scaling(repeats: int) -> None:
     print(f"\n{ratio_line(times)}")
 
 
+CONTROL_DENSITIES = (400_000, 1_000_000)  # beams per 360 degrees
+CONTROL_WINDOWS = (100_000, 200_000, 400_000, 0)  # beams per detect call (0: the whole scan)
+
+
+def windows(scan: LaserScan, size: int) -> list[LaserScan]:
+    """``scan`` cut into consecutive scans of ``size`` beams (the last one shorter; ``size``
+    0: the whole scan), each with its own ``angle_min``: the same points, the same noise."""
+    if size <= 0 or size >= scan.n_beams:
+        return [scan]
+    geometry = (scan.angle_increment, scan.range_min, scan.range_max)
+    return [
+        LaserScan(scan.ranges[s : s + size], scan.angle_min + s * scan.angle_increment, *geometry)
+        for s in range(0, scan.n_beams, size)
+    ]
+
+
+def scaling_control(repeats: int) -> None:
+    """Density or size (issue 21): ns per beam of ``detect`` on the dense scan of each
+    density in :data:`CONTROL_DENSITIES`, cut into windows of each size in
+    :data:`CONTROL_WINDOWS` (one ``detect`` per window, the times summed over the windows
+    that cover the 360 degrees); the configurations alternate in each round, CPU time of
+    the thread. Along a row the density is fixed and the size per call grows; down a
+    column the size is fixed and the density grows."""
+    detector = CornerDetector(DetectorParams())
+    cases = {
+        (d, w): windows(dense_scan(d), w)
+        for d in CONTROL_DENSITIES
+        for w in CONTROL_WINDOWS
+        if w < d
+    }
+    detector.detect(cases[(CONTROL_DENSITIES[0], CONTROL_WINDOWS[0])][0])  # warm-up
+    times: dict[tuple[int, int], list[float]] = {c: [] for c in cases}
+    for _ in range(repeats):
+        for case, scans in cases.items():
+            total = 0.0
+            for scan in scans:
+                t0 = time.thread_time()
+                detector.detect(scan)
+                total += time.thread_time() - t0
+            times[case].append(total / case[0] * 1e9)
+    print("\nScaling control (density or size?): the dense scan of each density (beams per")
+    print("360 degrees, noise 0.001 m) cut into windows of w beams, one detect per window,")
+    print(f"ns per beam over the whole scan, best / median of {repeats} rounds (alternating)")
+    head = [f"w = {w:,}" if w else "w = whole scan" for w in CONTROL_WINDOWS]
+    print("| beams per 360 deg | " + " | ".join(head) + " |")
+    print("|---:|" + "---:|" * len(CONTROL_WINDOWS))
+    for d in CONTROL_DENSITIES:
+        cells = [
+            f"{min(times[(d, w)]):.0f} / {np.median(times[(d, w)]):.0f}" if (d, w) in times else "-"
+            for w in CONTROL_WINDOWS
+        ]
+        print(f"| {d:,} | " + " | ".join(cells) + " |")
+    lo, hi = CONTROL_DENSITIES
+    small, whole = CONTROL_WINDOWS[0], CONTROL_WINDOWS[-1]
+    density = min(times[(hi, small)]) / min(times[(lo, small)])
+    size = min(times[(hi, whole)]) / min(times[(hi, small)])
+    print(
+        f"\nbest ns/beam, density x{hi / lo:.1f} at w = {small:,}: x{density:.2f}; "
+        f"size x{hi / small:.0f} at {hi:,} beams per 360 deg: x{size:.2f}"
+    )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
@@ -342,6 +404,11 @@ def main() -> int:
         action="store_true",
         help="do not time the frozen kernel on the dense scans (slow)",
     )
+    parser.add_argument(
+        "--scaling-control",
+        action="store_true",
+        help="only the control of the scaling: density or size (windows of the dense scans)",
+    )
     args = parser.parse_args()
     if args.scaling_repeats < 5:
         parser.error("--scaling-repeats: at least 5 (min and median of fewer mislead)")
@@ -356,6 +423,9 @@ def main() -> int:
         f"numba threads {numba.get_num_threads()}, paper preset, best of {args.repeats} "
         "per scan, median over scans\n"
     )
+    if args.scaling_control:
+        scaling_control(args.scaling_repeats)
+        return 0
     if not args.scaling_only:
         scan_tables(old, new, args)
     scaling(old, new, not args.skip_old_scaling, args.scaling_repeats)

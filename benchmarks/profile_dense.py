@@ -3,6 +3,7 @@
 Usage::
 
     taskset -c 1 env PYTHONPATH=src .venv/bin/python benchmarks/profile_dense.py [--rounds 5]
+        [--span-jitter]
 
 The scans of ``bench_detector.py``'s scaling lines (a 360-degree scan of the demo world,
 noise 0.001 m, 100,000 / 400,000 / 1,000,000 beams), paper preset, one numba thread. Each
@@ -21,6 +22,14 @@ each round; per phase and size the best and the median over the rounds, in ns pe
   ``rest`` is it minus the phases above: the points whose sentinels pass (their other
   scales' walks, screens and exact tests) and the candidate table (56 bytes per beam, fresh);
 - ``finish``: merging; ``detect``: the detector's whole call.
+
+``--span-jitter`` (issue 21's control of the walk): the sentinel walks alone, ns per point,
+on the 400,000- and 1,000,000-beam scans with the paper's scales and with every scale times
+2.5 or 0.4, alternating in each round. The scales set how many beams a neighbourhood spans
+(the walk's reach: its jumps' lengths, the reuse distance of the data it reads); the density
+sets how many beams the range noise spans (σ / spacing: how far a bound moves from one point
+to the next, the miss of the walk's guesses). 400k x2.5 has 1M's span and 400k's jitter,
+1M x0.4 400k's span and 1M's jitter.
 """
 
 from __future__ import annotations
@@ -56,6 +65,7 @@ from laser_corners.kernel.neighbourhood import (
     walk,
 )
 from laser_corners.kernel.scale_tests import screen
+from laser_corners.params import PAPER_SCALES
 
 
 @nb.njit(cache=True, nogil=True)
@@ -129,11 +139,55 @@ def phases(scan, packed, detector) -> dict[str, float]:  # type: ignore[no-untyp
     return out
 
 
+def walk_tables(scan) -> tuple:  # type: ignore[no-untyped-def]
+    """The arguments of :func:`sentinel_walks` for ``scan`` (points, tables, boxes)."""
+    n = scan.n_beams
+    angles = scan.angle_min + scan.angle_increment * np.arange(n)
+    x, y = np.empty(n), np.empty(n)
+    polar_to_xy(scan.ranges, np.cos(angles), np.sin(angles), scan.range_min, scan.range_max, x, y)
+    valid, _, _, ps = prepare(x, y)
+    lk = (*links(valid), *padded(x, y, valid))
+    return x, y, valid, lk, block_boxes(x, y, valid, 0, True), ps
+
+
+def span_jitter(rounds: int) -> None:
+    """The sentinel walks with the scales scaled (see the module's docstring)."""
+    tables = {n: walk_tables(dense_scan(n)) for n in (400_000, 1_000_000)}
+    cases = [(400_000, 1.0), (400_000, 2.5), (1_000_000, 0.4), (1_000_000, 1.0)]
+    packed = {
+        f: kernel_config(DetectorParams(scales=tuple(s * f for s in PAPER_SCALES)))
+        for _, f in cases
+    }
+    x, y, valid, lk, box, ps = tables[400_000]
+    sentinel_walks(x, y, valid, lk, box, packed[1.0], ps, False)  # compile or load
+    times: dict[tuple[int, float, bool], list[float]] = {}
+    for _ in range(rounds):
+        for n, f in cases:
+            x, y, valid, lk, box, ps = tables[n]
+            for screens in (False, True):
+                t = time.thread_time()
+                sentinel_walks(x, y, valid, lk, box, packed[f], ps, screens)
+                dt = (time.thread_time() - t) / n * 1e9
+                times.setdefault((n, f, screens), []).append(dt)
+    print(f"sentinel walks (+ their screens), ns per point, best / median of {rounds} rounds")
+    print("| beams | scales | span (x 400k's) | jitter (x 400k's) | walks | + screens |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for n, f in cases:
+        span, jitter = f * n / 400_000, n / 400_000
+        cells = [times[n, f, w] for w in (False, True)]
+        cells = [f"{min(c):.0f} / {np.median(c):.0f}" for c in cells]
+        print(f"| {n:,} | x{f} | {span:.1f} | {jitter:.1f} | " + " | ".join(cells) + " |")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--span-jitter", action="store_true", help="the walk's control only")
     args = parser.parse_args()
     nb.set_num_threads(1)
+    if args.span_jitter:
+        span_jitter(args.rounds)
+        return 0
     packed = kernel_config(DetectorParams())
     detector = CornerDetector(DetectorParams())
     scans = {n: dense_scan(n) for n in SIZES}

@@ -14,8 +14,8 @@ exactly, for all scales in one pass per side:
   afterwards (:func:`within`);
 * :func:`walk`, for dense scans and gap bridging: jumps to near the previous point's bound
   when the boxes of the blocks on the way lie within the radius (a sparse table of block
-  boxes, :func:`block_boxes`), skips aligned blocks of 8, 64, 512 or 4096 beams whose box
-  lies within it, and checks the beams up to a block boundary 16 at a time, so it costs
+  boxes, :func:`block_boxes`), skips aligned blocks of 64, 512 or 4096 beams whose box
+  lies within it, and checks the other beams 16 at a time (up to 64 per step), so it costs
   O(blocks + points near the radii) instead of O(points within R).
 
 :func:`prepare` makes the per-scan tables (validity, prefix sums), :func:`links` the
@@ -51,7 +51,13 @@ __all__ = [
     "within",
 ]
 
-_LEVELS = 4  # aligned block sizes of :func:`walk`: 8, 64, 512, 4096 beams (_SPAN = 3·3 + 1)
+_LEVELS = 4  # aligned block sizes of the sparse table: 8, 64, 512, 4096 beams (_SPAN = 3·3 + 1)
+# the smallest level :func:`_skip` tries: 64 beams. Blocks of 8 are checked beam by beam
+# instead, W at a time, up to _CHUNKS · W beams per step (:func:`_leading_within`): near the
+# bound (the range noise's band, wider in beams the denser the scan) a box of 8 fails as
+# often as it passes, and one far_masks costs about one box_d2 for twice the beams
+_FINE = 1
+_CHUNKS = 4
 _BACKOFF = 24  # tries of :func:`_jump`: 0, 1, 3, 7, ... blocks short of the guess
 ROW = 6  # values per index in the flat prefix sums of :func:`prepare`
 PAD = W  # +inf entries before and after the padded coordinates of :func:`reach`, :func:`counts`
@@ -116,10 +122,10 @@ def links(valid: NDArray[np.bool_]) -> tuple:
 def _skip(
     box: NDArray[np.float64], i: int, step: int, n: int, xj: float, yj: float, r2: float
 ) -> int:
-    """Size of the largest aligned block of 8**(a+1) beams starting at ``i`` (towards
-    ``step``) that lies within ``r2`` of (xj, yj), or 0."""
+    """Size of the largest aligned block of 8**(a+1) beams (a >= :data:`_FINE`) starting at
+    ``i`` (towards ``step``) that lies within ``r2`` of (xj, yj), or 0."""
     edge = i if step > 0 else i + 1  # aligned block boundary at the walk's near side
-    for lev in range(_LEVELS - 1, -1, -1):
+    for lev in range(_LEVELS - 1, _FINE - 1, -1):
         shift = _SHIFT * (lev + 1)
         size = 1 << shift
         if edge & (size - 1) != 0:
@@ -190,20 +196,35 @@ def _leading_within(
     yj: float,
     r2: float,
 ) -> int:
-    """Number of leading beams from ``i`` towards ``step``, up to the next block boundary (up
-    to :data:`W` beams when ``i`` is on one), within ``r2`` of (xj, yj): one
-    :func:`~laser_corners.kernel.simd.far_masks` on the padded coordinates (a gap is +inf)."""
+    """Number of leading beams from ``i`` towards ``step`` within ``r2`` of (xj, yj): up to
+    the next block boundary when ``i`` is not on one, else up to :data:`_CHUNKS` · :data:`W`
+    beams, :data:`W` at a time, up to the first beyond it; one
+    :func:`~laser_corners.kernel.simd.far_masks` per :data:`W` beams on the padded coordinates
+    (a gap is +inf: a chunk with a set bit ends the count, so the padding is never passed)."""
     if step > 0:
         room = (8 - (i & 7)) & 7
-        room = room if room > 0 else W
-        mask = far_masks(px, py, i + PAD, xj, yj, r2, r2, r2)[0] | (1 << room)
-        return trailing_zeros(mask)
+        if room > 0:
+            mask = far_masks(px, py, i + PAD, xj, yj, r2, r2, r2)[0] | (1 << room)
+            return trailing_zeros(mask)
+        done = 0
+        for _ in range(_CHUNKS):
+            mask = far_masks(px, py, i + PAD + done, xj, yj, r2, r2, r2)[0]
+            if mask != 0:
+                return done + trailing_zeros(mask)
+            done += W
+        return done
     room = (i + 1) & 7
-    room = room if room > 0 else W
-    mask = far_masks(px, py, i + PAD - (W - 1), xj, yj, r2, r2, r2)[0]
-    if room < W:
+    if room > 0:
+        mask = far_masks(px, py, i + PAD - (W - 1), xj, yj, r2, r2, r2)[0]
         mask |= 1 << (W - 1 - room)
-    return leading_zeros(mask) - (64 - W)
+        return leading_zeros(mask) - (64 - W)
+    done = 0
+    for _ in range(_CHUNKS):
+        mask = far_masks(px, py, i + PAD - (W - 1) - done, xj, yj, r2, r2, r2)[0]
+        if mask != 0:
+            return done + leading_zeros(mask) - (64 - W)
+        done += W
+    return done
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -238,9 +259,9 @@ def walk(
     On entry ``bound[k]`` is a guess (any integer; the previous point's bound is a good one):
     at the first block boundary within R_k the walk jumps to near it when every box on the
     way lies within R_k (:func:`_jump`). Whole blocks within R_k are skipped
-    (:func:`_skip`), the beams up to the next block boundary are checked :data:`W` at a time
-    (:func:`_leading_within`), and only the first beam farther than R_k (or a gap) point by
-    point. The result does not depend on the guess.
+    (:func:`_skip`), the other beams are checked :data:`W` at a time, up to
+    :data:`_CHUNKS` · :data:`W` per step (:func:`_leading_within`), and only the first beam
+    farther than R_k (or a gap) point by point. The result does not depend on the guess.
     """
     next_valid, prev_valid, px, py = links
     n = x.shape[0]
