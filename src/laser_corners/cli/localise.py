@@ -100,9 +100,8 @@ def localise_command(
 
     Writes trajectory.tum (base pose in the map of every scan tied to a fix, smoothed: each
     scan placed using the whole recording), online.tum (the estimates as they came, from the
-    first fix on), summary.json
-    (first fix, relocalisations, lost count, ms per scan) and trajectory.png into the output
-    folder.
+    first fix on), summary.json (first fix, relocalisations, lost count, ms per scan) and
+    trajectory.png into the output folder.
     """
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")

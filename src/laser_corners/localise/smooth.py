@@ -19,9 +19,9 @@ every scan can be placed better, in one pose graph (gtsam, Levenberg-Marquardt):
   half map bends away from the second half's own loops, per-scan anchors give a relation
   error 1.7x the full-log SLAM's, one per 0.4 m 1.3x).
 
-Every factor but the chain's steps is under a Huber kernel, and the steps are too: a step the
-anchors on both sides contradict by metres (the SLAM tracked a kidnap through) pulls with a
-bounded force. A chain segment with no anchor has no place in the map: its scans are left
+Every factor is under the Huber kernel of the SLAM's loop closures: a step of the chain that
+the anchors on both sides contradict by metres (the SLAM tracked a kidnap through) pulls with
+a bounded force. A chain segment with no anchor has no place in the map: its scans are left
 out. Every other scan is placed, those before the first fix too (in hindsight: the chain ties
 them to the anchors after it), each using every scan of the recording, before and after it.
 """
@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from laser_corners.localise.localiser import LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import between_many, compose_many
-from laser_corners.slam.backend import X, _diag, _robust, require_gtsam
+from laser_corners.slam.backend import X, diagonal_noise, require_gtsam, robust_noise
 from laser_corners.slam.result import SlamResult
 
 __all__ = ["Smoothed", "smooth"]
@@ -178,7 +178,7 @@ def _chain_factors(graph, steps, segment, anchored, opt: LocaliseOptions) -> Non
     syaw = opt.smooth_step_yaw + 0.5 * opt.smooth_drift * (dist + np.abs(steps[:, 2]))
     same = (segment[:-1] == segment[1:]) & anchored[:-1]
     for k in np.flatnonzero(same):
-        noise = _robust(_diag(sxy[k], sxy[k], syaw[k]))
+        noise = robust_noise(diagonal_noise(sxy[k], sxy[k], syaw[k]))
         step = gtsam.Pose2(*map(float, steps[k]))
         graph.add(gtsam.BetweenFactorPose2(X(int(k)), X(int(k + 1)), step, noise))
 
@@ -188,7 +188,7 @@ def _closure_factors(graph, slam: SlamResult, anchored: NDArray) -> int:
     import gtsam
 
     so = slam.options
-    noise = _robust(_diag(so.loop_sigma_xy, so.loop_sigma_xy, so.loop_sigma_yaw))
+    noise = robust_noise(diagonal_noise(so.loop_sigma_xy, so.loop_sigma_xy, so.loop_sigma_yaw))
     used = 0
     for closure in slam.closures:
         if not closure.accepted:
@@ -209,5 +209,5 @@ def _anchor_factor(i: int, estimate: LocaliserEstimate) -> object:
     c, s = math.cos(estimate.pose[2]), math.sin(estimate.pose[2])
     to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     cov = to_body @ np.asarray(estimate.covariance, dtype=np.float64) @ to_body.T
-    noise = _robust(gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov + cov.T)))
+    noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov + cov.T)))
     return gtsam.PriorFactorPose2(X(i), gtsam.Pose2(*map(float, estimate.pose)), noise)

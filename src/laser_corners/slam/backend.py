@@ -17,7 +17,7 @@ try:
 except ImportError:  # pragma: no cover - the "slam" extra is missing
     gtsam = None
 
-__all__ = ["Backend", "require_gtsam"]
+__all__ = ["Backend", "diagonal_noise", "require_gtsam", "robust_noise"]
 
 HUBER_K = 1.345
 """Huber threshold (in standard deviations) of loop-closure factors."""
@@ -46,11 +46,12 @@ def L(k: int) -> int:
     return gtsam.symbol("l", k)
 
 
-def _diag(sx: float, sy: float, syaw: float) -> object:
+def diagonal_noise(sx: float, sy: float, syaw: float) -> object:
+    """A diagonal gtsam noise model with these standard deviations (x, y, yaw)."""
     return gtsam.noiseModel.Diagonal.Sigmas(np.array([sx, sy, syaw]))
 
 
-def _robust(noise: object) -> object:
+def robust_noise(noise: object) -> object:
     """``noise`` under the Huber kernel of loop closures and landmark observations."""
     return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise)
 
@@ -91,7 +92,7 @@ class Backend:
         self.initial.insert(X(k), pose)
         if k == 0 or prior:
             sig = (1e-3, 1e-3, 1e-4) if k == 0 else (100.0, 100.0, 3.0)
-            self._add(gtsam.PriorFactorPose2(X(k), pose, _diag(*sig)))
+            self._add(gtsam.PriorFactorPose2(X(k), pose, diagonal_noise(*sig)))
         self.n += 1
         return k
 
@@ -105,11 +106,11 @@ class Backend:
     ) -> None:
         """A relative-pose factor ``X(a)^-1 X(b) = relative``; ``robust``: a loop closure,
         under a Huber kernel (bounded pull), kept apart so :meth:`optimise` can prune it."""
-        noise = _robust(_diag(*sigmas)) if robust else _diag(*sigmas)
+        noise = robust_noise(diagonal_noise(*sigmas)) if robust else diagonal_noise(*sigmas)
         rel = gtsam.Pose2(*map(float, relative))
         factor = gtsam.BetweenFactorPose2(X(a), X(b), rel, noise)
         if robust:
-            self.loops.append((a, b, rel, _diag(*sigmas), self.graph.size()))
+            self.loops.append((a, b, rel, diagonal_noise(*sigmas), self.graph.size()))
         self._add(factor)
 
     def add_landmark(self, guess: NDArray[np.float64]) -> int:
@@ -131,7 +132,9 @@ class Backend:
     ) -> None:
         """A bearing-range factor from keyframe ``keyframe`` (base frame) to ``landmark``,
         noise ``cov`` (2x2, bearing rad and range m) under a Huber kernel."""
-        noise = _robust(gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov, dtype=np.float64)))
+        noise = robust_noise(
+            gtsam.noiseModel.Gaussian.Covariance(np.asarray(cov, dtype=np.float64))
+        )
         self._add(
             gtsam.BearingRangeFactor2D(
                 X(keyframe), L(landmark), gtsam.Rot2(float(bearing)), float(rng), noise
@@ -218,7 +221,7 @@ class Backend:
         params.setMaxIterations(50)
         checked = [(a, b, rel, noise) for a, b, rel, noise, _ in self.loops]
         for a, b, relative, sigmas in extra or []:
-            checked.append((a, b, gtsam.Pose2(*map(float, relative)), _diag(*sigmas)))
+            checked.append((a, b, gtsam.Pose2(*map(float, relative)), diagonal_noise(*sigmas)))
         n_loops = len(self.loops)
         dropped = set(self.pruned)
         values = start if start is not None else self.isam.calculateEstimate()
@@ -256,7 +259,7 @@ class Backend:
         n_loops = len(self.loops)
         for i, (a, b, rel, noise) in enumerate(extra):
             if i + n_loops not in dropped:
-                graph.add(gtsam.BetweenFactorPose2(X(a), X(b), rel, _robust(noise)))
+                graph.add(gtsam.BetweenFactorPose2(X(a), X(b), rel, robust_noise(noise)))
         return graph
 
     @property
