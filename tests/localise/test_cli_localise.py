@@ -164,3 +164,21 @@ def test_smooth_false_writes_the_online_estimates(mapped, tmp_path: Path) -> Non
     online, smoothed = read_tum(out / "online.tum"), read_tum(out / "trajectory.tum")
     assert np.array_equal(online[0], smoothed[0]) and np.allclose(online[1], smoothed[1])
     assert json.loads((out / "summary.json").read_text())["smoothed"] is None
+
+
+def test_ctrl_c_while_smoothing_keeps_the_online_estimates(mapped, tmp_path, monkeypatch) -> None:
+    import laser_corners.localise.run as run_module
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_module, "smooth", interrupted)
+    bag, map_dir, _, _ = mapped
+    out = tmp_path / "out"
+    result = _invoke("localise", map_dir, bag, "-o", out, "--start-scan", 300)
+    assert result.exit_code == 130, result.output
+    assert "interrupted" in result.stderr
+    online, written = read_tum(out / "online.tum"), read_tum(out / "trajectory.tum")
+    assert len(online[0]) > 0 and np.array_equal(online[0], written[0])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["smoothed"] is None

@@ -12,6 +12,7 @@ import functools
 import inspect
 import math
 import os
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -217,3 +218,52 @@ def stop_progress(bar: Any) -> None:
     started still prints an empty line off a terminal, before the error that follows)."""
     if bar.live.is_started:
         bar.stop()
+
+
+class RecordingProgress:
+    """A progress bar on stderr for a run over a recording (``slam``, ``localise``): scans
+    done of the recording's (or of ``stop_scan``), the real-time factor and the time.
+
+    Called as the runs' ``progress(done, n_scans, stamp)``; the bar starts at the first scan
+    and stops on the way out of ``with``.
+    """
+
+    def __init__(self, name: str, stop_scan: int | None = None) -> None:
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
+
+        self.bar = Progress(
+            TextColumn("[bold]{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[rtf]:.1f}x real time"),
+            TimeElapsedColumn(),
+            console=Console(stderr=True),
+        )
+        self.task = self.bar.add_task(quoted(name), total=None, rtf=0.0)
+        self.stop_scan = stop_scan
+        self.start = time.perf_counter()
+        self.first: float | None = None
+
+    def __call__(self, done: int, n_scans: int | None, stamp: float) -> None:
+        if self.first is None:
+            self.first = stamp
+            self.bar.start()
+        elapsed = time.perf_counter() - self.start
+        total = (
+            n_scans if self.stop_scan is None or n_scans is None else min(n_scans, self.stop_scan)
+        )
+        rtf = (stamp - self.first) / elapsed if elapsed > 0 else 0.0
+        self.bar.update(self.task, completed=done, total=total, rtf=rtf)
+
+    def __enter__(self) -> RecordingProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        stop_progress(self.bar)

@@ -17,7 +17,13 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 from laser_corners.cli.app import app, fail
-from laser_corners.cli.common import InputArg, OdomTopicOption, TopicOption, new_folder
+from laser_corners.cli.common import (
+    InputArg,
+    OdomTopicOption,
+    RecordingProgress,
+    TopicOption,
+    new_folder,
+)
 from laser_corners.cli.kernels import SlamKernelCommand
 
 if TYPE_CHECKING:
@@ -118,7 +124,8 @@ def localise_command(
     folder = new_folder(output)
     header = f"laser-corners localise {input_path} in {map_folder}: base pose in the map frame"
     start = time.perf_counter()
-    with TumWriter(folder / "online.tum", header=header + ", online") as writer:
+    online = TumWriter(folder / "online.tum", header=header + ", online")
+    with online as writer, RecordingProgress(input_path.name, stop_scan) as progress:
         run = run_localise(
             saved,
             input_path,
@@ -129,6 +136,7 @@ def localise_command(
             stop_scan=stop_scan,
             initial_pose=pose,
             on_estimate=lambda e: writer.write(e.stamp, e.pose),
+            progress=progress,
         )
     summary = localise_summary(run, str(input_path), str(map_folder), time.perf_counter() - start)
     write_localise_outputs(run, folder, saved.grid, summary, header)

@@ -18,6 +18,7 @@ from laser_corners.cli.app import app, evaluate_app, fail
 from laser_corners.cli.common import (
     InputArg,
     OdomTopicOption,
+    RecordingProgress,
     TopicOption,
     check_number,
     new_folder,
@@ -66,20 +67,6 @@ def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOption
     return options.with_overrides(overrides) if overrides else options
 
 
-def _progress_bar() -> Any:
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    return Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[rtf]:.1f}x real time"),
-        TimeElapsedColumn(),
-        console=Console(stderr=True),
-    )
-
-
 def _run(
     input_path: Path,
     options: SlamOptions,
@@ -91,21 +78,8 @@ def _run(
     ``topics``: the LaserScan topic and the odometry (``--topic``, ``--odom-topic``)."""
     from laser_corners.slam import run_slam
 
-    bar = _progress_bar()
-    task = bar.add_task(input_path.name, total=None, rtf=0.0)
     start = time.perf_counter()
-    first: list[float] = []
-
-    def progress(done: int, n_scans: int | None, stamp: float) -> None:
-        if not first:
-            first.append(stamp)
-            bar.start()
-        elapsed = time.perf_counter() - start
-        total = n_scans if stop_scan is None or n_scans is None else min(n_scans, stop_scan)
-        rtf = (stamp - first[0]) / elapsed if elapsed > 0 else 0.0
-        bar.update(task, completed=done, total=total, rtf=rtf)
-
-    try:
+    with RecordingProgress(input_path.name, stop_scan) as progress:
         result = run_slam(
             input_path,
             options,
@@ -114,8 +88,6 @@ def _run(
             progress=progress,
             stop_scan=stop_scan,
         )
-    finally:
-        bar.stop()
     return result, time.perf_counter() - start
 
 

@@ -128,9 +128,12 @@ def run_localise(
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     if slam is not None and slam.counts["scans"]:
-        result = slam.result(interrupted=run.interrupted)
-        run.slam_ms_per_scan = result.ms_per_scan
-        run.smoothed = smooth(run.estimates, run.positions, result, options)
+        try:
+            result = slam.result(interrupted=run.interrupted)
+            run.slam_ms_per_scan = result.ms_per_scan
+            run.smoothed = smooth(run.estimates, run.positions, result, options)
+        except KeyboardInterrupt:  # Ctrl-C while smoothing: the online estimates stand
+            run.interrupted = True
     return run
 
 
