@@ -57,10 +57,11 @@ from scipy.spatial import cKDTree
 from laser_corners.eval.relations import read_relations, relation_metrics
 from laser_corners.io.trajectory import read_tum
 from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise.run import smoothing_slam
 from laser_corners.localise.smooth import smooth
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many, invert_many
-from laser_corners.slam import Slam, run_slam
+from laser_corners.slam import run_slam
 from laser_corners.slam.mapfile import load_map
 from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
 
@@ -98,11 +99,11 @@ def pose_error(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return math.hypot(d[0], d[1]), abs(math.degrees(d[2]))
 
 
-def drive(loc, scans, odo, stamps, order, ref) -> dict:
+def drive(loc, saved, scans, odo, stamps, order, ref) -> dict:
     """Feed the scans ``order``; score against ``ref`` (N, 3) poses by scan index."""
     rows = []
     travel = 0.0
-    slam = Slam(mount=loc.mount) if loc.options.smooth else None
+    slam = smoothing_slam(saved, loc.mount) if loc.options.smooth else None
     estimates = []
     for n, i in enumerate(order):
         if n:
@@ -146,7 +147,7 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
     for s in starts:
         loc = Localiser(saved, options)
         order = np.arange(s, min(s + n_scans, len(scans)))
-        driven = drive(loc, scans, odo, stamps, order, ref)
+        driven = drive(loc, saved, scans, odo, stamps, order, ref)
         rows = driven["rows"]
         got = [k for k, r in enumerate(rows) if r[2]]
         first = got[0] if got else None
@@ -188,7 +189,7 @@ def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
         odo2 = odo.copy()
         odo2[after] = compose_many(shift, odo[after])
         loc = Localiser(saved, options)
-        driven = drive(loc, scans, odo2, stamps, np.r_[before, after], ref)
+        driven = drive(loc, saved, scans, odo2, stamps, np.r_[before, after], ref)
         rows = driven["rows"]
         later = rows[300:]
         lost_at = next((k for k, r in enumerate(later) if r[5] != "tracking"), None)
@@ -237,7 +238,7 @@ def later_visit(
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
-    slam = Slam(mount=loc.mount) if options.smooth else None
+    slam = smoothing_slam(saved, loc.mount) if options.smooth else None
     slam_cpu = 0.0
     estimates: list = []
     est_t, est_p, est_i, est_s = [], [], [], []

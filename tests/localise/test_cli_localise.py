@@ -182,3 +182,24 @@ def test_ctrl_c_while_smoothing_keeps_the_online_estimates(mapped, tmp_path, mon
     assert len(online[0]) > 0 and np.array_equal(online[0], written[0])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["interrupted"] is True and summary["smoothed"] is None
+
+
+def test_thesmoothing_slam_takes_the_map_options(mapped, tmp_path: Path) -> None:
+    """The SLAM of the smoothed trajectory runs with the map's ``options.yaml`` (and the
+    localiser's mount); a bad one is one line naming it, unless smoothing is off."""
+    import shutil
+
+    from laser_corners.localise.run import smoothing_slam
+    from laser_corners.slam.mapfile import load_map
+
+    bag, map_dir, _, _ = mapped
+    copy = tmp_path / "map"
+    shutil.copytree(map_dir, copy)
+    options = copy / "options.yaml"
+    options.write_text(options.read_text().replace("loop_closure: true", "loop_closure: false"))
+    slam = smoothing_slam(load_map(copy), np.array([0.1, 0.0, 0.0]))
+    assert slam.options.loop_closure is False and slam.options.mount == (0.1, 0.0, 0.0)
+    options.write_text("max_range: -3\n")
+    _one_line_error(_invoke("localise", copy, bag, "-o", tmp_path / "a"), "options.yaml")
+    result = _invoke("localise", copy, bag, "-o", tmp_path / "b", "--set", "smooth=false")
+    assert result.exit_code == 0, result.output

@@ -20,7 +20,7 @@ from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.smooth import Smoothed, smooth
 from laser_corners.pipeline.recording import open_recording
-from laser_corners.slam.mapfile import SavedMap
+from laser_corners.slam.mapfile import SavedMap, load_map, map_options
 from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
 from laser_corners.slam.slam import Slam
 
@@ -119,10 +119,11 @@ def run_localise(
     with open_recording(path, topic, odom_topic=odom_topic) as rec:
         require_odometry(rec, path)
         recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id)
-        loc = Localiser(map_data, options, mount=recorded)
+        saved = map_data if isinstance(map_data, SavedMap) else load_map(map_data)
+        loc = Localiser(saved, options, mount=recorded)
         if initial_pose is not None:
             loc.set_pose(initial_pose)
-        slam = Slam(mount=loc.mount) if options.smooth else None
+        slam = smoothing_slam(saved, loc.mount) if options.smooth else None
         run = _loop(loc, slam, rec, (start_scan, stop_scan), on_estimate, progress)
     if loc.counts["scans"] == 0 and not run.interrupted:
         skipped = run.counts["skipped_no_odometry"]
@@ -135,6 +136,13 @@ def run_localise(
         except KeyboardInterrupt:  # Ctrl-C while smoothing: the online estimates stand
             run.interrupted = True
     return run
+
+
+def smoothing_slam(saved: SavedMap, mount: NDArray[np.float64]) -> Slam:
+    """The SLAM of the smoothed trajectory: the options the map was made with (its
+    ``options.yaml``; defaults without one), the localiser's mount."""
+    options = map_options(saved.folder).with_overrides({"mount": tuple(map(float, mount))})
+    return Slam(options, mount)
 
 
 def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:

@@ -33,12 +33,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.errors import InputError
+from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.points import scan_points
 
-__all__ = ["FORMAT_VERSION", "KEYFRAMES_FILE", "SavedMap", "load_map", "save_map_data"]
+__all__ = [
+    "FORMAT_VERSION",
+    "KEYFRAMES_FILE",
+    "SavedMap",
+    "load_map",
+    "map_options",
+    "save_map_data",
+]
 
 FORMAT_VERSION = 1
 """Version of ``keyframes.npz``; :func:`load_map` refuses other versions."""
@@ -219,3 +227,21 @@ def load_map(folder: str | Path) -> SavedMap:
         grid=grid,
         landmarks=_landmarks(folder),
     )
+
+
+def map_options(folder: str | Path) -> SlamOptions:
+    """The :class:`~laser_corners.slam.SlamOptions` a map folder was made with (its
+    ``options.yaml``, which ``slam`` writes), or the defaults when the folder has none.
+
+    Raises
+    ------
+    InputError
+        ``options.yaml`` is there but unreadable or not valid options (named, one line).
+    """
+    path = Path(folder) / "options.yaml"
+    if not path.is_file():
+        return SlamOptions()
+    try:
+        return SlamOptions.from_file(path)
+    except InvalidParamsError as exc:
+        raise InputError(f"{exc} (the map's SLAM options)") from None
