@@ -1,4 +1,4 @@
-"""The output of ``laser-corners localise``: ``summary.json`` and ``trajectory.png``.
+"""What ``laser-corners localise`` writes: ``trajectory.tum``, ``summary.json``, the plot.
 
 ``online.tum`` is written while the run goes (by the CLI, one line per estimate, from the
 first fix on); this module writes the rest from a :class:`~laser_corners.localise.LocaliseRun`:
