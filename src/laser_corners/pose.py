@@ -24,6 +24,7 @@ __all__ = [
     "pose_error",
     "poses_apart",
     "relative_pose",
+    "rotate_covariance",
     "rotation",
     "transform_points",
     "wrap_angle",
@@ -52,6 +53,15 @@ def rotation(theta: float) -> NDArray[np.float64]:
     """The 2x2 rotation matrix of angle ``theta`` (radians)."""
     c, s = math.cos(theta), math.sin(theta)
     return np.array([[c, -s], [s, c]])
+
+
+def rotate_covariance(cov: ArrayLike, theta: float) -> NDArray[np.float64]:
+    """A pose covariance (3, 3; x, y, heading) in a frame turned by ``theta``: ``R cov Rᵀ``
+    with ``R`` the rotation of ``theta`` on x, y (a body-frame covariance into the frame of a
+    pose of heading ``theta``; ``-theta`` for the way back)."""
+    rot = np.eye(3)
+    rot[:2, :2] = rotation(theta)
+    return rot @ np.asarray(cov, dtype=np.float64) @ rot.T
 
 
 def transform_points(xy: NDArray[np.float64], pose: Pose2D) -> NDArray[np.float64]:

@@ -62,7 +62,7 @@ from laser_corners.localise.local import Fit, LocalMap, explained_share, fuse
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.window import Window
-from laser_corners.pose import between_many, compose_many, invert_many
+from laser_corners.pose import between_many, compose_many, invert_many, rotate_covariance
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, icp, match_share
 from laser_corners.slam.mapfile import SavedMap, load_map
@@ -397,11 +397,9 @@ class Localiser:
         self, odo: NDArray, index: int, stamp: float, status: str, agreement: float
     ) -> LocaliserEstimate:
         assert self.pose is not None
-        c, s = math.cos(self.pose[2]), math.sin(self.pose[2])
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         return LocaliserEstimate(
             pose=self.pose.copy(),
-            covariance=rot @ self._cov @ rot.T,
+            covariance=rotate_covariance(self._cov, float(self.pose[2])),
             status=status,
             map_to_odom=compose_many(self.pose, invert_many(odo)),
             scan_index=index,

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from laser_corners.localise.localiser import LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.pose import between_many, compose_many
+from laser_corners.pose import between_many, compose_many, rotate_covariance
 from laser_corners.slam.backend import X, diagonal_noise, require_gtsam, robust_noise
 from laser_corners.slam.result import SlamResult
 
@@ -95,10 +95,11 @@ def _anchors(
     return kept
 
 
-def _initial(chain: NDArray, segment: NDArray, anchors: list) -> NDArray[np.float64]:
-    """Initial poses: each scan placed by the chain from the nearest anchor of its segment."""
-    at = np.array([i for i, _ in anchors], dtype=np.int64)
-    pose = np.array([e.pose for _, e in anchors], dtype=np.float64).reshape(-1, 3)
+def _initial(
+    chain: NDArray, segment: NDArray, at: NDArray[np.int64], pose: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Initial poses: each scan placed by the chain from the nearest anchor (scans ``at``,
+    poses ``pose``) of its segment."""
     init = np.full_like(chain, np.nan)
     for s in np.unique(segment[at]):
         scans = np.flatnonzero(segment == s)
@@ -145,23 +146,24 @@ def smooth(
     anchors = _anchors(estimates, index, travel, opt.smooth_anchor_travel)
     if not anchors:
         return Smoothed(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros(0))
+    at = np.array([i for i, _ in anchors], dtype=np.int64)
     segment = _segments(len(chain), slam.cuts)
-    anchored = np.isin(segment, segment[[i for i, _ in anchors]])
+    anchored = np.isin(segment, segment[at])
     graph = gtsam.NonlinearFactorGraph()
     _chain_factors(graph, steps, segment, anchored, opt)
     closures = _closure_factors(graph, slam, anchored)
     for i, estimate in anchors:
         graph.add(_anchor_factor(i, estimate))
     values = gtsam.Values()
-    init = _initial(chain, segment, anchors)
-    for i in np.flatnonzero(anchored):
+    init = _initial(chain, segment, at, np.array([e.pose for _, e in anchors], dtype=np.float64))
+    keep = np.flatnonzero(anchored)
+    for i in keep:
         values.insert(X(int(i)), gtsam.Pose2(*map(float, init[i])))
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(100)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-    keep = np.flatnonzero(anchored)
     poses = np.array([[*_xyt(result.atPose2(X(int(i))))] for i in keep]).reshape(-1, 3)
-    dropped = len(np.setdiff1d(np.unique(segment), segment[[i for i, _ in anchors]]))
+    dropped = len(np.setdiff1d(np.unique(segment), segment[at]))
     return Smoothed(keep, poses, slam.stamps[keep], len(anchors), closures, dropped)
 
 
@@ -206,8 +208,6 @@ def _anchor_factor(i: int, estimate: LocaliserEstimate) -> object:
     into the pose's own frame as gtsam's ``Pose2`` prior wants it), robust."""
     import gtsam
 
-    c, s = math.cos(estimate.pose[2]), math.sin(estimate.pose[2])
-    to_body = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
-    cov = to_body @ np.asarray(estimate.covariance, dtype=np.float64) @ to_body.T
+    cov = rotate_covariance(estimate.covariance, -float(estimate.pose[2]))
     noise = robust_noise(gtsam.noiseModel.Gaussian.Covariance(0.5 * (cov + cov.T)))
     return gtsam.PriorFactorPose2(X(i), gtsam.Pose2(*map(float, estimate.pose)), noise)

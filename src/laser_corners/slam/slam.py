@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.keypoints import Keypoints
-from laser_corners.pose import compose, relative_pose, wrap_angle
+from laser_corners.pose import compose, relative_pose, rotate_covariance, wrap_angle
 from laser_corners.scan import LaserScan
 from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.backend import Backend
@@ -366,9 +366,7 @@ class Slam:
             self._cov + np.diag([opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw]) ** 2
         )
         assert self.pose is not None
-        c, s = np.cos(self.pose[2]), np.sin(self.pose[2])
-        rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return rot @ cov @ rot.T
+        return rotate_covariance(cov, float(self.pose[2]))
 
     def _failed(self, pred: NDArray) -> NDArray:
         """Count a failed alignment and keep the prediction (the keyframe link gets the

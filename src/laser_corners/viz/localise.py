@@ -54,7 +54,7 @@ def localise_summary(run: Any, source: str, map_folder: str, wall_s: float) -> d
 
 def _smoothed_record(run: Any) -> dict[str, Any] | None:
     """The smoothing's numbers (``localise.smooth``), or None when it did not run."""
-    sm = getattr(run, "smoothed", None)
+    sm = run.smoothed
     if sm is None:
         return None
     slam_ms = np.asarray(run.slam_ms_per_scan, dtype=np.float64)
@@ -96,7 +96,7 @@ def write_localise_outputs(
         "summary": folder / "summary.json",
         "plot": folder / "trajectory.png",
     }
-    sm = getattr(run, "smoothed", None)
+    sm = run.smoothed
     stamps, poses = (sm.stamps, sm.poses) if sm is not None else (run.stamps, run.poses)
     kind = "smoothed (localise.smooth)" if sm is not None else "online estimates"
     write_tum(paths["trajectory"], stamps, poses, header=f"{header}, {kind}" if header else kind)
