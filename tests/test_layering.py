@@ -9,10 +9,12 @@ Layers, lowest first (a module may import its own layer and the layers below):
 1. ``io``
 2. ``pipeline``
 3. ``sim``, ``matching``
-4. ``slam``, ``localise``
-5. ``eval``
-6. ``viz``
-7. ``ros``, ``batch``, ``cli``, ``demo``
+4. ``registration`` (what SLAM and localisation share: scan points, ICP, correlative and
+   keypoint global search)
+5. ``slam``, ``localise``
+6. ``eval``
+7. ``viz``
+8. ``ros``, ``batch``, ``cli``, ``demo``
 """
 
 from __future__ import annotations
@@ -30,14 +32,15 @@ ROOM_LAYERS = {
     "pipeline": 2,
     "sim": 3,
     "matching": 3,
-    "slam": 4,
-    "localise": 4,
-    "eval": 5,
-    "viz": 6,
-    "ros": 7,
-    "batch": 7,
-    "cli": 7,
-    "demo": 7,
+    "registration": 4,
+    "slam": 5,
+    "localise": 5,
+    "eval": 6,
+    "viz": 7,
+    "ros": 8,
+    "batch": 8,
+    "cli": 8,
+    "demo": 8,
 }
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 80

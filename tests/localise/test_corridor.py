@@ -16,8 +16,8 @@ from test_unmapped import map_folder, scans_along
 
 from laser_corners.localise import Localiser
 from laser_corners.localise.local import fuse
+from laser_corners.registration.align import Alignment
 from laser_corners.sim import World
-from laser_corners.slam.align import Alignment
 
 LENGTH = 40.0
 WIDTH = 2.4

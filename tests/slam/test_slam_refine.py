@@ -12,10 +12,10 @@ import pytest
 pytest.importorskip("gtsam")
 
 from laser_corners.pose import between_many, compose, wrap_angle
+from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.backend import Backend
-from laser_corners.slam.points import scan_points
 from laser_corners.slam.refine import refine, refine_links
 
 OPTIONS = SlamOptions()

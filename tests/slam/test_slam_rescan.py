@@ -13,10 +13,10 @@ pytest.importorskip("gtsam")
 
 from laser_corners.eval.relations import relation_metrics
 from laser_corners.pose import between_many, compose_many, wrap_angle
+from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.keyframes import KeyframeStore
-from laser_corners.slam.points import scan_points
 from laser_corners.slam.rescan import rescan
 from laser_corners.slam.slam import SURFACE_SPACINGS
 from sim_drives import drive_slam, noisy_odometry, straight, two_rooms

@@ -41,7 +41,12 @@ another room's kernel (after an upgrade, until that kernel runs again) must not 
 detecting command say it compiles."""
 
 
-SLAM_MODULES = ("laser_corners.slam.", "laser_corners.localise.", "laser_corners.matching.")
+SLAM_MODULES = (
+    "laser_corners.registration.",
+    "laser_corners.slam.",
+    "laser_corners.localise.",
+    "laser_corners.matching.",
+)
 """The modules of the SLAM's, the localiser's and the matching's own kernels (``warmup``
 compiles them after the detector's)."""
 

@@ -10,7 +10,7 @@ pose slides back along it).
 scans that lie more than :data:`UNEXPLAINED` from any map point (read off the map's likelihood
 grid), placed at their estimated poses in the map frame, one frame per :data:`FRAME_STEP` of
 travel, the last :data:`LOCAL_TRAVEL` metres of them. Each new scan is aligned to it by the SLAM
-front end's point-to-line ICP (:func:`~laser_corners.slam.align.icp`, the same code as the
+front end's point-to-line ICP (:func:`~laser_corners.registration.align.icp`, the same code as the
 map alignment) and the two alignments are fused by their information (:func:`fuse`), so the
 map and the local submap each weigh by how many of the scan's points they explain: a
 corridor's unmapped far end holds the pose against the mapped part's pull. A scan mostly
@@ -32,9 +32,9 @@ from numpy.typing import NDArray
 
 from laser_corners.localise.freespace import Support
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.slam.align import Alignment, PointMap, icp, match_share
-from laser_corners.slam.correlative import ScoreGrid
-from laser_corners.slam.points import ScanPoints, rotate, transform
+from laser_corners.registration.align import Alignment, PointMap, icp, match_share
+from laser_corners.registration.correlative import ScoreGrid
+from laser_corners.registration.points import ScanPoints, rotate, transform
 
 __all__ = ["Fit", "LocalMap", "explained_share", "fuse"]
 

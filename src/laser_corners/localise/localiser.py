@@ -7,7 +7,7 @@ Three states (:attr:`Localiser.status`):
     (:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) proposes poses; each
     becomes a hypothesis, refined by ICP against the map's points. Every scan, every
     hypothesis is moved by the odometry step, aligned again (point-to-line ICP,
-    :func:`~laser_corners.slam.align.icp`) and scored by its *agreement*: the share of the
+    :func:`~laser_corners.registration.align.icp`) and scored by its *agreement*: the share of the
     scan's points within ``inlier_distance`` of a map point. Hypotheses whose recent agreement
     falls below ``hypothesis_agreement`` are dropped; two that meet are merged. The fix is
     declared only when one hypothesis has survived ``fix_travel`` metres and ``fix_scans``
@@ -63,10 +63,10 @@ from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.window import Window
 from laser_corners.pose import between_many, compose_many, invert_many, rotate_covariance
+from laser_corners.registration.align import Alignment, icp, match_share
+from laser_corners.registration.points import scan_points, transform
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import Alignment, icp, match_share
 from laser_corners.slam.mapfile import SavedMap, load_map
-from laser_corners.slam.points import scan_points, transform
 
 __all__ = ["Hypothesis", "Localiser", "LocaliserEstimate"]
 

@@ -3,9 +3,9 @@
 :class:`MapModel` moves every keyframe point of a :class:`~laser_corners.slam.mapfile.SavedMap`
 into the map frame, thins them to one point per ``map_spacing`` voxel and keeps
 
-* a :class:`~laser_corners.slam.align.PointMap` of the points with a line normal (ICP),
+* a :class:`~laser_corners.registration.align.PointMap` of the points with a line normal (ICP),
 * one of every point (the agreement: share of scan points within ``inlier_distance``),
-* a likelihood grid (:class:`~laser_corners.slam.correlative.ScoreGrid`, 0.1 m cells,
+* a likelihood grid (:class:`~laser_corners.registration.correlative.ScoreGrid`, 0.1 m cells,
   ``exp(-d² / 2σ²)`` with σ = 0.2 m) and the lattice of candidate positions within
   ``global_reach`` of a keyframe (the robot drives where the mapping robot drove) and not
   inside a wall, for :meth:`MapModel.global_search`.
@@ -28,8 +28,8 @@ from numpy.typing import NDArray
 from laser_corners.localise.freespace import FreeSpace
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import poses_apart
-from laser_corners.slam.align import PointMap
-from laser_corners.slam.correlative import ScoreGrid
+from laser_corners.registration.align import PointMap
+from laser_corners.registration.correlative import ScoreGrid
 from laser_corners.slam.mapfile import SavedMap
 
 __all__ = ["MapModel"]

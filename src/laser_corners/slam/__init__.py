@@ -2,8 +2,7 @@
 
 :class:`Slam` is the incremental API (``add(scan, odometry, stamp) -> pose, covariance``),
 :func:`run_slam` runs it over a recording, :class:`SlamResult` is what both give.
-Modules: :mod:`~.options`, :mod:`~.points` and :mod:`~.align` (scan points, ICP),
-:mod:`~.keyframes` (local map), :mod:`~.correlative` and :mod:`~.loops` (loop closure),
+Modules: :mod:`~.options`, :mod:`~.keyframes` (local map), :mod:`~.loops` (loop closure),
 :mod:`~.backend` (gtsam), :mod:`~.slam`, :mod:`~.run`, :mod:`~.result`.
 """
 

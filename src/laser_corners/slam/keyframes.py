@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.registration.align import PointMap
+from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import PointMap
-from laser_corners.slam.points import ScanPoints
 
 __all__ = ["KeyframeStore"]
 

@@ -5,7 +5,7 @@ within ``loop_radius`` plus the search window of the current estimate. The windo
 the current keyframe's marginal position uncertainty (iSAM2) so the search survives the drift
 of a long loop. Verification: the candidate's submap (neighbouring keyframes) is rasterised
 into a likelihood grid, the query scan is placed by an exhaustive correlative search over the
-window (:mod:`~laser_corners.slam.correlative`), refined by point-to-line ICP, and accepted
+window (:mod:`~laser_corners.registration.correlative`), refined by point-to-line ICP, and accepted
 when enough of its points lie on the submap and the alignment is not degenerate (corridor).
 """
 
@@ -17,10 +17,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.pose import between_many, compose, invert, relative_pose
-from laser_corners.slam.align import PointMap, icp, match_share
-from laser_corners.slam.correlative import ScoreGrid, search
+from laser_corners.registration.align import PointMap, icp, match_share
+from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.points import ScanPoints, rotate, transform
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints, rotate, transform
 from laser_corners.slam.result import LoopClosure
 
 __all__ = [

@@ -10,7 +10,7 @@ occupancy grid:
 ``scan_index``     (K,) index of each keyframe among the mapped scans
 ``offsets``        (K + 1,) keyframe ``k``'s points are rows ``offsets[k]:offsets[k + 1]``
 ``points``         (M, 2) scan points in the keyframe's base frame (mount applied, thinned as
-                   :func:`~laser_corners.slam.points.scan_points` makes them)
+                   :func:`~laser_corners.registration.points.scan_points` makes them)
 ``normals``        (M, 2) their unit line normals (base frame), zero where ``has_normal`` is
                    False
 ``has_normal``     (M,) bool
@@ -36,8 +36,8 @@ from numpy.typing import NDArray
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.registration.points import scan_points
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import scan_points
 
 __all__ = [
     "FORMAT_VERSION",

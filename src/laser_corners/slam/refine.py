@@ -25,11 +25,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.pose import between_many
-from laser_corners.slam.align import PointMap, icp
+from laser_corners.registration.align import PointMap, icp
+from laser_corners.registration.points import ScanPoints
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.loops import submap_points
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints
 
 __all__ = ["RefineLinks", "refine", "refine_links"]
 

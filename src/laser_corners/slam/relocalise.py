@@ -9,9 +9,10 @@ the estimate dead-reckons on), and every keyframe of the segment tries to put th
 back into the map built before it (:class:`Relocaliser`):
 
 1. **Search**: the segment's last keyframes (their points in the current keyframe's frame)
-   are scored, by a correlative search (:func:`~laser_corners.slam.correlative.search`, every
-   heading), around each old keyframe position (thinned to :data:`CENTER_SPACING`), on a
-   likelihood grid of the whole old map; the best distinct poses are kept.
+   are scored, by a correlative search
+   (:func:`~laser_corners.registration.correlative.search`, every heading), around each old
+   keyframe position (thinned to :data:`CENTER_SPACING`), on a likelihood grid of the whole
+   old map; the best distinct poses are kept.
 2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
    a narrow correlative search and ICP against the nearest old keyframe's submap, overlap,
    degeneracy), then the share of the query on the whole old map (at least
@@ -37,11 +38,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.pose import compose, compose_many, invert, poses_apart, relative_pose
-from laser_corners.slam.align import PointMap, match_share
-from laser_corners.slam.correlative import ScoreGrid, search
+from laser_corners.registration.align import PointMap, match_share
+from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.points import ScanPoints, transform
 from laser_corners.slam.loops import query_points, thin_points, verify
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import ScanPoints, transform
 from laser_corners.slam.result import LoopClosure
 
 __all__ = [

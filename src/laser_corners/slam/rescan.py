@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.pose import between_many, compose_many, wrap_angle
-from laser_corners.slam.align import icp
+from laser_corners.registration.align import icp
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.options import SlamOptions
 

@@ -18,11 +18,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import compose, relative_pose, rotate_covariance, wrap_angle
+from laser_corners.registration.align import Alignment, PointMap, icp, match_share
+from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.points import scan_points
 from laser_corners.scan import LaserScan
-from laser_corners.slam.align import Alignment, PointMap, icp, match_share
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.corners import CornerRegistrar
-from laser_corners.slam.correlative import ScoreGrid, search
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.landmarks import LandmarkTracker, make_detector
 from laser_corners.slam.loops import (
@@ -34,7 +35,6 @@ from laser_corners.slam.loops import (
     verify,
 )
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import scan_points
 from laser_corners.slam.refine import refine
 from laser_corners.slam.relocalise import (
     LOST_CONFLICT,
@@ -63,7 +63,7 @@ RESCUE_RESOLUTION = 0.05
 
 SURFACE_SPACINGS = 2.0
 """Kernel width of the local map's implicit surface that tracking aligns to
-(:func:`~laser_corners.slam.align.icp`'s ``surface``), in point spacings: each surface point
+(:func:`~laser_corners.registration.align.icp`'s ``surface``), in point spacings: each surface point
 averages the lines of the map points within two widths (about eight thinned points of a
 wall, from every keyframe that saw it)."""
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from laser_corners.registration.align import PointMap, icp
+from laser_corners.registration.points import rotate, scan_points, transform
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam.align import PointMap, icp
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.points import rotate, scan_points, transform
 from laser_corners.slam.slam import SURFACE_SPACINGS
 
 
