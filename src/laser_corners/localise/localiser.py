@@ -50,25 +50,32 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from laser_corners.localise.estimate import Fix, LocaliserEstimate
 from laser_corners.localise.freespace import Support
 from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
 from laser_corners.localise.local import Fit, LocalMap, explained_share, fuse
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.options import LocaliseOptions
+from laser_corners.localise.places import PlaceProposer
 from laser_corners.localise.window import Window
-from laser_corners.pose import between_many, compose_many, invert_many, rotate_covariance
+from laser_corners.pose import (
+    between_many,
+    compose_many,
+    invert_many,
+    poses_apart,
+    rotate_covariance,
+)
 from laser_corners.registration.align import Alignment, icp, match_share
 from laser_corners.registration.points import scan_points, transform
 from laser_corners.scan import LaserScan
 from laser_corners.slam.mapfile import SavedMap, load_map
 
-__all__ = ["Hypothesis", "Localiser", "LocaliserEstimate"]
+__all__ = ["Fix", "Hypothesis", "Localiser", "LocaliserEstimate"]
 
 COVARIANCE_FLOOR = np.diag([0.02, 0.02, 0.01]) ** 2
 """Added to every covariance: the map's own error (m, m, rad), which ICP does not see."""
@@ -95,53 +102,6 @@ at least this share of the scan's points (else stray clutter would)."""
 LOCAL_DRIFT = 0.02
 """Growth of a local estimate's standard deviation per metre travelled (m/m, rad/m; and
 rad per radian turned): scan matching chained from the last pose anchored in the map."""
-
-
-@dataclass
-class LocaliserEstimate:
-    """One pose estimate of :meth:`Localiser.add`.
-
-    Attributes
-    ----------
-    pose : ndarray, shape (3,)
-        Base pose ``(x, y, yaw)`` in the map frame.
-    covariance : ndarray, shape (3, 3)
-        Its covariance (map frame).
-    status : str
-        ``"relocalised"`` on the scan of a (first or new) fix, ``"local"`` for a scan that
-        sees much unmapped space and is placed by the recent scans more than by the map
-        (``localise.local``: chained to the last anchored pose, covariance growing), else
-        ``"tracking"``.
-    map_to_odom : ndarray, shape (3,)
-        ``pose ∘ odometry⁻¹``: the map -> odom transform a ROS node publishes.
-    scan_index : int
-        Index of the scan among those given to :meth:`Localiser.add`.
-    stamp : float
-    agreement : float
-        Share of the scan's points within ``inlier_distance`` of the map, or of the map and
-        the local submap together (their points are disjoint).
-    """
-
-    pose: NDArray[np.float64]
-    covariance: NDArray[np.float64]
-    status: str
-    map_to_odom: NDArray[np.float64]
-    scan_index: int
-    stamp: float
-    agreement: float = 0.0
-
-
-@dataclass
-class Fix:
-    """A fix (first or after lost): where, when and after how much travel."""
-
-    scan_index: int
-    stamp: float
-    travel: float
-    """Odometry travel (m) since the search started."""
-    pose: tuple[float, float, float]
-    windowed: bool = False
-    """Found inside the window of the lost track's dead-reckoned pose (``localise.window``)."""
 
 
 class Localiser:
@@ -173,6 +133,10 @@ class Localiser:
         chosen = self.options.mount if self.options.mount is not None else mount
         self.mount = np.asarray(saved.mount if chosen is None else chosen, float).reshape(3)
         self.map = MapModel(saved, self.options)
+        self.places = PlaceProposer(
+            saved.places, saved.poses, self.map.grid, self.mount, self.options.places
+        )
+        """The map's place index: global candidates from corner keypoints (``places``)."""
         self.hypotheses: list[Hypothesis] = []
         self.fixes: list[Fix] = []
         self.counts = {"scans": 0, "estimates": 0, "lost": 0, "searches": 0, "no_agreement": 0}
@@ -181,11 +145,14 @@ class Localiser:
         self.counts["refused_history"] = 0
         self.counts["local"] = 0
         self.counts["reacquired"] = 0
+        self.counts["place_attempts"] = 0
         self.local = LocalMap(self.map.grid, GLOBAL_SIGMA)
         """Recent scans' points the map does not explain (tracking into unmapped space)."""
         self._recent: deque = deque(maxlen=self.options.recent_scans)
         self._conflicts: deque = deque(maxlen=self.options.conflict_scans)
         self.ms_per_scan: list[float] = []
+        self.search_ms: list[float] = []
+        """Milliseconds of every exhaustive correlative search (global or window)."""
         self.pose: NDArray[np.float64] | None = None
         self._cov = np.diag([1.0, 1.0, 0.5])
         self._searching = "global"
@@ -435,13 +402,14 @@ class Localiser:
             self.hypotheses = []
             self._since_search = 0
             self._history.clear()
+            self.places.clear()
         self._move_window(delta, jump)
         step = math.hypot(delta[0], delta[1]) + 0.5 * abs(delta[2])
         self._search_travel += step
         self._remember(pts.xy, odo)
+        self.places.observe(scan, odo)
         self._follow(pts.xy, delta, step)
-        if self._since_search % opt.global_every == 0:
-            self._propose(scan, pts.xy, index)
+        self._propose(scan, pts.xy, index)
         self._since_search += 1
         needed = opt.fix_travel if self.window is None else opt.reacquire_travel
         winner = choose_winner(self.hypotheses, opt, needed)
@@ -557,25 +525,51 @@ class Localiser:
         return float(window.max()) <= opt.track_conflict
 
     def _propose(self, scan: LaserScan, xy: NDArray, index: int) -> None:
-        """Global search (or the window's, after a lost track): new hypotheses from its best
-        poses, refined by ICP."""
+        """New hypotheses: on every scan the place index's candidates (corner keypoints,
+        ``localise.places``) when the map has an index and no lost track's window is open;
+        every ``global_every`` scans the exhaustive correlative search (the whole map, or
+        the window after a lost track) when there is no index, or inside a window, or once
+        the search has travelled ``places.fallback_travel`` with no hypothesis alive (too few
+        corners where the robot is)."""
         opt = self.options
-        self.counts["searches"] += 1
         coarse = scan_points(scan, self.mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
-        if self.window is None:
-            found = self.map.global_search(coarse.xy, opt.global_yaw_step, opt.global_candidates)
-        else:
-            found = self.map.window_search(
-                coarse.xy,
-                self.window.pose,
-                *self.window.half_widths,
-                opt.global_yaw_step,
-                opt.global_candidates,
-                (opt.distinct_xy, opt.distinct_yaw),
-            )
+        keypoints = self.window is None and self.places.usable
+        if keypoints:
+            found = self.places.propose(coarse.xy)
+            self.counts["place_attempts"] += 1
+            self._spawn([c.pose for c in found], xy, index)
+        fallback = not keypoints or (
+            self._search_travel >= opt.places.fallback_travel and not self.hypotheses
+        )
+        if fallback and self._since_search % opt.global_every == 0:
+            self.counts["searches"] += 1
+            start = time.perf_counter()
+            if self.window is None:
+                found = self.map.global_search(
+                    coarse.xy, opt.global_yaw_step, opt.global_candidates
+                )
+            else:
+                found = self.map.window_search(
+                    coarse.xy,
+                    self.window.pose,
+                    *self.window.half_widths,
+                    opt.global_yaw_step,
+                    opt.global_candidates,
+                    (opt.distinct_xy, opt.distinct_yaw),
+                )
+            self.search_ms.append((time.perf_counter() - start) * 1e3)
+            self._spawn([guess for guess, _ in found], xy, index)
+
+    def _spawn(self, guesses: list[NDArray], xy: NDArray, index: int) -> None:
+        """Hypotheses from the guesses that ICP aligns to agree with the map without
+        contradicting its free space; guesses where a hypothesis already is are skipped."""
+        opt = self.options
         prior = np.diag(1.0 / np.array([1.0, 1.0, 0.3]) ** 2)
         fresh = []
-        for guess, _ in found:
+        for guess in guesses:
+            apart = (opt.distinct_xy, opt.distinct_yaw)
+            if any(not poses_apart(guess, h.pose, *apart) for h in self.hypotheses):
+                continue
             aligned, agreement = self._align(xy, guess, prior)
             if agreement >= opt.hypothesis_agreement and self._fits(aligned.pose, xy):
                 h = Hypothesis(aligned.pose, index)

@@ -12,6 +12,7 @@ from typing import ClassVar
 from pydantic import Field
 
 from laser_corners.options import Options
+from laser_corners.registration.place_index import PlaceOptions
 
 __all__ = ["LocaliseOptions"]
 
@@ -158,3 +159,7 @@ class LocaliseOptions(Options):
     smooth_drift: float = Field(0.01, ge=0.0, le=1.0)
     """Growth of the chain's step noise per metre travelled (m/m; rad per metre and per
     radian turned: half of it): scan matching drifts about 1 % of the distance."""
+    places: PlaceOptions = PlaceOptions()
+    """The place index: corner keypoints and descriptors of the map's keyframes, which propose
+    global (re)localisation candidates in milliseconds (``places.enabled=false``: the
+    exhaustive correlative search alone; see ``registration/place_index.py``)."""

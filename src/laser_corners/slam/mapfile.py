@@ -15,6 +15,9 @@ occupancy grid:
                    False
 ``has_normal``     (M,) bool
 ``mount``          (3,) base -> laser transform of the map's run
+``places_*``       the place index (:mod:`~laser_corners.registration.place_index`): every
+                   keyframe's corner keypoints (base frame) and descriptors, with
+                   ``places_version``; absent in maps made before it (no index then)
 =================  ==========================================================================
 
 :func:`save_map_data` writes it from a :class:`~laser_corners.slam.SlamResult`;
@@ -36,6 +39,13 @@ from numpy.typing import NDArray
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.registration.place_index import (
+    PlaceIndex,
+    PlaceOptions,
+    build_index,
+    index_arrays,
+    index_from_arrays,
+)
 from laser_corners.registration.points import scan_points
 from laser_corners.slam.options import SlamOptions
 
@@ -74,6 +84,9 @@ class SavedMap:
         ``map.yaml`` + ``map.pgm`` when present.
     landmarks : ndarray, shape (L, 2)
         Landmark positions from ``landmarks.csv`` (empty when absent or header only).
+    places : PlaceIndex or None
+        The keyframes' corners and descriptors (global relocalisation), None for a map made
+        before the index.
     """
 
     folder: Path
@@ -87,6 +100,7 @@ class SavedMap:
     mount: NDArray[np.float64]
     grid: OccupancyGrid | None = None
     landmarks: NDArray[np.float64] | None = None
+    places: PlaceIndex | None = None
 
     def __len__(self) -> int:
         return int(self.poses.shape[0])
@@ -124,7 +138,17 @@ def keyframe_arrays(result: Any) -> dict[str, NDArray]:
         "normals": cat([p.normals for p in pts]).reshape(-1, 2),
         "has_normal": (np.concatenate([p.has_normal for p in pts]) if pts else np.zeros(0, bool)),
         "mount": np.asarray(result.mount, dtype=np.float64),
+        **index_arrays(_places(result)),
     }
+
+
+def _places(result: Any) -> PlaceIndex:
+    """The result's place index (the SLAM builds it as it maps), else one made from its
+    keyframe scans."""
+    if getattr(result, "places", None) is not None:
+        return result.places
+    options = getattr(result.options, "places", PlaceOptions())
+    return build_index(list(result.scans), np.asarray(result.mount, dtype=np.float64), options)
 
 
 def save_map_data(result: Any, folder: str | Path) -> Path:
@@ -226,6 +250,7 @@ def load_map(folder: str | Path) -> SavedMap:
         mount=a["mount"].astype(np.float64),
         grid=grid,
         landmarks=_landmarks(folder),
+        places=index_from_arrays(a, PlaceOptions()),
     )
 
 

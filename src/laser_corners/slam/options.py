@@ -15,6 +15,7 @@ from typing import ClassVar, Literal
 from pydantic import Field
 
 from laser_corners.options import Options
+from laser_corners.registration.place_index import PlaceOptions
 
 __all__ = ["SlamOptions"]
 
@@ -159,3 +160,7 @@ class SlamOptions(Options):
     """A gap (s) between scan stamps (either way) longer than this is a time jump: the scan
     becomes a keyframe, its alignment gets a weak odometry prior, and when it does not align
     the graph is cut there (a new segment under a weak prior)."""
+    places: PlaceOptions = PlaceOptions()
+    """The place index: corner keypoints and descriptors of the map's keyframes, which propose
+    global (re)localisation candidates in milliseconds (``places.enabled=false``: the
+    exhaustive correlative search alone; see ``registration/place_index.py``)."""

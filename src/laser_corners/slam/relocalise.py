@@ -8,11 +8,15 @@ not bridged. The keyframe made there starts a new segment under a weak prior (th
 the estimate dead-reckons on), and every keyframe of the segment tries to put the segment
 back into the map built before it (:class:`Relocaliser`):
 
-1. **Search**: the segment's last keyframes (their points in the current keyframe's frame)
-   are scored, by a correlative search
-   (:func:`~laser_corners.registration.correlative.search`, every heading), around each old
-   keyframe position (thinned to :data:`CENTER_SPACING`), on a likelihood grid of the whole
-   old map; the best distinct poses are kept.
+1. **Search**: the corners of the segment's keyframes within ``places.query_travel`` (in the
+   current keyframe's frame) ask the SLAM's place index
+   (:mod:`~laser_corners.registration.place_index`) where they could be among the old
+   keyframes; each candidate is moved by a bounded correlative check of the segment's last
+   keyframes' points on a likelihood grid of the old map; the :data:`CANDIDATES` best are
+   verified. Only when the index has nothing to propose (too few corners), on two of every
+   :data:`FALLBACK_EVERY` attempts, the exhaustive search runs instead: the points scored by a correlative search
+   (:func:`~laser_corners.registration.correlative.search`, every heading) around each old
+   keyframe position (thinned to :data:`CENTER_SPACING`); the best distinct poses are kept.
 2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
    a narrow correlative search and ICP against the nearest old keyframe's submap, overlap,
    degeneracy), then the share of the query on the whole old map (at least
@@ -32,6 +36,7 @@ are those of the loop closure alone.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +45,7 @@ from numpy.typing import NDArray
 from laser_corners.pose import compose, compose_many, invert, poses_apart, relative_pose
 from laser_corners.registration.align import PointMap, match_share
 from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.place_index import PlaceIndex, dense_check
 from laser_corners.registration.points import ScanPoints, transform
 from laser_corners.slam.loops import query_points, thin_points, verify
 from laser_corners.slam.options import SlamOptions
@@ -86,8 +92,9 @@ AGREE_XY = 0.3
 """Two attempts agree when their corrections of the segment differ by less (m)..."""
 AGREE_YAW = 0.1
 """... and by less than this (rad)."""
-EVERY_AFTER = 20
-"""After this many attempts of one lost segment, only every 5th keyframe tries."""
+FALLBACK_EVERY = 5
+"""The exhaustive search (no candidate from the place index) runs on the first two attempts
+of a lost segment and then on two of every this many (two consecutive attempts must agree)."""
 
 
 @dataclass
@@ -195,12 +202,17 @@ class Relocaliser:
 
     options: SlamOptions
     mount: NDArray[np.float64]
+    places: PlaceIndex | None = None
     start: int | None = None
     attempts: int = 0
     old: OldMap | None = None
     pending: LoopClosure | None = None
     pending_shift: NDArray[np.float64] | None = None
-    counts: dict[str, int] = field(default_factory=lambda: {"attempted": 0, "accepted": 0})
+    counts: dict[str, int] = field(
+        default_factory=lambda: {"attempted": 0, "accepted": 0, "exhaustive": 0}
+    )
+    ms: list[float] = field(default_factory=list)
+    """Milliseconds of every attempt (search and verification)."""
 
     @property
     def lost(self) -> bool:
@@ -226,9 +238,17 @@ class Relocaliser:
         if self.start is None:
             return []
         self.attempts += 1
-        if self.attempts > EVERY_AFTER and self.attempts % 5:
-            return []
         self.counts["attempted"] += 1
+        began = time.perf_counter()
+        try:
+            return self._attempt(k, points, estimate)
+        finally:
+            self.ms.append((time.perf_counter() - began) * 1e3)
+
+    def _attempt(
+        self, k: int, points: list[ScanPoints], estimate: NDArray[np.float64]
+    ) -> list[LoopClosure]:
+        assert self.start is not None
         if self.old is None:
             self.old = OldMap.build(points, estimate, self.start)
         query = query_points(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
@@ -253,6 +273,25 @@ class Relocaliser:
         self.pending, self.pending_shift = closure, shift
         return []
 
+    def _candidates(self, k: int, query: NDArray, estimate: NDArray) -> list[NDArray]:
+        """Poses of keyframe ``k`` to verify: the place index's (dense-checked), else, on the
+        first two attempts and two of every :data:`FALLBACK_EVERY` after, the exhaustive
+        search's."""
+        assert self.old is not None and self.start is not None
+        if self.places is not None and self.options.places.enabled:
+            opt = self.options.places
+            near = np.hypot(*(estimate[self.start : k + 1, :2] - estimate[k, :2]).T)
+            own = self.start + np.flatnonzero(near <= opt.query_travel)
+            corners = self.places.keyframe_corners(own, estimate, estimate[k])
+            found = self.places.candidates(corners, estimate, upto=self.start)
+            if found:
+                checked = dense_check(found, self.old.grid, query, opt)
+                return [c.pose for c in checked[:CANDIDATES]]
+        if (self.attempts - 1) % FALLBACK_EVERY > 1:  # pairs of attempts: they must agree
+            return []
+        self.counts["exhaustive"] += 1
+        return [pose for _, pose in self.old.search(query)]
+
     def _best(
         self, k: int, query: NDArray, points: list[ScanPoints], estimate: NDArray
     ) -> tuple[LoopClosure, NDArray] | None:
@@ -263,7 +302,7 @@ class Relocaliser:
         old_est = estimate[: self.start]
         # the old keyframes always qualify for submaps, the segment's never
         travelled = np.where(np.arange(len(estimate)) < self.start, -1e9, 0.0)
-        for _, pose in self.old.search(query):
+        for pose in self._candidates(k, query, estimate):
             j = int(np.argmin(np.hypot(*(old_est[:, :2] - pose[:2]).T)))
             moved = estimate.copy()
             moved[k] = pose

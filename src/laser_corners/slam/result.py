@@ -10,10 +10,41 @@ from numpy.typing import NDArray
 
 from laser_corners.errors import OutputError
 from laser_corners.pose import compose_many
+from laser_corners.registration.place_index import PlaceIndex
 from laser_corners.scan import LaserScan
 from laser_corners.slam.options import SlamOptions
 
-__all__ = ["Landmarks", "LoopClosure", "SlamResult"]
+__all__ = ["COUNT_KEYS", "Landmarks", "LoopClosure", "SlamResult"]
+
+
+COUNT_KEYS = (  # the counters of SlamResult.counts, in the order reports list them
+    "scans",
+    "keyframes",
+    "skipped_no_odometry",
+    "time_jumps",
+    "alignment_failures",
+    "second_guesses",
+    "second_guesses_used",
+    "rescues",
+    "rescues_used",
+    "closures_proposed",
+    "closures_accepted",
+    "closures_rejected",
+    "closures_pruned",
+    "refine_tried",
+    "refine_links",
+    "refine_pruned",
+    "rescan_tried",
+    "rescan_kept",
+    "landmarks",
+    "landmark_observations",
+    "corner_registrations",
+    "corner_registrations_used",
+    "lost",
+    "relocalisations_attempted",
+    "relocalisations_accepted",
+    "relocalisations_exhaustive",
+)
 
 
 @dataclass
@@ -91,6 +122,9 @@ class SlamResult:
         The final gtsam ``NonlinearFactorGraph`` (for :meth:`write_g2o`).
     values : object
         The final gtsam ``Values``.
+    places : PlaceIndex or None
+        The keyframes' corners and descriptors (``options.places``), written into the map
+        folder for global relocalisation.
     cuts : ndarray of int
         Indices (into ``stamps``) of the scans that start a new segment of the graph: a gap
         the alignment did not bridge, or a scan that fit nothing (the step from the scan
@@ -113,6 +147,7 @@ class SlamResult:
     graph: object = None
     values: object = None
     cuts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    places: PlaceIndex | None = None
 
     @property
     def laser_poses(self) -> NDArray[np.float64]:

@@ -20,6 +20,7 @@ from laser_corners.keypoints import Keypoints
 from laser_corners.pose import compose, relative_pose, rotate_covariance, wrap_angle
 from laser_corners.registration.align import Alignment, PointMap, icp, match_share
 from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.place_index import PlaceIndex, corner_detector, scan_corners
 from laser_corners.registration.points import scan_points
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
@@ -43,7 +44,7 @@ from laser_corners.slam.relocalise import (
     scan_conflict,
 )
 from laser_corners.slam.rescan import blend_poses, rescan
-from laser_corners.slam.result import Landmarks, LoopClosure, SlamResult
+from laser_corners.slam.result import COUNT_KEYS, Landmarks, LoopClosure, SlamResult
 
 __all__ = ["Slam"]
 
@@ -70,34 +71,6 @@ wall, from every keyframe that saw it)."""
 DISTINGUISH_SIGMA = 3.0
 """Standard deviations (of the scan's own information) by which a second ICP start must differ
 from the first for the front end to choose between them (:func:`_distinguishable`)."""
-
-COUNT_KEYS = (
-    "scans",
-    "keyframes",
-    "skipped_no_odometry",
-    "time_jumps",
-    "alignment_failures",
-    "second_guesses",
-    "second_guesses_used",
-    "rescues",
-    "rescues_used",
-    "closures_proposed",
-    "closures_accepted",
-    "closures_rejected",
-    "closures_pruned",
-    "refine_tried",
-    "refine_links",
-    "refine_pruned",
-    "rescan_tried",
-    "rescan_kept",
-    "landmarks",
-    "landmark_observations",
-    "corner_registrations",
-    "corner_registrations_used",
-    "lost",
-    "relocalisations_attempted",
-    "relocalisations_accepted",
-)
 
 
 def _distinguishable(first: Alignment, second: Alignment) -> bool:
@@ -170,7 +143,11 @@ class Slam:
         self._lost = False  # the last scan contradicts the local map: cut the graph
         self._pts = None  # the points of the scan being added
         self._local_occupied: NDArray[np.int64] | None = None  # cells of _local_all
-        self.reloc = Relocaliser(self.options, self.mount)
+        self.places = PlaceIndex(self.options.places)
+        """Every keyframe's corners and descriptors: relocalisation candidates, and the map
+        folder's index for ``localise``."""
+        self._place_detector = None
+        self.reloc = Relocaliser(self.options, self.mount, self.places)
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -423,6 +400,7 @@ class Slam:
             self._since_closure += dist
         self.kf.add(scan, pts, len(self._stamps), stamp, odo, self.pose)
         self._corner_keyframe(k, scan, kp, stamp)
+        self._place_keyframe(k, scan)
         closed = self._close_loops(k) if opt.loop_closure and not first else False
         if closed:
             self.reloc.end()  # an ordinary closure put the segment into the map
@@ -460,6 +438,14 @@ class Slam:
             assert self.pose is not None
             self.tracker.observe(k, self.pose, self._cov, kp, stamp)
             self.counts["landmark_observations"] = self.tracker.n_factors
+
+    def _place_keyframe(self, k: int, scan: LaserScan) -> None:
+        """Keyframe ``k``'s corners into the place index (``places``)."""
+        if not self.options.places.enabled:
+            return
+        if self._place_detector is None:
+            self._place_detector = corner_detector(self.options.places, scan)
+        self.places.add(k, scan_corners(scan, self._place_detector, self.mount))
 
     def _close_loops(self, k: int) -> bool:
         opt = self.options
@@ -502,6 +488,7 @@ class Slam:
         found = self.reloc.attempt(k, self.kf.points, estimate)
         self.counts["relocalisations_attempted"] = self.reloc.counts["attempted"]
         self.counts["relocalisations_accepted"] = self.reloc.counts["accepted"]
+        self.counts["relocalisations_exhaustive"] = self.reloc.counts["exhaustive"]
         for closure in found:
             if closure not in self.closures:
                 self.closures.append(closure)
@@ -591,6 +578,7 @@ class Slam:
             interrupted=interrupted,
             graph=graph,
             values=values,
+            places=self.places if self.options.places.enabled else None,
             cuts=np.asarray(self.kf.scan_index, dtype=np.int64)[[x is None for x in self._links]][
                 1:
             ],

@@ -1,0 +1,574 @@
+"""The map's corner keypoints as a place index: where could this query be, in milliseconds.
+
+Global (re)localisation used to search the whole map with a correlative matcher, every
+position and heading (0.3-2.5 s an attempt). The index turns it around: *keypoints propose,
+something denser disposes*.
+
+1. **Index.** Every keyframe's corner keypoints (the paper's detector, ``auto`` preset by
+   default) with their ``csc`` descriptors (:mod:`laser_corners.matching.descriptors`: a
+   rotation-invariant corner context in the bisector's frame), kept in the keyframe's base
+   frame (:class:`Corners`), so the index follows the keyframes' estimates as SLAM moves
+   them; map-frame positions are derived when asked.
+2. **Query.** The corners of the last scans (the last ``query_travel`` metres chained by
+   odometry, :class:`QueryBuffer`), merged where several scans saw one corner. Each query
+   corner's ``matches`` nearest map corners by descriptor (L1, opening angles within
+   ``max_opening_diff``; one numba pass over the index, no Python loop per pair) each
+   propose one SE(2) pose: the bisectors give the heading, the positions the translation.
+3. **Consensus.** Every proposed pose moves all query corners into the map; its votes are
+   the query corners that land within ``consensus_radius`` of a map corner with a bisector
+   within ``consensus_yaw`` (a k-d tree over the map corners, vectorised over poses and
+   corners). The best distinct poses with at least ``min_votes`` votes are the candidates.
+4. **Dense check** (:func:`dense_check`). Each candidate is scored by a bounded correlative
+   search of the query's scan points on a likelihood grid of the map (``check_xy`` /
+   ``check_yaw`` around it): the corners place it, the walls confirm it. What to accept is
+   the caller's: the localiser follows the candidates as hypotheses, the SLAM verifies them
+   as loop closures.
+
+Cost: the descriptor pass is O(Q·M·D) (Q query corners, M map corners, D = 61), about 1 ms
+for 30 query corners against 20,000 map corners; the consensus O(H·Q·log M) for the
+H ≤ Q·``matches`` proposals; the dense check O(candidates · window cells · points). None of it
+grows with the map's area, only (linearly, in the descriptor pass) with its number of corners.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar, Literal
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+from scipy.spatial import cKDTree
+
+from laser_corners.detector import CornerDetector
+from laser_corners.matching.descriptors import DescriptorParams, describe
+from laser_corners.options import Options
+from laser_corners.pose import between_many, compose_many, poses_apart, wrap_angle
+from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.scan import LaserScan
+
+__all__ = [
+    "PLACES_VERSION",
+    "Candidate",
+    "Corners",
+    "PlaceIndex",
+    "PlaceOptions",
+    "QueryBuffer",
+    "build_index",
+    "corner_detector",
+    "dense_check",
+    "index_arrays",
+    "index_from_arrays",
+    "scan_corners",
+]
+
+PLACES_VERSION = 1
+"""Version of the index's arrays in a map folder; another version is not read (the map then
+has no index until it is made again)."""
+
+
+class PlaceOptions(Options):
+    """Options of the place index (see the module notes).
+
+    Attributes
+    ----------
+    enabled : bool
+        Propose global candidates from the index (else the exhaustive correlative search).
+    detector_preset : {"auto", "paper", "robust"}
+        Corner detector of the index and of its queries.
+    matches : int
+        Nearest map corners (by descriptor) each query corner proposes a pose with.
+    max_descriptor_distance : float
+        Largest descriptor distance (csc L1) of a proposing match.
+    max_opening_diff : float
+        Largest difference of opening angles (degrees) of a proposing match.
+    consensus_radius : float
+        A query corner votes for a pose when it lands this close (m) to a map corner...
+    consensus_yaw : float
+        ... whose bisector is within this angle (rad) of its own.
+    min_votes : int
+        Votes a candidate needs (distinct query corners, the proposing one included).
+    candidates : int
+        Distinct candidates returned at most, most votes first.
+    query_travel : float
+        Odometry travel (m) of the scans whose corners form a query.
+    check_xy, check_yaw : float
+        Half-widths (m, rad) of the dense check's correlative search around a candidate.
+    fallback_travel : float
+        Travel (m) of a search without a fix after which the exhaustive correlative search
+        runs beside the index (too few corners where the robot is).
+    """
+
+    title: ClassVar[str] = "PlaceOptions"
+
+    enabled: bool = True
+    detector_preset: Literal["auto", "paper", "robust"] = "auto"
+    matches: int = Field(8, ge=1, le=100)
+    max_descriptor_distance: float = Field(0.6, gt=0.0, le=10.0)
+    max_opening_diff: float = Field(20.0, gt=0.0, le=180.0)
+    consensus_radius: float = Field(0.3, gt=0.0, le=5.0)
+    consensus_yaw: float = Field(0.35, gt=0.0, le=3.2)
+    min_votes: int = Field(2, ge=1, le=100)
+    candidates: int = Field(8, ge=1, le=100)
+    query_travel: float = Field(3.0, ge=0.0, le=100.0)
+    check_xy: float = Field(0.3, ge=0.0, le=5.0)
+    check_yaw: float = Field(0.1, ge=0.0, le=3.2)
+    fallback_travel: float = Field(1.0, ge=0.0, le=1000.0)
+
+
+@dataclass
+class Corners:
+    """Corner keypoints in a base frame, with descriptors.
+
+    Attributes
+    ----------
+    xy : ndarray, shape (M, 2)
+        Positions (m).
+    orientation : ndarray, shape (M,)
+        Bisector orientations (rad).
+    opening : ndarray, shape (M,)
+        Opening angles (degrees).
+    descriptor : ndarray, shape (M, D), float32
+        ``csc`` descriptors (rotation invariant: the frame does not change them).
+    """
+
+    xy: NDArray[np.float64]
+    orientation: NDArray[np.float64]
+    opening: NDArray[np.float64]
+    descriptor: NDArray[np.float32]
+
+    def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+    @classmethod
+    def empty(cls, width: int = 0) -> Corners:
+        return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros((0, width), np.float32))
+
+    def moved(self, pose: NDArray[np.float64]) -> Corners:
+        """The corners in the frame where this frame's origin is at ``pose``."""
+        if len(self) == 0:
+            return self
+        xyt = compose_many(pose, np.column_stack([self.xy, self.orientation]))
+        return Corners(xyt[:, :2], xyt[:, 2], self.opening, self.descriptor)
+
+    @staticmethod
+    def joined(parts: list[Corners]) -> Corners:
+        """One set of the corners of ``parts`` (same frame)."""
+        full = [p for p in parts if len(p)]
+        if not full:
+            return Corners.empty(parts[0].descriptor.shape[1] if parts else 0)
+        parts = full
+        return Corners(
+            np.concatenate([p.xy for p in parts]).reshape(-1, 2),
+            np.concatenate([p.orientation for p in parts]),
+            np.concatenate([p.opening for p in parts]),
+            np.concatenate([p.descriptor for p in parts]),
+        )
+
+
+def corner_detector(options: PlaceOptions, scan: LaserScan) -> CornerDetector:
+    """The index's detector for ``scan``'s sensor (``auto``/``robust`` read the scan)."""
+    if options.detector_preset == "paper":
+        return CornerDetector("paper")
+    return CornerDetector.from_preset(options.detector_preset, scan)
+
+
+def scan_corners(scan: LaserScan, detector: CornerDetector, mount: NDArray[np.float64]) -> Corners:
+    """The corners of ``scan`` with ``csc`` descriptors, moved into the base frame by
+    ``mount`` (base -> laser)."""
+    kp = detector.detect(scan)
+    desc = describe(scan, kp, DescriptorParams("csc")).values.astype(np.float32)
+    ok = np.isfinite(kp.orientation) & np.isfinite(kp.xy).all(axis=1)
+    sensor = Corners(
+        np.asarray(kp.xy, dtype=np.float64)[ok],
+        np.asarray(kp.orientation, dtype=np.float64)[ok],
+        np.asarray(kp.opening_angle_deg, dtype=np.float64)[ok],
+        desc[ok],
+    )
+    return sensor.moved(np.asarray(mount, dtype=np.float64))
+
+
+@dataclass
+class Candidate:
+    """A candidate pose of the query's frame in the map.
+
+    Attributes
+    ----------
+    pose : ndarray, shape (3,)
+    votes : int
+        Distinct query corners that agree with it.
+    score : float
+        The dense check's mean likelihood (NaN before :func:`dense_check`).
+    """
+
+    pose: NDArray[np.float64]
+    votes: int
+    score: float = math.nan
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def _l1(a: NDArray[np.float32], b: NDArray[np.float32]) -> float:
+    acc = np.float32(0.0)
+    for c in range(a.shape[0]):
+        acc += abs(a[c] - b[c])
+    return acc
+
+
+@numba.njit(cache=True, nogil=True)
+def _nearest(
+    query: NDArray[np.float32],
+    q_open: NDArray[np.float64],
+    index: NDArray[np.float32],
+    m_open: NDArray[np.float64],
+    max_open: float,
+    max_distance: float,
+    k: int,
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The ``k`` nearest rows of ``index`` to each row of ``query`` by L1 distance, among
+    those with opening angles within ``max_open`` and distance at most ``max_distance``
+    (-1 where fewer qualify)."""
+    nq = query.shape[0]
+    found = np.full((nq, k), -1, dtype=np.int64)
+    dist = np.full((nq, k), np.inf)
+    for q in range(nq):
+        worst = max_distance
+        for m in range(index.shape[0]):
+            if abs(q_open[q] - m_open[m]) > max_open:
+                continue
+            acc = _l1(query[q], index[m])
+            if acc > worst:
+                continue
+            j = k - 1  # insertion into the sorted row
+            while j > 0 and dist[q, j - 1] > acc:
+                dist[q, j] = dist[q, j - 1]
+                found[q, j] = found[q, j - 1]
+                j -= 1
+            dist[q, j] = acc
+            found[q, j] = m
+            if dist[q, k - 1] < np.inf:
+                worst = dist[q, k - 1]
+    return found, dist
+
+
+def merge_close(corners: Corners, radius: float, yaw: float) -> Corners:
+    """One corner per physical corner: a corner within ``radius`` and ``yaw`` of an earlier
+    kept one is dropped (the query's scans see one corner many times)."""
+    if len(corners) < 2:
+        return corners
+    tree = cKDTree(corners.xy)
+    keep = np.ones(len(corners), dtype=bool)
+    for i, near in enumerate(tree.query_ball_point(corners.xy, radius)):
+        if not keep[i]:
+            continue
+        near = np.asarray([j for j in near if j > i], dtype=np.int64)
+        if near.size:
+            same = np.abs(wrap_angle(corners.orientation[near] - corners.orientation[i])) <= yaw
+            keep[near[same]] = False
+    return Corners(
+        corners.xy[keep], corners.orientation[keep], corners.opening[keep], corners.descriptor[keep]
+    )
+
+
+@dataclass
+class PlaceIndex:
+    """The corners of a map's keyframes (base frames), and queries against them.
+
+    Keyframes are added as they are made (:meth:`add`); :meth:`candidates` takes the
+    keyframes' current poses, so a SLAM whose estimates move keeps one index.
+    """
+
+    options: PlaceOptions = field(default_factory=PlaceOptions)
+    keyframe: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    corners: Corners = field(default_factory=Corners.empty)
+    _parts: list[tuple[int, Corners]] = field(default_factory=list)
+    _cache: tuple[bytes, CornerGrid | None] | None = None
+
+    def __len__(self) -> int:
+        self._flush()
+        return len(self.corners)
+
+    def add(self, keyframe: int, corners: Corners) -> None:
+        """Keyframe ``keyframe``'s corners (its base frame)."""
+        if len(corners):
+            self._parts.append((keyframe, corners))
+
+    def _flush(self) -> None:
+        if not self._parts:
+            return
+        ids = [np.full(len(c), k, dtype=np.int64) for k, c in self._parts]
+        self.keyframe = np.concatenate([self.keyframe, *ids])
+        self.corners = Corners.joined([self.corners, *[c for _, c in self._parts]])
+        self._parts = []
+
+    def map_corners(self, poses: NDArray[np.float64], upto: int | None = None) -> Corners:
+        """The corners in the map frame, keyframes at ``poses`` (rows by keyframe index);
+        with ``upto``, only those of keyframes before it."""
+        self._flush()
+        keep = self.keyframe < (len(poses) if upto is None else upto)
+        c = self.corners
+        if not keep.any():
+            return Corners.empty(c.descriptor.shape[1])
+        xyt = compose_many(
+            poses[self.keyframe[keep]], np.column_stack([c.xy[keep], c.orientation[keep]])
+        )
+        return Corners(xyt[:, :2], xyt[:, 2], c.opening[keep], c.descriptor[keep])
+
+    def keyframe_corners(
+        self, keyframes: NDArray[np.int64], poses: NDArray[np.float64], frame: NDArray[np.float64]
+    ) -> Corners:
+        """The corners of ``keyframes`` (at ``poses``, rows by keyframe index) in the frame
+        whose origin is at ``frame`` (map frame): a query made of keyframes."""
+        self._flush()
+        keep = np.isin(self.keyframe, keyframes)
+        c = self.corners
+        if not keep.any():
+            return Corners.empty(c.descriptor.shape[1])
+        rel = between_many(frame, poses[self.keyframe[keep]])
+        xyt = compose_many(rel, np.column_stack([c.xy[keep], c.orientation[keep]]))
+        return Corners(xyt[:, :2], xyt[:, 2], c.opening[keep], c.descriptor[keep])
+
+    def _grid(self, poses: NDArray[np.float64], upto: int | None) -> CornerGrid | None:
+        """The map corners at ``poses`` (before keyframe ``upto``) bucketed for the consensus;
+        remade only when the poses, ``upto`` or the corners changed."""
+        self._flush()
+        key = (
+            np.asarray(poses, dtype=np.float64).tobytes() + str((upto, len(self.keyframe))).encode()
+        )
+        if self._cache is None or self._cache[0] != key:
+            mapped = self.map_corners(poses, upto)
+            grid = CornerGrid.build(mapped, self.options.consensus_radius) if len(mapped) else None
+            self._cache = (key, grid)
+        return self._cache[1]
+
+    def candidates(
+        self, query: Corners, poses: NDArray[np.float64], upto: int | None = None
+    ) -> list[Candidate]:
+        """The distinct poses (query frame in the map frame) the query's corners agree on,
+        most votes first (see the module notes); only keyframes before ``upto`` count."""
+        opt = self.options
+        if len(query) < opt.min_votes:
+            return []
+        query = merge_close(query, 0.5 * opt.consensus_radius, opt.consensus_yaw)
+        grid = self._grid(poses, upto)
+        if grid is None or len(query) < opt.min_votes:
+            return []
+        mapped = grid.corners
+        found, _ = _nearest(
+            np.ascontiguousarray(query.descriptor),
+            np.ascontiguousarray(query.opening),
+            np.ascontiguousarray(mapped.descriptor),
+            np.ascontiguousarray(mapped.opening),
+            opt.max_opening_diff,
+            opt.max_descriptor_distance,
+            opt.matches,
+        )
+        q_idx, rank = np.nonzero(found >= 0)
+        if q_idx.size == 0:
+            return []
+        m_idx = found[q_idx, rank]
+        yaw = wrap_angle(mapped.orientation[m_idx] - query.orientation[q_idx])
+        c, s = np.cos(yaw), np.sin(yaw)
+        qx, qy = query.xy[q_idx, 0], query.xy[q_idx, 1]
+        poses_h = np.column_stack(
+            [mapped.xy[m_idx, 0] - (c * qx - s * qy), mapped.xy[m_idx, 1] - (s * qx + c * qy), yaw]
+        )
+        votes = _votes(poses_h, query, grid, opt)
+        return _distinct(poses_h, votes, opt)
+
+
+@dataclass
+class CornerGrid:
+    """Map corners bucketed in square cells (CSR: ``start[c]:start[c + 1]`` of ``order``),
+    for the consensus lookups."""
+
+    corners: Corners
+    origin: NDArray[np.float64]
+    cell: float
+    shape: tuple[int, int]
+    start: NDArray[np.int64]
+    order: NDArray[np.int64]
+
+    @classmethod
+    def build(cls, corners: Corners, radius: float) -> CornerGrid:
+        lo = corners.xy.min(axis=0) - radius
+        span = corners.xy.max(axis=0) + radius - lo
+        cell = max(radius, float(span.max()) / 4096.0)  # at most 4096 cells a side
+        nx, ny = (np.floor(span / cell).astype(np.int64) + 1).tolist()
+        ij = np.floor((corners.xy - lo) / cell).astype(np.int64)
+        key = ij[:, 1] * nx + ij[:, 0]
+        order = np.argsort(key, kind="stable")
+        start = np.searchsorted(key[order], np.arange(nx * ny + 1))
+        return cls(corners, lo, cell, (ny, nx), start.astype(np.int64), order)
+
+
+@numba.njit(cache=True, nogil=True)
+def _count_votes(
+    poses: NDArray[np.float64],
+    qxy: NDArray[np.float64],
+    qori: NDArray[np.float64],
+    mxy: NDArray[np.float64],
+    mori: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    cell: float,
+    ny: int,
+    nx: int,
+    start: NDArray[np.int64],
+    order: NDArray[np.int64],
+    radius: float,
+    yaw_tol: float,
+) -> NDArray[np.int64]:
+    """Per pose: the query corners landing within ``radius`` of a map corner whose bisector
+    is within ``yaw_tol`` of theirs."""
+    votes = np.zeros(poses.shape[0], dtype=np.int64)
+    r2 = radius * radius
+    for h in range(poses.shape[0]):
+        c = math.cos(poses[h, 2])
+        s = math.sin(poses[h, 2])
+        for q in range(qxy.shape[0]):
+            x = c * qxy[q, 0] - s * qxy[q, 1] + poses[h, 0]
+            y = s * qxy[q, 0] + c * qxy[q, 1] + poses[h, 1]
+            ori = qori[q] + poses[h, 2]
+            ix = math.floor((x - origin[0]) / cell)
+            iy = math.floor((y - origin[1]) / cell)
+            hit = False
+            for b in range(max(iy - 1, 0), min(iy + 2, ny)):
+                for a in range(max(ix - 1, 0), min(ix + 2, nx)):
+                    key = b * nx + a
+                    for t in range(start[key], start[key + 1]):
+                        m = order[t]
+                        dx = mxy[m, 0] - x
+                        dy = mxy[m, 1] - y
+                        turn = (mori[m] - ori + math.pi) % (2.0 * math.pi) - math.pi
+                        if dx * dx + dy * dy <= r2 and abs(turn) <= yaw_tol:
+                            hit = True
+                            break
+                    if hit:
+                        break
+                if hit:
+                    break
+            votes[h] += hit
+    return votes
+
+
+def _votes(poses: NDArray[np.float64], query: Corners, grid: CornerGrid, opt: PlaceOptions):
+    """:func:`_count_votes` of ``poses`` for ``query`` against ``grid``."""
+    m = grid.corners
+    return _count_votes(
+        np.ascontiguousarray(poses),
+        np.ascontiguousarray(query.xy),
+        np.ascontiguousarray(query.orientation),
+        np.ascontiguousarray(m.xy),
+        np.ascontiguousarray(m.orientation),
+        grid.origin,
+        grid.cell,
+        grid.shape[0],
+        grid.shape[1],
+        grid.start,
+        grid.order,
+        opt.consensus_radius,
+        opt.consensus_yaw,
+    )
+
+
+def _distinct(poses: NDArray, votes: NDArray, opt: PlaceOptions) -> list[Candidate]:
+    """The best-voted poses at least 1 m or 0.3 rad apart, at most ``opt.candidates``."""
+    order = np.argsort(-votes, kind="stable")
+    chosen: list[Candidate] = []
+    for i in order:
+        if votes[i] < opt.min_votes or len(chosen) == opt.candidates:
+            break
+        if all(poses_apart(poses[i], c.pose, 1.0, 0.3) for c in chosen):
+            chosen.append(Candidate(poses[i].copy(), int(votes[i])))
+    return chosen
+
+
+def dense_check(
+    candidates: list[Candidate],
+    grid: ScoreGrid,
+    points: NDArray[np.float64],
+    options: PlaceOptions,
+) -> list[Candidate]:
+    """Each candidate moved to the best pose of a correlative search of ``points`` (query
+    frame) on ``grid`` within ``check_xy`` / ``check_yaw`` of it, with that pose's mean
+    likelihood as ``score``; best score first."""
+    checked = []
+    for cand in candidates:
+        score, pose = search(grid, points, cand.pose, options.check_xy, options.check_yaw)
+        checked.append(Candidate(pose, cand.votes, score))
+    checked.sort(key=lambda c: -c.score)
+    return checked
+
+
+@dataclass
+class QueryBuffer:
+    """The corners of the last scans, chained by odometry: a query in the newest base frame.
+
+    Each :meth:`add` keeps a scan's corners (its base frame) with its odometry pose; scans
+    older than ``travel`` metres of odometry before the newest are dropped.
+    """
+
+    travel: float
+    _items: list[tuple[NDArray[np.float64], float, Corners]] = field(default_factory=list)
+    _travelled: float = 0.0
+
+    def add(self, odometry: NDArray[np.float64], corners: Corners) -> None:
+        if self._items:
+            d = between_many(self._items[-1][0], odometry)
+            self._travelled += math.hypot(d[0], d[1]) + 0.5 * abs(d[2])
+        self._items.append((np.asarray(odometry, dtype=np.float64), self._travelled, corners))
+        while self._items and self._travelled - self._items[0][1] > self.travel:
+            self._items.pop(0)
+
+    def clear(self) -> None:
+        self._items.clear()
+        self._travelled = 0.0
+
+    def query(self) -> Corners:
+        """Every kept scan's corners in the newest scan's base frame."""
+        if not self._items:
+            return Corners.empty()
+        newest = self._items[-1][0]
+        parts = [c.moved(between_many(newest, odo)) for odo, _, c in self._items if len(c)]
+        return Corners.joined(parts)
+
+
+def build_index(
+    scans: list[LaserScan], mount: NDArray[np.float64], options: PlaceOptions
+) -> PlaceIndex:
+    """The index of keyframe scans (keyframe ``k`` is ``scans[k]``); ``mount``: base -> laser."""
+    index = PlaceIndex(options)
+    detector = None
+    for k, scan in enumerate(scans):
+        detector = detector or corner_detector(options, scan)
+        index.add(k, scan_corners(scan, detector, mount))
+    return index
+
+
+def index_arrays(index: PlaceIndex) -> dict[str, NDArray]:
+    """The index as arrays for a map folder's ``keyframes.npz`` (keys ``places_*``)."""
+    index._flush()
+    c = index.corners
+    return {
+        "places_version": np.int64(PLACES_VERSION),
+        "places_keyframe": index.keyframe,
+        "places_xy": c.xy.reshape(-1, 2),
+        "places_orientation": c.orientation,
+        "places_opening": c.opening,
+        "places_descriptor": c.descriptor.reshape(len(c), -1).astype(np.float32),
+    }
+
+
+def index_from_arrays(arrays: dict[str, NDArray], options: PlaceOptions) -> PlaceIndex | None:
+    """The index stored by :func:`index_arrays`; None when absent or of another version
+    (a map made before the index, or by another version)."""
+    if int(arrays.get("places_version", -1)) != PLACES_VERSION:
+        return None
+    corners = Corners(
+        arrays["places_xy"].astype(np.float64).reshape(-1, 2),
+        arrays["places_orientation"].astype(np.float64),
+        arrays["places_opening"].astype(np.float64),
+        np.ascontiguousarray(arrays["places_descriptor"], dtype=np.float32),
+    )
+    return PlaceIndex(options, arrays["places_keyframe"].astype(np.int64), corners)
