@@ -222,34 +222,83 @@ def _nearest(
     q_open: NDArray[np.float64],
     index: NDArray[np.float32],
     m_open: NDArray[np.float64],
+    landmark: NDArray[np.int64],
+    n_landmarks: int,
     max_open: float,
     max_distance: float,
     k: int,
-) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """The ``k`` nearest rows of ``index`` to each row of ``query`` by L1 distance, among
-    those with opening angles within ``max_open`` and distance at most ``max_distance``
-    (-1 where fewer qualify)."""
+) -> NDArray[np.int64]:
+    """For each row of ``query``: the rows of ``index`` that are the best match (L1 distance)
+    of the ``k`` nearest distinct landmarks (``landmark``: each row's physical corner), among
+    rows with opening angles within ``max_open`` and distance at most ``max_distance``
+    (-1 where fewer qualify). Distinct landmarks: a corner seen from many keyframes must not
+    fill every place."""
     nq = query.shape[0]
     found = np.full((nq, k), -1, dtype=np.int64)
-    dist = np.full((nq, k), np.inf)
+    best = np.empty(n_landmarks)
+    arg = np.empty(n_landmarks, dtype=np.int64)
     for q in range(nq):
-        worst = max_distance
+        best[:] = np.inf
+        arg[:] = -1
         for m in range(index.shape[0]):
             if abs(q_open[q] - m_open[m]) > max_open:
                 continue
-            acc = _l1(query[q], index[m])
-            if acc > worst:
-                continue
-            j = k - 1  # insertion into the sorted row
-            while j > 0 and dist[q, j - 1] > acc:
-                dist[q, j] = dist[q, j - 1]
-                found[q, j] = found[q, j - 1]
-                j -= 1
-            dist[q, j] = acc
-            found[q, j] = m
-            if dist[q, k - 1] < np.inf:
-                worst = dist[q, k - 1]
-    return found, dist
+            d = _l1(query[q], index[m])
+            lm = landmark[m]
+            if d <= max_distance and d < best[lm]:
+                best[lm] = d
+                arg[lm] = m
+        for j in range(k):  # the k smallest of best, by selection (k is small)
+            pick = -1
+            for lm in range(n_landmarks):
+                if arg[lm] >= 0 and (pick < 0 or best[lm] < best[pick]):
+                    pick = lm
+            if pick < 0:
+                break
+            found[q, j] = arg[pick]
+            arg[pick] = -1
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def _landmarks(
+    xy: NDArray[np.float64],
+    ori: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    cell: float,
+    ny: int,
+    nx: int,
+    start: NDArray[np.int64],
+    order: NDArray[np.int64],
+    radius: float,
+    yaw_tol: float,
+) -> tuple[NDArray[np.int64], int]:
+    """A physical corner per group of observations: each unlabelled corner (in order) starts
+    a landmark and takes every unlabelled corner within ``radius`` and ``yaw_tol`` of it."""
+    n = xy.shape[0]
+    label = np.full(n, -1, dtype=np.int64)
+    count = 0
+    r2 = radius * radius
+    for i in range(n):
+        if label[i] >= 0:
+            continue
+        label[i] = count
+        ix = math.floor((xy[i, 0] - origin[0]) / cell)
+        iy = math.floor((xy[i, 1] - origin[1]) / cell)
+        for b in range(max(iy - 1, 0), min(iy + 2, ny)):
+            for a in range(max(ix - 1, 0), min(ix + 2, nx)):
+                key = b * nx + a
+                for t in range(start[key], start[key + 1]):
+                    m = order[t]
+                    if label[m] >= 0:
+                        continue
+                    dx = xy[m, 0] - xy[i, 0]
+                    dy = xy[m, 1] - xy[i, 1]
+                    turn = (ori[m] - ori[i] + math.pi) % (2.0 * math.pi) - math.pi
+                    if dx * dx + dy * dy <= r2 and abs(turn) <= yaw_tol:
+                        label[m] = count
+        count += 1
+    return label, count
 
 
 def merge_close(corners: Corners, radius: float, yaw: float) -> Corners:
@@ -355,11 +404,13 @@ class PlaceIndex:
         if grid is None or len(query) < opt.min_votes:
             return []
         mapped = grid.corners
-        found, _ = _nearest(
+        found = _nearest(
             np.ascontiguousarray(query.descriptor),
             np.ascontiguousarray(query.opening),
             np.ascontiguousarray(mapped.descriptor),
             np.ascontiguousarray(mapped.opening),
+            grid.landmark,
+            grid.n_landmarks,
             opt.max_opening_diff,
             opt.max_descriptor_distance,
             opt.matches,
@@ -381,7 +432,8 @@ class PlaceIndex:
 @dataclass
 class CornerGrid:
     """Map corners bucketed in square cells (CSR: ``start[c]:start[c + 1]`` of ``order``),
-    for the consensus lookups."""
+    for the consensus lookups, and grouped into physical corners (``landmark``: the corners
+    within ``radius`` and 0.35 rad of a first one, :func:`_landmarks`)."""
 
     corners: Corners
     origin: NDArray[np.float64]
@@ -389,6 +441,8 @@ class CornerGrid:
     shape: tuple[int, int]
     start: NDArray[np.int64]
     order: NDArray[np.int64]
+    landmark: NDArray[np.int64]
+    n_landmarks: int
 
     @classmethod
     def build(cls, corners: Corners, radius: float) -> CornerGrid:
@@ -399,8 +453,11 @@ class CornerGrid:
         ij = np.floor((corners.xy - lo) / cell).astype(np.int64)
         key = ij[:, 1] * nx + ij[:, 0]
         order = np.argsort(key, kind="stable")
-        start = np.searchsorted(key[order], np.arange(nx * ny + 1))
-        return cls(corners, lo, cell, (ny, nx), start.astype(np.int64), order)
+        start = np.searchsorted(key[order], np.arange(nx * ny + 1)).astype(np.int64)
+        xy = np.ascontiguousarray(corners.xy)
+        ori = np.ascontiguousarray(corners.orientation)
+        landmark, count = _landmarks(xy, ori, lo, cell, ny, nx, start, order, radius, 0.35)
+        return cls(corners, lo, cell, (ny, nx), start, order, landmark, count)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -501,36 +558,47 @@ def dense_check(
     return checked
 
 
+KEEP_STEP = 0.2
+"""A scan's corners join the query buffer after this much travel (m, turns 0.5 m per radian)
+since the last kept scan: consecutive scans see the same corners."""
+
+
 @dataclass
 class QueryBuffer:
     """The corners of the last scans, chained by odometry: a query in the newest base frame.
 
-    Each :meth:`add` keeps a scan's corners (its base frame) with its odometry pose; scans
-    older than ``travel`` metres of odometry before the newest are dropped.
+    :meth:`add` keeps a scan's corners (its base frame) with its odometry pose when the robot
+    moved :data:`KEEP_STEP` since the last kept scan; scans more than ``travel`` metres of
+    odometry before the newest are dropped.
     """
 
     travel: float
     _items: list[tuple[NDArray[np.float64], float, Corners]] = field(default_factory=list)
     _travelled: float = 0.0
+    _last: NDArray[np.float64] | None = None
 
     def add(self, odometry: NDArray[np.float64], corners: Corners) -> None:
-        if self._items:
-            d = between_many(self._items[-1][0], odometry)
+        odometry = np.asarray(odometry, dtype=np.float64)
+        if self._last is not None:
+            d = between_many(self._last, odometry)
             self._travelled += math.hypot(d[0], d[1]) + 0.5 * abs(d[2])
-        self._items.append((np.asarray(odometry, dtype=np.float64), self._travelled, corners))
-        while self._items and self._travelled - self._items[0][1] > self.travel:
+        self._last = odometry
+        if self._items and self._travelled - self._items[-1][1] < KEEP_STEP:
+            return
+        self._items.append((odometry, self._travelled, corners))
+        while self._travelled - self._items[0][1] > self.travel:
             self._items.pop(0)
 
     def clear(self) -> None:
         self._items.clear()
         self._travelled = 0.0
+        self._last = None
 
     def query(self) -> Corners:
-        """Every kept scan's corners in the newest scan's base frame."""
-        if not self._items:
+        """Every kept scan's corners in the newest scan's base frame (the last :meth:`add`)."""
+        if not self._items or self._last is None:
             return Corners.empty()
-        newest = self._items[-1][0]
-        parts = [c.moved(between_many(newest, odo)) for odo, _, c in self._items if len(c)]
+        parts = [c.moved(between_many(self._last, odo)) for odo, _, c in self._items if len(c)]
         return Corners.joined(parts)
 
 

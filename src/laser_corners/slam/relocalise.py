@@ -13,8 +13,9 @@ back into the map built before it (:class:`Relocaliser`):
    (:mod:`~laser_corners.registration.place_index`) where they could be among the old
    keyframes; each candidate is moved by a bounded correlative check of the segment's last
    keyframes' points on a likelihood grid of the old map; the :data:`CANDIDATES` best are
-   verified. Only when the index has nothing to propose (too few corners), on two of every
-   :data:`FALLBACK_EVERY` attempts, the exhaustive search runs instead: the points scored by a correlative search
+   verified. Only when the index has nothing to propose (too few corners), on the first
+   :data:`FALLBACK_FIRST` attempts and two of every :data:`FALLBACK_EVERY` after, the
+   exhaustive search runs instead: the points scored by a correlative search
    (:func:`~laser_corners.registration.correlative.search`, every heading) around each old
    keyframe position (thinned to :data:`CENTER_SPACING`); the best distinct poses are kept.
 2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
@@ -92,9 +93,11 @@ AGREE_XY = 0.3
 """Two attempts agree when their corrections of the segment differ by less (m)..."""
 AGREE_YAW = 0.1
 """... and by less than this (rad)."""
+FALLBACK_FIRST = 4
+"""The exhaustive search (no candidate from the place index) runs on the first this many
+attempts of a lost segment..."""
 FALLBACK_EVERY = 5
-"""The exhaustive search (no candidate from the place index) runs on the first two attempts
-of a lost segment and then on two of every this many (two consecutive attempts must agree)."""
+"""... and then on two of every this many (two consecutive attempts must agree)."""
 
 
 @dataclass
@@ -275,8 +278,8 @@ class Relocaliser:
 
     def _candidates(self, k: int, query: NDArray, estimate: NDArray) -> list[NDArray]:
         """Poses of keyframe ``k`` to verify: the place index's (dense-checked), else, on the
-        first two attempts and two of every :data:`FALLBACK_EVERY` after, the exhaustive
-        search's."""
+        first :data:`FALLBACK_FIRST` attempts and two of every :data:`FALLBACK_EVERY` after,
+        the exhaustive search's."""
         assert self.old is not None and self.start is not None
         if self.places is not None and self.options.places.enabled:
             opt = self.options.places
@@ -287,8 +290,8 @@ class Relocaliser:
             if found:
                 checked = dense_check(found, self.old.grid, query, opt)
                 return [c.pose for c in checked[:CANDIDATES]]
-        if (self.attempts - 1) % FALLBACK_EVERY > 1:  # pairs of attempts: they must agree
-            return []
+        if self.attempts > FALLBACK_FIRST and (self.attempts - 1) % FALLBACK_EVERY > 1:
+            return []  # pairs of attempts: two consecutive ones must agree
         self.counts["exhaustive"] += 1
         return [pose for _, pose in self.old.search(query)]
 

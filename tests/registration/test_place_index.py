@@ -1,0 +1,172 @@
+"""The place index: corner keypoints of keyframes propose where a query could be."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.correlative import ScoreGrid
+from laser_corners.registration.place_index import (
+    Corners,
+    PlaceIndex,
+    PlaceOptions,
+    QueryBuffer,
+    build_index,
+    corner_detector,
+    dense_check,
+    index_arrays,
+    index_from_arrays,
+    scan_corners,
+)
+from laser_corners.registration.points import scan_points, transform
+from laser_corners.sim import UST_10LX, World
+
+MOUNT = np.array([0.1, 0.0, 0.0])
+
+
+def building() -> World:
+    """Rooms with corners of several openings: no symmetry."""
+    world = World().add_polygon([[0, 0], [14, 0], [14, 9], [0, 9]])
+    world.add_polygon([[6, 0], [6.2, 0], [6.2, 3.5], [6, 3.5]])
+    world.add_polygon([[6, 5.5], [6.2, 5.5], [6.2, 9], [6, 9]])
+    world.add_polygon([[2.5, 2.5], [3.5, 2.5], [3.5, 3.1], [2.5, 3.1]])
+    world.add_polygon([[9, 5.5], [10.2, 5.5], [9.5, 6.8]])
+    world.add_polygon([[11, 1.5], [12.5, 1.5], [12.5, 2.0], [11, 2.0]])
+    return world
+
+
+def keyframe_poses() -> np.ndarray:
+    """A lap of both rooms, a pose every 0.5 m, heading along the path."""
+    corners = np.array([[1.5, 1.5], [12.5, 4.0], [12.5, 7.5], [1.5, 7.5]])
+    poses = []
+    for a, b in zip(corners, np.roll(corners, -1, axis=0), strict=True):
+        heading = math.atan2(b[1] - a[1], b[0] - a[0])
+        n = int(np.hypot(*(b - a)) / 0.5)
+        poses += [(*(a + t * (b - a)), heading) for t in np.arange(n) / n]
+    return np.array(poses)
+
+
+def scan_at(world: World, base: np.ndarray, seed: int):
+    laser = compose_many(base, MOUNT)
+    return world.scan(
+        tuple(laser), UST_10LX, noise_sigma=0.005, rng=np.random.default_rng(seed)
+    )
+
+
+@pytest.fixture(scope="module")
+def mapped():
+    world = building()
+    poses = keyframe_poses()
+    scans = [scan_at(world, p, i) for i, p in enumerate(poses)]
+    return world, poses, build_index(scans, MOUNT, PlaceOptions())
+
+
+def _error(pose: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    d = between_many(truth, pose)
+    return math.hypot(d[0], d[1]), abs(d[2])
+
+
+def test_index_holds_every_keyframes_corners_in_its_base_frame(mapped) -> None:
+    _, poses, index = mapped
+    assert len(index) > 2 * len(poses) // 3  # corners in most keyframes
+    corners = index.map_corners(poses)
+    # the room's true corner (6, 3.5) (end of the partition) is among the mapped corners
+    near = np.hypot(*(corners.xy - [6.0, 3.5]).T)
+    assert near.min() < 0.1
+
+
+@pytest.mark.parametrize("truth", [(4.0, 4.5, 0.3), (10.0, 3.0, 2.5), (8.0, 7.0, -2.0)])
+def test_one_scan_is_placed_at_its_true_pose(mapped, truth) -> None:
+    world, poses, index = mapped
+    truth = np.array(truth)
+    scan = scan_at(world, truth, 99)
+    buffer = QueryBuffer(3.0)
+    buffer.add(np.array([20.0, -7.0, 1.0]), _corners_of(scan, index))  # any odometry frame
+    found = index.candidates(buffer.query(), poses)
+    assert found, "no candidate"
+    grid = ScoreGrid.build(_map_points(world, poses), 0.05, 0.1, 1.0)
+    points = scan_points(scan, MOUNT, 0.1, 30.0, 0.1).xy
+    best = dense_check(found, grid, points, PlaceOptions())[0]
+    xy, yaw = _error(best.pose, truth)
+    assert xy < 0.1 and yaw < math.radians(2.0)
+    assert best.votes >= 2
+
+
+def test_a_query_chained_by_odometry_is_in_the_newest_frame(mapped) -> None:
+    world, poses, index = mapped
+    truth = np.array([[3.0 + 0.1 * k, 5.0, 0.0] for k in range(15)])
+    odometry = compose_many(np.array([-4.0, 2.0, 0.7]), truth)  # odometry's own frame
+    buffer = QueryBuffer(3.0)
+    for k, pose in enumerate(truth):
+        buffer.add(odometry[k], _corners_of(scan_at(world, pose, k), index))
+    query = buffer.query()
+    # moved into the map by the newest true pose, every query corner lies on a map corner
+    world_xy = transform(query.xy, truth[-1])
+    mapped_xy = index.map_corners(poses).xy
+    gap = np.array([np.hypot(*(mapped_xy - p).T).min() for p in world_xy])
+    assert len(query) >= 3 and np.median(gap) < 0.05
+    found = index.candidates(query, poses)
+    assert any(_error(c.pose, truth[-1])[0] < 0.15 for c in found)
+
+
+def test_query_buffer_forgets_what_lies_beyond_its_travel() -> None:
+    buffer = QueryBuffer(1.0)
+    one = Corners(
+        np.array([[1.0, 0.0]]), np.zeros(1), np.full(1, 90.0), np.zeros((1, 3), np.float32)
+    )
+    for k in range(30):
+        buffer.add(np.array([0.1 * k, 0.0, 0.0]), one)
+    query = buffer.query()
+    # kept every 0.2 m over the last 1 m: the one corner seen from 5-6 places
+    assert 5 <= len(query) <= 6
+    assert np.all(query.xy[:, 0] <= 1.0 + 1e-9) and np.all(query.xy[:, 0] >= -0.01)
+
+
+def test_keyframes_at_or_after_upto_are_left_out(mapped) -> None:
+    world, poses, index = mapped
+    half = len(poses) // 2
+    truth = poses[-3]  # seen only by the last keyframes... and by the first ones' rooms
+    query = _corners_of(scan_at(world, truth, 5), index)
+    early = index.map_corners(poses, upto=half)
+    assert len(early) < len(index)
+    for c in index.candidates(query, poses, upto=half):
+        assert np.isfinite(c.pose).all()
+
+
+def test_no_corner_no_candidate(mapped) -> None:
+    _, poses, index = mapped
+    assert index.candidates(Corners.empty(61), poses) == []
+    assert PlaceIndex().candidates(Corners.empty(61), poses) == []
+
+
+def test_index_round_trips_through_arrays(mapped) -> None:
+    _, poses, index = mapped
+    arrays = index_arrays(index)
+    again = index_from_arrays(arrays, PlaceOptions())
+    assert again is not None and len(again) == len(index)
+    np.testing.assert_array_equal(again.map_corners(poses).xy, index.map_corners(poses).xy)
+    arrays["places_version"] = np.int64(99)
+    assert index_from_arrays(arrays, PlaceOptions()) is None
+    assert index_from_arrays({}, PlaceOptions()) is None
+
+
+def test_keyframe_corners_form_a_query_in_a_keyframes_frame(mapped) -> None:
+    _, poses, index = mapped
+    own = np.array([10, 11, 12])
+    query = index.keyframe_corners(own, poses, poses[12])
+    found = index.candidates(query, poses, upto=None)
+    assert found and _error(found[0].pose, poses[12])[0] < 0.05
+
+
+def _corners_of(scan, index: PlaceIndex) -> Corners:
+    return scan_corners(scan, corner_detector(index.options, scan), MOUNT)
+
+
+def _map_points(world: World, poses: np.ndarray) -> np.ndarray:
+    parts = []
+    for i, p in enumerate(poses):
+        parts.append(transform(scan_points(scan_at(world, p, i), MOUNT, 0.1, 30.0, 0.05).xy, p))
+    return np.concatenate(parts)
