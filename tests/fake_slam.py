@@ -69,6 +69,8 @@ class FakeResult:
     options: FakeOptions = field(default_factory=FakeOptions)
     counts: dict[str, int] = field(default_factory=dict)
     interrupted: bool = False
+    partial_reason: str | None = None
+    warnings: list[str] = field(default_factory=list)
 
     def write_g2o(self, path: str | Path) -> None:
         with Path(path).open("w") as handle:

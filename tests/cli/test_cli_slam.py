@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -17,14 +18,17 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
+import laser_corners
 import laser_corners.slam
-from conftest import default_sigint, real_file
+from conftest import default_sigint, die_with_parent, real_file
 from fake_slam import fake_result
 from laser_corners.cli import app
 from laser_corners.io.trajectory import read_tum, write_tum
-from laser_corners.scan import relative_pose
-from laser_corners.sim import UST_10LX, rectangular_room, trajectory
+from laser_corners.scan import LaserScan, relative_pose
+from laser_corners.sim import UST_10LX, World, rectangular_room, trajectory
 from laser_corners.sim.export import simulate_sequence, write_bag
+from laser_corners.slam import Slam
+from laser_corners.slam.mapfile import load_map
 
 runner = CliRunner()
 CLI = [str(Path(sys.executable).with_name("laser-corners"))]
@@ -254,3 +258,160 @@ def test_help_lists_both_commands() -> None:
     result = _invoke("evaluate", "--help")
     assert result.exit_code == 0 and "slam" in result.stdout
     assert "--relations" in _invoke("slam", "--help").stdout
+
+
+def _blank(scan: LaserScan) -> LaserScan:
+    """``scan`` with no valid return (every range NaN)."""
+    ranges = np.full(scan.ranges.shape, np.nan)
+    return LaserScan(
+        ranges,
+        scan.angle_min,
+        scan.angle_increment,
+        scan.range_min,
+        scan.range_max,
+        scan.stamp,
+        scan.frame_id,
+    )
+
+
+def _hard_bag(folder: Path, kind: str, n_scans: int = 240) -> Path:
+    """A ROS 1 bag of a drive that once broke or misled the mapping: ``jump`` (1 km added to
+    the odometry halfway), ``midblank`` (100 scans without returns mid-run), ``startblank``
+    (the first 50 scans without returns), ``corridor`` (a 2 m wide, 60 m long corridor, the
+    odometry 10 % long)."""
+    rng = np.random.default_rng(11)
+    if kind == "corridor":
+        world = World().add_polygon([[0, 0], [60, 0], [60, 2], [0, 2]])
+        x = 20.0 + 0.0125 * np.arange(n_scans)
+        truth = np.column_stack([x, np.ones(n_scans), np.zeros(n_scans)])
+    else:
+        world = rectangular_room()
+        truth = trajectory(world, n_scans, rng, rate_hz=UST_10LX.rate_hz, speed=0.5)
+    sequence = simulate_sequence(world, UST_10LX, truth, 0.005, rng, start_time=100.0)
+    odometry = truth.copy()
+    odometry[:, 2] += np.cumsum(np.full(n_scans, math.radians(0.05)))
+    scans = list(sequence.scans)
+    if kind == "jump":
+        odometry[n_scans // 2 :, 0] += 1000.0
+    elif kind == "midblank":
+        scans[70:170] = [_blank(s) for s in scans[70:170]]
+    elif kind == "startblank":
+        scans[:50] = [_blank(s) for s in scans[:50]]
+    elif kind == "corridor":
+        odometry[:, 0] = x[0] + 1.1 * (x - x[0])
+    bag = folder / f"{kind}.bag"
+    write_bag(replace(sequence, poses=odometry, scans=scans), bag)
+    return bag
+
+
+@pytest.mark.parametrize(
+    ("kind", "warning"),
+    [
+        ("jump", "re-anchored"),  # before: gtsam's "Indeterminate linear system", no output
+        ("midblank", "100 scans without any valid return"),
+        ("startblank", "50 scans without any valid return"),
+        ("corridor", "walls of one direction only"),
+    ],
+)
+def test_hard_drives_finish_with_a_usable_map_and_a_warning(tmp_path, kind, warning) -> None:
+    out = tmp_path / "map"
+    result = _invoke("slam", _hard_bag(tmp_path, kind), "-o", out)
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["partial"] is False and summary["counts"]["scans"] == 240
+    assert any(warning in w for w in summary["warnings"]), summary["warnings"]
+    assert f"laser-corners: warning: {summary['warnings'][0]}" in result.stderr
+    saved = load_map(out)
+    assert len(saved) == summary["counts"]["keyframes"] > 1 and saved.partial_reason is None
+
+
+def test_an_error_while_mapping_writes_a_partial_map(tmp_path: Path, monkeypatch) -> None:
+    bag, _, _ = _sim_bag(tmp_path, n_scans=60)
+    add = Slam.add
+
+    def breaks_at_40(self, scan, odometry, stamp):
+        if self.counts["scans"] == 40:
+            raise RuntimeError("a bug\nsecond line")
+        return add(self, scan, odometry, stamp)
+
+    monkeypatch.setattr(Slam, "add", breaks_at_40)
+    out = tmp_path / "out"
+    result = _invoke("slam", bag, "-o", out)
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.stderr
+    error = result.stderr.strip().splitlines()[-1]
+    assert error.startswith("laser-corners: error: mapping stopped by RuntimeError at scan 40")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["partial"] is True and summary["interrupted"] is True
+    assert summary["partial_reason"] == "RuntimeError at scan 40: a bug"
+    assert summary["counts"]["scans"] == 40 and len(read_tum(out / "trajectory.tum")[0]) == 40
+    assert load_map(out).partial_reason == "RuntimeError at scan 40: a bug"
+
+
+def test_sigterm_mid_run_writes_a_partial_map_and_exits_143(tmp_path: Path) -> None:
+    bag, _, _ = _sim_bag(tmp_path, n_scans=240)
+    out = tmp_path / "out"
+    script = (  # the real command, each scan slowed so the signal comes mid-run
+        "import sys, time\n"
+        "from laser_corners.slam import Slam\n"
+        "add = Slam.add\n"
+        "def slow(self, *args):\n"
+        "    if self.counts['scans'] == 30:\n"
+        "        print('mapping', flush=True)\n"
+        "    time.sleep(0.05)\n"
+        "    return add(self, *args)\n"
+        "Slam.add = slow\n"
+        "from laser_corners.cli import main\n"
+        "sys.argv = ['laser-corners', 'slam', *sys.argv[1:]]\n"
+        "main()\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(laser_corners.__file__).parents[1])}
+    process = subprocess.Popen(
+        [sys.executable, "-c", script, str(bag), "-o", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        preexec_fn=die_with_parent(),
+    )
+    try:
+        assert process.stdout is not None
+        assert process.stdout.readline().strip() == "mapping"
+        process.send_signal(signal.SIGTERM)
+        _, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait(timeout=30)
+    assert process.returncode == 143, stderr
+    assert "terminated after" in stderr and "holds the map up to there" in stderr, stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["partial"] is True and summary["partial_reason"] == "terminated (SIGTERM)"
+    assert 30 <= summary["counts"]["scans"] < 240
+    assert len(load_map(out)) == summary["counts"]["keyframes"]
+
+
+def test_outputs_are_checked_before_mapping(tmp_path: Path, monkeypatch) -> None:
+    bag, _, _ = _sim_bag(tmp_path, n_scans=20)
+    out = tmp_path / "out"
+    assert _invoke("slam", bag, "-o", out).exit_code == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def no_mapping(*args, **kwargs):
+        raise AssertionError("the mapping started")
+
+    monkeypatch.setattr(laser_corners.slam, "run_slam", no_mapping)
+    _one_line_error(_invoke("slam", bag, "-o", ""), "--output needs a folder name")
+    _one_line_error(_invoke("slam", bag, "-o", out, "--resolution", "0.001"), "--resolution")
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path), "would write over the input")
+    _one_line_error(_invoke("slam", out / "trajectory.tum", "-o", out), "over the input")
+    out.chmod(0o555)
+    try:
+        _one_line_error(_invoke("slam", bag, "-o", out), "cannot write into the folder")
+    finally:
+        out.chmod(0o755)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("mine\n")
+    _one_line_error(_invoke("slam", bag, "-o", tmp_path / "mine"), "not a slam result")
+    assert sorted(p.name for p in (tmp_path / "mine").iterdir()) == ["notes.txt"]

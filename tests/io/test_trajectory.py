@@ -80,3 +80,16 @@ def test_bad_lines_name_file_and_line(tmp_path: Path, text: str, needle: str) ->
 
 def test_docstring_example() -> None:
     assert doctest.testmod(trajectory_module).failed == 0
+
+
+def test_a_with_block_left_by_an_error_keeps_the_earlier_file(tmp_path: Path) -> None:
+    path = tmp_path / "online.tum"
+    write_tum(path, [0.0], [[1.0, 2.0, 0.5]], header="an earlier run")
+    before = path.read_bytes()
+    with pytest.raises(RuntimeError), TumWriter(path, header="this run") as writer:
+        writer.write(1.0, (0.0, 0.0, 0.0))
+        raise RuntimeError("the run failed")
+    assert path.read_bytes() == before and sorted(tmp_path.iterdir()) == [path]
+    with pytest.raises(KeyError), TumWriter(tmp_path / "new.tum", header="no pose yet"):
+        raise KeyError("before the first pose")
+    assert sorted(tmp_path.iterdir()) == [path]  # no header-only file

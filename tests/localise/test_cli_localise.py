@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -203,3 +204,108 @@ def test_thesmoothing_slam_takes_the_map_options(mapped, tmp_path: Path) -> None
     _one_line_error(_invoke("localise", copy, bag, "-o", tmp_path / "a"), "options.yaml")
     result = _invoke("localise", copy, bag, "-o", tmp_path / "b", "--set", "smooth=false")
     assert result.exit_code == 0, result.output
+
+
+def _no_run(*args, **kwargs):
+    raise AssertionError("the localisation started")
+
+
+def test_outputs_over_the_map_or_the_recording_are_refused_before_any_work(
+    mapped, tmp_path: Path, monkeypatch
+) -> None:
+    import laser_corners.localise
+
+    bag, map_dir, _, _ = mapped
+    before = {p.name: p.read_bytes() for p in map_dir.iterdir()}
+    monkeypatch.setattr(laser_corners.localise, "run_localise", _no_run)
+    _one_line_error(_invoke("localise", map_dir, bag, "-o", map_dir), "over the input")
+    _one_line_error(_invoke("localise", map_dir, bag, "-o", map_dir / "loc"), "over the input")
+    _one_line_error(_invoke("localise", map_dir, bag, "-o", bag.parent), "over the input")
+    alone = tmp_path / "rec"  # the folder that holds the recording (and not the map)
+    alone.mkdir()
+    shutil.copy(bag, alone / bag.name)
+    result = _invoke("localise", map_dir, alone / bag.name, "-o", alone)
+    _one_line_error(result, f"over the input {alone / bag.name}")
+    _one_line_error(_invoke("localise", map_dir, bag, "-o", ""), "needs a folder name")
+    assert {p.name: p.read_bytes() for p in map_dir.iterdir()} == before
+
+
+def test_a_failed_localise_keeps_the_previous_online_tum(
+    mapped, tmp_path: Path, monkeypatch
+) -> None:
+    import laser_corners.localise
+    from laser_corners.errors import InputError
+    from laser_corners.localise import LocaliserEstimate
+
+    bag, map_dir, _, _ = mapped
+    out = tmp_path / "out"
+    first = _invoke("localise", map_dir, bag, "-o", out, "--stop-scan", 80, "--set", "smooth=false")
+    assert first.exit_code == 0, first.output
+    before = (out / "online.tum").read_bytes()
+
+    def fails(map_data, path, options=None, *, on_estimate=None, **kwargs):
+        estimate = LocaliserEstimate(
+            np.array([1.0, 2.0, 0.5]), np.eye(3) * 1e-4, "tracking", np.zeros(3), 0, 100.0
+        )
+        on_estimate(estimate)
+        raise InputError(f"{path}: truncated at message 12")
+
+    monkeypatch.setattr(laser_corners.localise, "run_localise", fails)
+    _one_line_error(_invoke("localise", map_dir, bag, "-o", out), "truncated at message 12")
+    assert (out / "online.tum").read_bytes() == before
+    assert not [p for p in out.iterdir() if "partial" in p.name]
+    # an error before the first estimate in a new folder: no header-only online.tum
+    monkeypatch.setattr(laser_corners.localise, "run_localise", _no_run_input_error)
+    _one_line_error(_invoke("localise", map_dir, bag, "-o", tmp_path / "new"), "no odometry")
+    assert not (tmp_path / "new").exists()
+
+
+def _no_run_input_error(map_data, path, *args, **kwargs):
+    from laser_corners.errors import InputError
+
+    raise InputError(f"{path}: no odometry")
+
+
+def test_an_error_while_localising_writes_a_partial_result(
+    mapped, tmp_path: Path, monkeypatch
+) -> None:
+    from laser_corners.localise.localiser import Localiser
+
+    bag, map_dir, _, _ = mapped
+    add = Localiser.add
+
+    def breaks_at_300(self, scan, odometry, stamp):
+        if self.counts["scans"] == 300:
+            raise RuntimeError("a bug")
+        return add(self, scan, odometry, stamp)
+
+    monkeypatch.setattr(Localiser, "add", breaks_at_300)
+    out = tmp_path / "out"
+    result = _invoke("localise", map_dir, bag, "-o", out)
+    assert result.exit_code == 1, result.output
+    assert "Traceback" not in result.stderr
+    assert (
+        result.stderr.strip()
+        .splitlines()[-1]
+        .startswith("laser-corners: error: localisation stopped by RuntimeError at scan 300: a bug")
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["partial"] is True and summary["partial_reason"].startswith("RuntimeError")
+    online_t, _ = read_tum(out / "online.tum")
+    assert 0 < len(online_t) == summary["counts"]["estimates"] and online_t[-1] < 100.0 + 300 / 40
+
+
+def test_a_partial_map_is_a_warning(mapped, tmp_path: Path) -> None:
+    bag, map_dir, _, _ = mapped
+    copy = tmp_path / "map"
+    shutil.copytree(map_dir, copy)
+    summary = json.loads((copy / "summary.json").read_text())
+    summary.update(partial=True, partial_reason="terminated (SIGTERM)")
+    (copy / "summary.json").write_text(json.dumps(summary))
+    out = tmp_path / "out"
+    result = _invoke("localise", copy, bag, "-o", out, "--stop-scan", 40, "--set", "smooth=false")
+    assert result.exit_code == 0, result.output
+    assert f"warning: {copy} is a partial map (terminated (SIGTERM))" in result.stderr
+    assert json.loads((out / "summary.json").read_text())["map_partial_reason"] == (
+        "terminated (SIGTERM)"
+    )

@@ -38,3 +38,21 @@ def test_a_handler_of_the_caller_is_left_alone(python_sigint) -> None:
         os.kill(os.getpid(), signal.SIGINT)
         time.sleep(0.05)
     assert calls == [1] and not stop.is_set()
+
+
+def test_sigterm_is_a_stop_request_when_asked_for(python_sigint) -> None:
+    previous = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        with stop_requests() as stop:  # not asked for: SIGTERM keeps its handler
+            assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+        with stop_requests(terminate=True) as stop:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)
+            assert stop.is_set() and stop.signum == signal.SIGTERM
+            assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # a second one kills
+            os.kill(os.getpid(), signal.SIGINT)  # a later Ctrl-C does not change the reason
+            time.sleep(0.05)
+            assert stop.signum == signal.SIGTERM
+        assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -51,9 +51,7 @@ def keyframe_poses() -> np.ndarray:
 
 def scan_at(world: World, base: np.ndarray, seed: int):
     laser = compose_many(base, MOUNT)
-    return world.scan(
-        tuple(laser), UST_10LX, noise_sigma=0.005, rng=np.random.default_rng(seed)
-    )
+    return world.scan(tuple(laser), UST_10LX, noise_sigma=0.005, rng=np.random.default_rng(seed))
 
 
 @pytest.fixture(scope="module")

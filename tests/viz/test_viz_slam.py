@@ -7,18 +7,22 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
+from conftest import run_until_killed
 from fake_slam import fake_result
 from laser_corners.citation import CITATION
+from laser_corners.errors import OutputError
 from laser_corners.io.occupancy import read_map
 from laser_corners.io.trajectory import read_tum
 from laser_corners.viz.slam import plot_ms_per_scan, plot_slam_map
 from laser_corners.viz.slam_report import (
     LANDMARK_COLUMNS,
     SlamRunInfo,
+    check_slam_folder,
     relation_cells,
     write_slam_outputs,
 )
@@ -184,3 +188,87 @@ def test_a_graph_the_library_cannot_write_does_not_cost_the_other_files(tmp_path
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["warnings"] == info.warnings and "graph" not in summary["files"]
     assert "**Warning: graph.g2o not written" in (tmp_path / "report.md").read_text()
+
+
+def _scans_in(folder: Path) -> int:
+    return json.loads((folder / "summary.json").read_text())["counts"]["scans"]
+
+
+def test_a_failure_while_writing_leaves_the_previous_result_whole(tmp_path: Path, monkeypatch):
+    import laser_corners.viz.slam_report as report
+
+    out = tmp_path / "map"
+    write_slam_outputs(fake_result(n_scans=30), out, _info())
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def fail(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(report, "save_slam_map", fail)  # after the tables, before the summary
+    with pytest.raises(OSError):
+        write_slam_outputs(fake_result(n_scans=60), out, _info())
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map"]  # no staging folder left
+
+
+def test_a_run_killed_while_writing_never_mixes_two_results(tmp_path: Path) -> None:
+    out = tmp_path / "map"
+    write_slam_outputs(fake_result(n_scans=30), out, _info())
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    script = (
+        "import sys, time\n"
+        f"sys.path.insert(0, {str(Path(__file__).parents[1])!r})\n"
+        "from pathlib import Path\n"
+        "import laser_corners.viz.slam_report as report\n"
+        "from fake_slam import fake_result\n"
+        "def stall(*args, **kwargs):\n"
+        "    print('writing', flush=True)\n"
+        "    time.sleep(60)\n"
+        "report.save_slam_map = stall\n"
+        "info = report.SlamRunInfo('sim.bag', 1.0, 1.0)\n"
+        "report.write_slam_outputs(fake_result(n_scans=60), Path(sys.argv[1]), info)\n"
+    )
+    assert run_until_killed(script, str(out)) == "writing"
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # SIGKILL mid-write
+    (leftover,) = [p for p in tmp_path.iterdir() if p.name != "map"]
+    assert leftover.name.startswith(".map.") and leftover.name.endswith(".partial")
+    # the next run replaces the result whole, and sees the leftover as no result of its own
+    write_slam_outputs(fake_result(n_scans=60), out, _info())
+    assert _scans_in(out) == 60 and sorted(p.name for p in out.iterdir()) == sorted(before)
+
+
+def test_a_folder_that_cannot_be_replaced_whole_is_refused(tmp_path: Path) -> None:
+    out = tmp_path / "mixed"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine\n")
+    with pytest.raises(OutputError, match=r"mixed: holds files that are not a slam result \(notes"):
+        check_slam_folder(out)
+    with pytest.raises(OutputError, match="not a slam result"):
+        write_slam_outputs(fake_result(n_scans=20), out, _info())
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    locked = tmp_path / "locked"
+    write_slam_outputs(fake_result(n_scans=20), locked, _info())
+    locked.chmod(0o555)
+    try:  # refused by its mode, also for root (whom os.access lets write anywhere)
+        with pytest.raises(OutputError, match="locked: cannot write into the folder"):
+            check_slam_folder(locked)
+    finally:
+        locked.chmod(0o755)
+    assert _scans_in(locked) == 20
+
+
+def test_a_partial_result_says_why(tmp_path: Path) -> None:
+    result = fake_result(n_scans=30)
+    result.partial_reason = "RuntimeError at scan 29: boom"
+    result.interrupted = True
+    result.warnings = ["optimiser: indeterminate; re-anchored x3 and went on"]
+    write_slam_outputs(result, tmp_path / "m", _info())
+    summary = json.loads((tmp_path / "m" / "summary.json").read_text())
+    assert summary["partial"] is True and summary["partial_reason"] == result.partial_reason
+    assert summary["warnings"] == result.warnings
+    assert (
+        "Interrupted (RuntimeError at scan 29: boom)" in (tmp_path / "m" / "report.md").read_text()
+    )
+    write_slam_outputs(fake_result(n_scans=30), tmp_path / "m", _info())
+    summary = json.loads((tmp_path / "m" / "summary.json").read_text())
+    assert summary["partial"] is False and summary["partial_reason"] is None

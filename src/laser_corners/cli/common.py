@@ -13,7 +13,7 @@ import inspect
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -35,6 +35,8 @@ __all__ = [
     "image_file",
     "new_folder",
     "params_choice",
+    "refuse_overlap",
+    "stop_exit_code",
     "with_params_choice",
     "writable_file",
 ]
@@ -147,6 +149,46 @@ def new_folder(path: Path, option: str = "--output") -> Path:
         raise fail(f"{path}: cannot create the folder for {option} ({exc.strerror})") from None
     created_folders().extend(missing)  # deepest first
     return path
+
+
+def refuse_overlap(
+    path: Path, inputs: Sequence[Path], option: str = "--output", whole: bool = True
+) -> None:
+    """Refuse an output folder before any work when it is unnamed (``-o ""``, ``.``: the
+    working folder), when it and an input are one another or one holds the other (writing
+    would replace or bury an input), or when it cannot be written: the nearest existing folder
+    above it (``whole``: it is written beside itself and renamed), else it or that folder.
+
+    Raises
+    ------
+    typer.Exit
+        After one line naming ``option`` and the input (exit 2).
+    """
+    if path.name in ("", ".", "..") or path.resolve() == Path.cwd().resolve():
+        raise fail(f"{option} needs a folder name, got {str(path)!r} (the folder is replaced)")
+    out = path.resolve()
+    for source in inputs:
+        src = source.resolve()
+        if src == out or src in out.parents or out in src.parents:
+            raise fail(
+                f"{path}: {option} would write over the input {source}; choose another folder"
+            )
+    for folder in out.parents if whole else (out, *out.parents):
+        if folder.exists():
+            if not os.access(folder, os.W_OK | os.X_OK):
+                raise fail(f"{path}: cannot write into {folder} ({option})")
+            break
+
+
+def stop_exit_code(reason: str | None) -> int:
+    """The exit code of a run that stopped early for ``reason`` (``partial_reason``): 128 +
+    the signal for a stop request (130 Ctrl-C, 143 SIGTERM), 1 for an error, 0 for none."""
+    from laser_corners.pipeline.interrupt import STOP_REASONS
+
+    if reason is None:
+        return 0
+    codes = {text: 128 + int(signum) for signum, text in STOP_REASONS.items()}
+    return codes.get(reason, 1)
 
 
 def with_params_choice(command: Callable[..., None]) -> Callable[..., None]:

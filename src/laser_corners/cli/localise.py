@@ -4,8 +4,11 @@ See docs/localise.md. Parses the options, makes one call (``localise.run_localis
 writes ``online.tum`` as the estimates come (what the robot knew at each scan), then writes
 ``trajectory.tum`` (the smoothed trajectory, ``localise.smooth``; the online estimates with
 ``--set smooth=false``), ``summary.json`` and ``trajectory.png``
-(:mod:`laser_corners.viz.localise`). Ctrl-C stops between two scans and keeps what was
-written (exit 130).
+(:mod:`laser_corners.viz.localise`). Ctrl-C or SIGTERM stops between two scans, and an error
+while localising ends the run: what was done is written, marked partial in ``summary.json``
+(exit 130, 143, 1). The output folder is checked first (no overlap with the map or the
+recording, writable); ``online.tum`` is renamed into place only when the run gets to its end,
+so a failed run leaves an earlier run's file as it was. A partial map is a warning.
 """
 
 from __future__ import annotations
@@ -23,6 +26,8 @@ from laser_corners.cli.common import (
     RecordingProgress,
     TopicOption,
     new_folder,
+    refuse_overlap,
+    stop_exit_code,
 )
 from laser_corners.cli.kernels import SlamKernelCommand
 
@@ -111,6 +116,7 @@ def localise_command(
     """
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")
+    refuse_overlap(output, [map_folder, input_path], whole=False)
     from rich.console import Console
 
     from laser_corners.io.trajectory import TumWriter
@@ -121,6 +127,12 @@ def localise_command(
     options = localise_options(config, set_, mount)
     pose = parse_pose(initial_pose, "--initial-pose") if initial_pose is not None else None
     saved = load_map(map_folder)
+    if saved.partial_reason is not None:
+        typer.echo(
+            f"laser-corners: warning: {map_folder} is a partial map ({saved.partial_reason}): "
+            "it covers only part of its recording",
+            err=True,
+        )
     folder = new_folder(output)
     header = f"laser-corners localise {input_path} in {map_folder}: base pose in the map frame"
     start = time.perf_counter()
@@ -139,11 +151,20 @@ def localise_command(
             progress=progress,
         )
     summary = localise_summary(run, str(input_path), str(map_folder), time.perf_counter() - start)
+    summary["map_partial_reason"] = saved.partial_reason
     write_localise_outputs(run, folder, saved.grid, summary, header)
     _report(Console(), summary, folder)
     if run.interrupted:
-        typer.echo(f"interrupted; {folder} holds the poses up to there", err=True)
-        raise typer.Exit(130)
+        code = stop_exit_code(run.partial_reason) or 130
+        if code == 1:
+            raise fail(
+                f"localisation stopped by {run.partial_reason}; {folder} holds the "
+                "poses up to there (partial)",
+                code=1,
+            )
+        verb = "terminated" if code == 143 else "interrupted"
+        typer.echo(f"{verb}; {folder} holds the poses up to there", err=True)
+        raise typer.Exit(code)
 
 
 def _report(console, summary: dict, folder: Path) -> None:

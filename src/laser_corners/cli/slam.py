@@ -2,8 +2,12 @@
 
 See docs/slam.md. ``slam`` parses its options, makes one call (``slam.run_slam``), measures
 the relation metric when asked, and writes the output folder
-(:func:`~laser_corners.viz.slam_report.write_slam_outputs`). Ctrl-C stops the run; what was
-mapped so far is written and the command exits with 130, as ``detect`` does.
+(:func:`~laser_corners.viz.slam_report.write_slam_outputs`, the folder written whole).
+
+The output is checked before any mapping: a folder name, no overlap with the input, a folder
+that can be written and replaced, a grid size that can fit. Ctrl-C or SIGTERM stops the run,
+and an error while mapping ends it: what was mapped so far is written (``summary.json``:
+``"partial": true`` and why) and the command exits with 130, 143 or 1.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ from laser_corners.cli.common import (
     TopicOption,
     check_number,
     new_folder,
+    refuse_overlap,
+    stop_exit_code,
 )
 from laser_corners.cli.kernels import SlamKernelCommand
 
@@ -164,17 +170,22 @@ def slam_command(
     """Map a recording with odometry: trajectory, pose graph, corner landmarks, occupancy grid.
 
     Writes trajectory.tum, odometry.tum, graph.g2o, landmarks.csv, map.pgm + map.yaml, map.png,
-    options.yaml, summary.json and report.md into the output folder (docs/slam.md). Ctrl-C
-    writes what was mapped so far (exit 130).
+    options.yaml, summary.json and report.md into the output folder (docs/slam.md), replacing
+    a previous result there only once the new one is complete. Ctrl-C (SIGTERM, an error)
+    writes what was mapped so far, marked partial (exit 130, 143, 1).
     """
     check_number("--resolution", resolution, minimum=0.001)
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")
+    refuse_overlap(output, [input_path])
     from rich.console import Console
 
+    from laser_corners.errors import InvalidParamsError
     from laser_corners.eval.relations import closure_consistency, read_relations
+    from laser_corners.slam.grid import check_grid_size
     from laser_corners.viz.slam_report import (
         SlamRunInfo,
+        check_slam_folder,
         peak_rss_mb,
         slam_summary,
         write_slam_outputs,
@@ -182,6 +193,11 @@ def slam_command(
 
     options = slam_options(config, set_)
     table = read_relations(relations) if relations is not None else None
+    check_slam_folder(output)
+    try:
+        check_grid_size(resolution, options.max_range)
+    except InvalidParamsError as exc:
+        raise fail(f"--resolution: {exc}") from None
     folder = new_folder(output)
     try:
         result, wall = _run(input_path, options, (topic, odom_topic), stop_scan)
@@ -195,20 +211,27 @@ def slam_command(
     if any(c.accepted for c in result.closures):
         info.closure_consistency = float(closure_consistency(result))
     write_slam_outputs(result, folder, info)
-    for warning in info.warnings:
+    for warning in [*getattr(result, "warnings", []), *info.warnings]:
         typer.echo(f"laser-corners: warning: {warning}", err=True)
     console = Console()
     console.print(_summary_table(slam_summary(result, info), folder))
     if info.relations:
         console.print(relations_table(info.relations, f"relation metric ({relations})"))
     if result.interrupted:
-        stamp = f" (t = {result.stamps[-1]:.3f} s)" if len(result.stamps) else ""
-        typer.echo(
-            f"interrupted after {len(result.stamps)} scans{stamp}; {folder} holds the map "
-            "up to there",
-            err=True,
-        )
-        raise typer.Exit(130)
+        _stopped_early(result, folder)
+
+
+def _stopped_early(result: SlamResult, folder: Path) -> None:
+    """One line on how far the run got and why it stopped; the exit code of the reason."""
+    reason = getattr(result, "partial_reason", None)
+    code = stop_exit_code(reason) or 130
+    stamp = f" (t = {result.stamps[-1]:.3f} s)" if len(result.stamps) else ""
+    where = f"{folder} holds the map up to there"
+    if code == 1:
+        raise fail(f"mapping stopped by {reason}; {where} (partial)", code=1)
+    verb = "terminated" if code == 143 else "interrupted"
+    typer.echo(f"{verb} after {len(result.stamps)} scans{stamp}; {where}", err=True)
+    raise typer.Exit(code)
 
 
 @evaluate_app.command("slam")

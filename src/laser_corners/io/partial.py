@@ -6,12 +6,17 @@
   gets (``0o666`` less the umask, :func:`file_mode`), not ``mkstemp``'s 0600;
 * :func:`refuse_input`: an output that is one of the inputs (same file by inode, also through
   a link) is refused before anything is written;
+* :func:`staging_folder` and :func:`publish_folder`: an output folder written whole beside its
+  final name (``.NAME.XXXXXXXX.partial``) and then swapped in, so a killed run leaves either
+  the previous folder or the new one under the final name, never a mix of the two;
 * :class:`ClosesOnExit`: a writer used in a ``with`` block is closed on the way out (also on
   errors).
 """
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import os
 import shutil
 import tempfile
@@ -23,7 +28,15 @@ from typing import TypeVar
 
 from laser_corners.errors import OutputError
 
-__all__ = ["PARTIAL_SUFFIX", "ClosesOnExit", "PartialOutput", "file_mode", "refuse_input"]
+__all__ = [
+    "PARTIAL_SUFFIX",
+    "ClosesOnExit",
+    "PartialOutput",
+    "file_mode",
+    "publish_folder",
+    "refuse_input",
+    "staging_folder",
+]
 
 _W = TypeVar("_W", bound="ClosesOnExit")
 
@@ -221,3 +234,74 @@ class PartialOutput:
             shutil.rmtree(self.temporary, ignore_errors=True)
         else:
             self.temporary.unlink(missing_ok=True)
+
+
+_AT_FDCWD = -100
+_RENAME_EXCHANGE = 2  # linux/fs.h
+
+
+def staging_folder(final: Path) -> Path:
+    """A new, empty folder ``.NAME.XXXXXXXX.partial`` beside ``final`` to write it in, with the
+    mode a new folder gets (``final``'s own when it exists).
+
+    Raises
+    ------
+    OutputError
+        The parent folder is missing or cannot be written.
+    """
+    parent = final.parent
+    try:
+        staging = Path(
+            tempfile.mkdtemp(prefix=f".{final.name}.", suffix=PARTIAL_SUFFIX, dir=parent)
+        )
+    except OSError as exc:
+        raise OutputError(f"{final}: cannot write in {parent} ({exc.strerror})") from None
+    new = file_mode() | (file_mode() & 0o444) >> 2  # searchable where readable
+    os.chmod(staging, final.stat().st_mode & 0o7777 if final.is_dir() else new)
+    return staging
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two paths atomically (Linux ``renameat2(RENAME_EXCHANGE)``); False where the
+    system cannot."""
+    try:
+        renameat2 = ctypes.CDLL(None, use_errno=True).renameat2
+    except (OSError, AttributeError):
+        return False
+    done = renameat2(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE)
+    if done == 0:
+        return True
+    code = ctypes.get_errno()
+    if code in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
+        return False
+    raise OSError(code, os.strerror(code), str(b))
+
+
+def publish_folder(staging: Path, final: Path) -> None:
+    """Give the complete folder ``staging`` (from :func:`staging_folder`) the name ``final``.
+
+    An existing ``final`` is replaced whole, and only now: swapped atomically where the system
+    can (Linux), else renamed aside first; the previous folder is then removed.
+
+    Raises
+    ------
+    OutputError
+        The rename failed (``staging`` is kept and named).
+    """
+    try:
+        if not final.exists():
+            os.rename(staging, final)
+            return
+        if not _exchange(staging, final):
+            aside = Path(
+                tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".old", dir=final.parent)
+            )
+            os.rename(final, aside / final.name)
+            os.rename(staging, final)
+            staging = aside
+    except OSError as exc:
+        raise OutputError(
+            f"{final}: cannot give the output folder its name ({exc.strerror}); it is kept as "
+            f"{staging}"
+        ) from None
+    shutil.rmtree(staging, ignore_errors=True)  # the previous folder

@@ -7,13 +7,16 @@ are skipped.
 
 :class:`TumWriter` writes one pose at a time under a temporary name and gives the file its
 final name on :meth:`~TumWriter.close` (:class:`~laser_corners.io.base.PartialOutput`), so a
-killed run never leaves a half-written ``trajectory.tum``.
+killed run never leaves a half-written ``trajectory.tum``. A ``with`` block left by an error
+discards it instead (:meth:`~TumWriter.discard`): a failed run leaves the file of an earlier
+run as it was, and no header-only file.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from types import TracebackType
 from typing import TextIO
 
 import numpy as np
@@ -108,6 +111,24 @@ class TumWriter(ClosesOnExit):
             self._partial.discard()
             raise OutputError(f"{self.path}: cannot write ({exc.strerror})") from None
         self._partial.publish()
+
+    def discard(self) -> None:
+        """Drop what was written: the file under the final name is left as it was."""
+        if self._handle is not None:
+            handle, self._handle = self._handle, None
+            handle.close()
+        self._partial.discard()
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.discard()
 
 
 def write_tum(

@@ -4,10 +4,14 @@ The odometry is read as :func:`~laser_corners.slam.run_slam` reads it (bags: odo
 scan stamp composed with the mount from ``/tf_static``, undone to the base; CARMEN logs: the
 FLASER/ROBOTLASER1 pose with a zero mount). Scans without a pose are counted and skipped; a
 recording without any odometry is one :class:`~laser_corners.errors.InputError` line.
+
+As ``run_slam``, a run that stops early (Ctrl-C, SIGTERM, an error while localising a scan after
+the first) still gives what it did, with ``partial_reason``.
 """
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -15,10 +19,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from laser_corners.errors import InputError
+from laser_corners.errors import InputError, first_line
 from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.smooth import Smoothed, smooth
+from laser_corners.pipeline.interrupt import STOP_REASONS
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.slam.mapfile import SavedMap, load_map, map_options
 from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
@@ -44,6 +49,9 @@ class LocaliseRun:
     odometry_stamps, odometry : ndarray
         Stamp and base odometry of every scan given.
     interrupted : bool
+        The run stopped before the end of the recording (see ``partial_reason``).
+    partial_reason : str or None
+        Why: ``"interrupted (Ctrl-C)"``, ``"terminated (SIGTERM)"`` or the error at a scan.
     positions : ndarray of int
         Index of each estimate's scan among the scans given (into ``odometry_stamps``).
     smoothed : Smoothed or None
@@ -63,6 +71,7 @@ class LocaliseRun:
     positions: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     smoothed: Smoothed | None = None
     slam_ms_per_scan: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    partial_reason: str | None = None
 
     @property
     def stamps(self) -> NDArray[np.float64]:
@@ -128,13 +137,15 @@ def run_localise(
     if loc.counts["scans"] == 0 and not run.interrupted:
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
-    if slam is not None and slam.counts["scans"]:
+    broken = run.partial_reason not in (None, *STOP_REASONS.values())
+    if slam is not None and slam.counts["scans"] and not broken:  # (an error: SLAM half-fed)
         try:
             result = slam.result(interrupted=run.interrupted)
             run.slam_ms_per_scan = result.ms_per_scan
             run.smoothed = smooth(run.estimates, run.positions, result, options)
         except KeyboardInterrupt:  # Ctrl-C while smoothing: the online estimates stand
             run.interrupted = True
+            run.partial_reason = run.partial_reason or STOP_REASONS[signal.SIGINT]
     return run
 
 
@@ -156,6 +167,7 @@ def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
     feed = OdometryFeed()
     try:
         for i, scan, base in odometry_scans(rec, feed, *span):
+            feed.at = i
             estimate = loc.add(scan, base, float(scan.stamp))
             if slam is not None:
                 slam.add(scan, base, float(scan.stamp))
@@ -171,15 +183,24 @@ def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
             if progress is not None:
                 progress(i + 1, rec.source.n_scans, float(scan.stamp))
     except KeyboardInterrupt:
-        feed.interrupted = True
+        feed.stopped(STOP_REASONS[signal.SIGINT], signal.SIGINT)
+    except Exception as exc:
+        if not stamps:  # nothing done yet: the error is the run's
+            raise
+        feed.stopped(f"{type(exc).__name__} at scan {feed.at}: {first_line(exc)}")
     counts = dict(loc.counts, skipped_no_odometry=feed.skipped)
     return LocaliseRun(
         estimates,
-        [replace(f, scan_index=index[f.scan_index]) for f in loc.fixes],
+        [
+            replace(f, scan_index=index[f.scan_index])
+            for f in loc.fixes
+            if f.scan_index < len(index)
+        ],
         counts,
         np.asarray(loc.ms_per_scan, dtype=np.float64),
         np.asarray(stamps, dtype=np.float64),
         np.asarray(odometry, dtype=np.float64).reshape(-1, 3),
         feed.interrupted,
         np.asarray(positions, dtype=np.int64),
+        partial_reason=feed.reason,
     )

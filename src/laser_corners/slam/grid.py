@@ -32,7 +32,14 @@ from laser_corners.errors import InvalidParamsError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.scan import LaserScan, compose
 
-__all__ = ["LOG_ODDS_FREE", "LOG_ODDS_HIT", "MAX_CELLS", "occupancy_grid", "result_grid"]
+__all__ = [
+    "LOG_ODDS_FREE",
+    "LOG_ODDS_HIT",
+    "MAX_CELLS",
+    "check_grid_size",
+    "occupancy_grid",
+    "result_grid",
+]
 
 LOG_ODDS_HIT = math.log(0.7 / 0.3)
 """Log-odds added to a cell where a beam ends (hit probability 0.7)."""
@@ -200,6 +207,26 @@ def occupancy_grid(
     percent = np.rint(100.0 / (1.0 + np.exp(-log_odds))).astype(np.int8)
     percent[touched == 0] = -1
     return OccupancyGrid(percent, float(resolution), (float(low[0]), float(low[1]), 0.0))
+
+
+def check_grid_size(resolution: float, reach: float) -> None:
+    """Refuse, before any mapping, a ``resolution`` at which the grid of one scan (beams up to
+    ``reach`` m every way: a square of ``2 * reach``) would already exceed :data:`MAX_CELLS`
+    cells, so the map's grid certainly would as soon as a beam reaches that far.
+
+    Raises
+    ------
+    InvalidParamsError
+        Naming the resolution, the cells, and the finest resolution that fits.
+    """
+    side = math.floor(2.0 * reach / resolution) + 2
+    if side * side > MAX_CELLS:
+        finest = 2.0 * reach / (math.sqrt(MAX_CELLS) - 2.0)
+        raise InvalidParamsError(
+            f"resolution {resolution:g} m: the grid of one scan's reach ({2.0 * reach:g} m "
+            f"across) would have {side * side:.3g} cells, more than {MAX_CELLS}; use "
+            f"{math.ceil(finest * 1e4) / 1e4:g} m or coarser"
+        )
 
 
 def result_grid(

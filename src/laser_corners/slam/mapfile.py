@@ -24,10 +24,19 @@ occupancy grid:
 :func:`load_map` reads a folder (``keyframes.npz``, ``map.yaml`` + ``map.pgm`` and
 ``landmarks.csv`` when present) into a :class:`SavedMap`. Every problem of a folder is one
 :class:`~laser_corners.errors.InputError` line naming the folder and what is wrong.
+
+Complete and partial folders: ``slam`` writes its folder whole (a staging folder
+``.NAME.XXXXXXXX.partial`` renamed into place), and its ``summary.json`` lists the files
+written. :func:`load_map` refuses a staging folder (a run still writing, or killed while
+writing) and a folder missing a file its summary lists (incomplete: copied or edited by hand).
+A *partial* map, one whose run stopped early (Ctrl-C, SIGTERM, an error; ``"partial": true``
+in its summary), is complete as far as it goes: it loads, and says so in
+:attr:`SavedMap.partial_reason` (``localise`` warns of it).
 """
 
 from __future__ import annotations
 
+import json
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -87,6 +96,9 @@ class SavedMap:
     places : PlaceIndex or None
         The keyframes' corners and descriptors (global relocalisation), None for a map made
         before the index.
+    partial_reason : str or None
+        Why the run that made the map stopped early (its ``summary.json``); None for a map
+        of the whole recording, or a folder without a summary.
     """
 
     folder: Path
@@ -101,6 +113,7 @@ class SavedMap:
     grid: OccupancyGrid | None = None
     landmarks: NDArray[np.float64] | None = None
     places: PlaceIndex | None = None
+    partial_reason: str | None = None
 
     def __len__(self) -> int:
         return int(self.poses.shape[0])
@@ -164,6 +177,31 @@ def save_map_data(result: Any, folder: str | Path) -> Path:
     with PartialOutput(path, overwrite=True).writing() as temporary, temporary.open("wb") as f:
         np.savez_compressed(f, **arrays)
     return path
+
+
+def _summary(folder: Path) -> str | None:
+    """Check a map folder is complete (see the module notes); its partial reason, if any."""
+    if folder.name.endswith(".partial"):
+        raise InputError(
+            f"{folder}: an incomplete map folder (being written, or left by a run killed "
+            "while writing); use the folder without .partial"
+        )
+    path = folder / "summary.json"
+    if not path.is_file():
+        return None
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: unreadable ({str(exc).splitlines()[0]})") from None
+    if not isinstance(summary, dict):
+        raise InputError(f"{path}: not a slam summary")
+    files = summary.get("files")
+    missing = sorted(n for n in files.values() if not (folder / n).is_file()) if files else []
+    if missing:
+        raise InputError(f"{folder}: incomplete map folder, {', '.join(missing)} missing")
+    if not summary.get("partial"):
+        return None
+    return str(summary.get("partial_reason") or "stopped early")
 
 
 def _read_npz(folder: Path) -> dict[str, NDArray]:
@@ -232,10 +270,12 @@ def load_map(folder: str | Path) -> SavedMap:
     ------
     InputError
         The folder or ``keyframes.npz`` is missing, of another format version, incomplete or
-        inconsistent; ``map.yaml`` is present but unreadable.
+        inconsistent; ``map.yaml`` is present but unreadable; the folder is a staging folder
+        or misses a file its ``summary.json`` lists (see the module notes).
     """
     folder = Path(folder)
     a = _read_npz(folder)
+    partial = _summary(folder)
     _check(folder / KEYFRAMES_FILE, a)
     grid = read_map(folder / "map.yaml") if (folder / "map.yaml").is_file() else None
     return SavedMap(
@@ -251,6 +291,7 @@ def load_map(folder: str | Path) -> SavedMap:
         grid=grid,
         landmarks=_landmarks(folder),
         places=index_from_arrays(a, PlaceOptions()),
+        partial_reason=partial,
     )
 
 

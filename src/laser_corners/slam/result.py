@@ -117,7 +117,13 @@ class SlamResult:
         ``scans, keyframes, skipped_no_odometry, time_jumps, closures_proposed,
         closures_accepted, closures_rejected, alignment_failures, landmarks``.
     interrupted : bool
-        The run was stopped (Ctrl-C) before the end of the recording.
+        The run was stopped (Ctrl-C, SIGTERM, an error) before the end of the recording.
+    partial_reason : str or None
+        Why it stopped early (``"interrupted (Ctrl-C)"``, ``"terminated (SIGTERM)"``, the error
+        at a scan); None when the whole recording was mapped.
+    warnings : list of str
+        What the run recovered from (an indeterminate optimiser update, a failed batch
+        optimisation, see :mod:`.backend`), one line each.
     graph : object
         The final gtsam ``NonlinearFactorGraph`` (for :meth:`write_g2o`).
     values : object
@@ -144,6 +150,8 @@ class SlamResult:
     options: SlamOptions
     counts: dict[str, int]
     interrupted: bool = False
+    partial_reason: str | None = None
+    warnings: list[str] = field(default_factory=list)
     graph: object = None
     values: object = None
     cuts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))

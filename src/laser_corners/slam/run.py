@@ -7,10 +7,15 @@ transform tree. ``SlamOptions.mount`` overrides the mount. CARMEN logs: the lase
 each FLASER/ROBOTLASER1 line is used as odometry with a zero mount (in a raw log it is the
 odometry; in a ``*-corrected`` log it is already a map pose, so SLAM on it only refines it).
 Scans without a pose are counted (``skipped_no_odometry``) and skipped.
+
+A run that stops early still gives what it mapped (``SlamResult.partial_reason`` says why):
+Ctrl-C or SIGTERM between two scans, or an error while mapping a scan (a bug, a recording that
+breaks off) after the first one; an error before any scan was mapped is raised.
 """
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,8 +23,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.errors import InputError
-from laser_corners.pipeline.interrupt import stop_requests
+from laser_corners.errors import InputError, first_line
+from laser_corners.pipeline.interrupt import STOP_REASONS, stop_requests
 from laser_corners.pipeline.recording import Recording, open_recording
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.scan import LaserScan
@@ -27,7 +32,12 @@ from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import SlamResult
 from laser_corners.slam.slam import Slam
 
-__all__ = ["OdometryFeed", "odometry_scans", "require_odometry", "run_slam"]
+__all__ = ["OdometryFeed", "odometry_scans", "require_odometry", "run_slam", "run_warnings"]
+
+ONE_DIRECTION = 0.05
+"""A keyframe whose line normals' scatter (2x2) has its smaller eigenvalue below this share of
+the larger sees walls of one direction only (a corridor): the scan alignment cannot measure
+the motion along them (:func:`run_warnings`)."""
 
 
 def run_slam(
@@ -59,7 +69,8 @@ def run_slam(
     Returns
     -------
     SlamResult
-        ``interrupted=True`` when Ctrl-C stopped the run (the result holds what was done).
+        ``interrupted=True`` and ``partial_reason`` when Ctrl-C, SIGTERM or an error stopped
+        the run (the result holds what was done, see the module notes).
 
     Raises
     ------
@@ -75,15 +86,52 @@ def run_slam(
         feed = OdometryFeed()
         try:
             for i, scan, base in odometry_scans(rec, feed, stop_scan=stop_scan):
+                feed.at = i
+                feed.blank += not scan.valid.any()
                 slam.add(scan, base, float(scan.stamp))
                 if progress is not None:
                     progress(i + 1, rec.source.n_scans, float(scan.stamp))
         except KeyboardInterrupt:  # a second Ctrl-C, or one before the first scan
-            feed.interrupted = True
+            feed.stopped(STOP_REASONS[signal.SIGINT], signal.SIGINT)
+        except Exception as exc:
+            if slam.counts["scans"] == 0:
+                raise
+            feed.stopped(f"{type(exc).__name__} at scan {feed.at}: {first_line(exc)}")
     slam.counts["skipped_no_odometry"] = feed.skipped
     if slam.counts["scans"] == 0 and not feed.interrupted:
         raise InputError(f"{path}: no scan with odometry ({feed.skipped} scans without a pose)")
-    return slam.result(interrupted=feed.interrupted)
+    warnings = run_warnings(slam, feed)
+    result = slam.result(interrupted=feed.interrupted, partial_reason=feed.reason)
+    result.warnings.extend(warnings)
+    return result
+
+
+def run_warnings(slam: Slam, feed: OdometryFeed) -> list[str]:
+    """What a user should know about a run that went through (counted in ``slam.counts``):
+    scans without any valid return, and keyframes that see walls of one direction only
+    (:data:`ONE_DIRECTION`; more than half of them: a degenerate corridor)."""
+    warnings = []
+    slam.counts["scans_without_returns"] = feed.blank
+    if feed.blank:
+        warnings.append(
+            f"{feed.blank} scans without any valid return: placed by the odometry alone"
+        )
+    flat = sum(_one_direction(p.normals[p.has_normal]) for p in slam.kf.points)
+    slam.counts["keyframes_one_direction"] = flat
+    if flat and 2 * flat > len(slam.kf):
+        warnings.append(
+            f"{flat} of {len(slam.kf)} keyframes see walls of one direction only (a corridor?): "
+            "the motion along them comes from the odometry"
+        )
+    return warnings
+
+
+def _one_direction(normals: NDArray[np.float64]) -> bool:
+    """Whether line normals (M, 2) all point one way (see :data:`ONE_DIRECTION`)."""
+    if len(normals) < 10:
+        return False
+    low, high = np.linalg.eigvalsh(normals.T @ normals / len(normals))
+    return bool(low < ONE_DIRECTION * high)
 
 
 def require_odometry(rec: Recording, path: str | Path) -> None:
@@ -94,10 +142,22 @@ def require_odometry(rec: Recording, path: str | Path) -> None:
 
 @dataclass
 class OdometryFeed:
-    """What :func:`odometry_scans` counted: scans without a pose, and a stop by Ctrl-C."""
+    """What :func:`odometry_scans` counted: scans without a pose, and a stop by Ctrl-C or
+    SIGTERM (``reason``, ``signum``); ``at``: the index of the scan being processed;
+    ``blank``: scans without any valid return."""
 
     skipped: int = 0
     interrupted: bool = False
+    reason: str | None = None
+    signum: int | None = None
+    at: int = -1
+    blank: int = 0
+
+    def stopped(self, reason: str, signum: int | None = None) -> None:
+        """The run stops early for ``reason`` (the first reason stands)."""
+        self.interrupted = True
+        if self.reason is None:
+            self.reason, self.signum = reason, signum
 
 
 def odometry_scans(
@@ -106,15 +166,16 @@ def odometry_scans(
     """``(index, scan, base odometry pose)`` for the scans ``start_scan`` to ``stop_scan``.
 
     A bag's scan pose was composed with the recorded mount: that one is undone, per laser
-    frame. Scans without a pose or stamp are counted in ``feed.skipped``; Ctrl-C (checked
-    between two scans) ends the iteration with ``feed.interrupted`` set.
+    frame. Scans without a pose or stamp are counted in ``feed.skipped``; Ctrl-C or SIGTERM
+    (checked between two scans) ends the iteration with ``feed.interrupted`` set.
     """
     mounts = getattr(rec.source, "mounts", {})
     undo: dict[str, NDArray[np.float64]] = {}
-    with stop_requests() as stop:
+    with stop_requests(terminate=True) as stop:
         for i, scan in enumerate(rec.scans()):
             if stop.is_set():
-                feed.interrupted = True
+                signum = stop.signum or signal.SIGINT
+                feed.stopped(STOP_REASONS[signum], signum)
                 return
             if stop_scan is not None and i >= stop_scan:
                 return

@@ -532,9 +532,9 @@ class Slam:
         self.counts["closures_pruned"] += 1
 
     # ------------------------------------------------------------------ result
-    def result(self, interrupted: bool = False) -> SlamResult:
+    def result(self, interrupted: bool = False, partial_reason: str | None = None) -> SlamResult:
         """The current result; with ``final_optimisation``, a batch optimisation runs first,
-        and with ``refine_final`` the refinement pass after it (:func:`.refine.refine`)."""
+        and with ``refine_final`` the refinement pass after it; ``partial_reason``: why."""
         graph, values, opt = None, None, self.options
         if len(self.kf):
             if self.options.final_optimisation:
@@ -562,6 +562,7 @@ class Slam:
         accepted = sum(c.accepted for c in self.closures)
         self.counts["closures_accepted"] = accepted
         self.counts["closures_rejected"] = len(self.closures) - accepted
+        self.counts.update(self.backend.counts)
         return SlamResult(
             stamps=np.asarray(self._stamps, dtype=np.float64),
             poses=poses,
@@ -575,7 +576,9 @@ class Slam:
             ms_per_scan=np.asarray(self._ms, dtype=np.float64),
             options=self.options,
             counts=dict(self.counts),
-            interrupted=interrupted,
+            interrupted=interrupted or partial_reason is not None,
+            partial_reason=partial_reason,
+            warnings=list(self.backend.warnings),
             graph=graph,
             values=values,
             places=self.places if self.options.places.enabled else None,

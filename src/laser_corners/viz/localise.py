@@ -48,6 +48,9 @@ def localise_summary(run: Any, source: str, map_folder: str, wall_s: float) -> d
         "ms_per_scan_p95": float(np.percentile(ms, 95)) if ms.size else None,
         "wall_s": round(float(wall_s), 3),
         "interrupted": bool(run.interrupted),
+        "partial": bool(run.interrupted),
+        "partial_reason": getattr(run, "partial_reason", None)
+        or ("interrupted" if run.interrupted else None),
         "smoothed": _smoothed_record(run),
     }
 

@@ -16,18 +16,25 @@
 ``report.md``      the same numbers as a page, linking ``map.png``
 =================  ===========================================================================
 
-Each file is written under a temporary name and renamed when complete, so a run killed while
-writing leaves complete files and ``*.partial*`` leftovers, never a truncated file under a
-final name. The numbers measured around the run (wall time, peak memory, relation metrics)
-come in a :class:`SlamRunInfo`; this module computes nothing about the map itself.
+The folder is written whole: every file into a new folder beside it
+(``.NAME.XXXXXXXX.partial``), which then replaces the folder in one step
+(:func:`~laser_corners.io.partial.publish_folder`), so a run killed while writing leaves the
+previous result (or none) under the final name, never a mix of two runs or a truncated file.
+A folder holding files that are not a slam result is refused (:func:`check_slam_folder`): they
+would be lost. A partial result (the run stopped early) says so in ``summary.json``
+(``"partial": true``, ``"partial_reason"``) and ``report.md``. The numbers measured around
+the run (wall time, peak memory, relation metrics) come in a :class:`SlamRunInfo`; this module
+computes nothing about the map itself.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import resource
+import shutil
 import sys
 from collections import Counter
 from dataclasses import dataclass, field
@@ -40,6 +47,7 @@ from laser_corners.citation import CITATION
 from laser_corners.errors import OutputError, first_line
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import write_map
+from laser_corners.io.partial import PARTIAL_SUFFIX, publish_folder, staging_folder
 from laser_corners.io.trajectory import write_tum
 from laser_corners.slam.grid import result_grid
 from laser_corners.slam.mapfile import save_map_data
@@ -48,7 +56,9 @@ from laser_corners.viz.slam import save_slam_map
 __all__ = [
     "LANDMARK_COLUMNS",
     "RELATION_COLUMNS",
+    "SLAM_FILES",
     "SlamRunInfo",
+    "check_slam_folder",
     "peak_rss_mb",
     "relation_cells",
     "slam_markdown",
@@ -68,6 +78,20 @@ LANDMARK_COLUMNS = (
     "last_stamp",
 )
 """Columns of ``landmarks.csv``."""
+SLAM_FILES = (
+    "trajectory.tum",
+    "odometry.tum",
+    "graph.g2o",
+    "landmarks.csv",
+    "keyframes.npz",
+    "map.pgm",
+    "map.yaml",
+    "map.png",
+    "summary.json",
+    "options.yaml",
+    "report.md",
+)
+"""The files of the output folder (the table above)."""
 RELATION_COLUMNS = ("covered / total", "|t| (m)", "t² (m²)", "|θ| (deg)", "θ² (deg²)")
 """Headers of the relation-metric table (mean ± std; Kümmerle et al. 2009, as Cartographer's
 ``compute_relations_metrics`` prints it)."""
@@ -170,10 +194,15 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
     stamps = np.asarray(result.stamps, dtype=np.float64)
     ms = np.asarray(result.ms_per_scan, dtype=np.float64)
     duration = float(stamps[-1] - stamps[0]) if len(stamps) > 1 else 0.0
+    reason = getattr(result, "partial_reason", None)
+    if reason is None and result.interrupted:
+        reason = "interrupted"
     return {
         "input": info.source,
         "interrupted": bool(result.interrupted),
-        "warnings": list(info.warnings),
+        "partial": reason is not None,
+        "partial_reason": reason,
+        "warnings": [*getattr(result, "warnings", []), *info.warnings],
         "counts": {
             "scans": len(stamps),
             "keyframes": len(result.keyframes),
@@ -226,10 +255,10 @@ def slam_markdown(summary: dict[str, Any]) -> str:
     """``report.md`` from :func:`slam_summary`'s dictionary."""
     counts, timings, closures = summary["counts"], summary["timings"], summary["closures"]
     lines = [f"# SLAM: {summary['input']}", ""]
-    if summary["interrupted"]:
+    if summary["partial"]:
         lines += [
-            "**Interrupted (Ctrl-C): these files hold the map up to the last scan "
-            "processed, not the whole recording.**",
+            f"**Interrupted ({summary['partial_reason']}): these files hold the map up to the "
+            "last scan processed, not the whole recording.**",
             "",
         ]
     lines += [f"**Warning: {w}**" for w in summary["warnings"]] + [""] * bool(summary["warnings"])
@@ -325,8 +354,39 @@ def _write_graph(result: Any, path: Path, paths: dict[str, Path], info: SlamRunI
         paths["graph"] = path
 
 
+def check_slam_folder(folder: Path) -> None:
+    """Refuse an output folder :func:`write_slam_outputs` cannot replace whole: a file, a
+    folder that cannot be written or is marked read-only (no owner write bit: also for root),
+    or one holding files that are not a slam result (they
+    would be lost). A missing folder is fine (it is created).
+
+    Raises
+    ------
+    OutputError
+        Naming the folder and what is wrong, one line.
+    """
+    if not folder.exists():
+        return
+    if not folder.is_dir():
+        raise OutputError(f"{folder}: is a file; the map output needs a folder")
+    if not os.access(folder, os.W_OK | os.X_OK) or not folder.stat().st_mode & 0o200:
+        raise OutputError(f"{folder}: cannot write into the folder (read-only)")
+    other = sorted(
+        p.name
+        for p in folder.iterdir()
+        if p.name not in SLAM_FILES and PARTIAL_SUFFIX not in p.name
+    )
+    if other:
+        shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
+        raise OutputError(
+            f"{folder}: holds files that are not a slam result ({shown}); the map folder is "
+            "replaced whole, so choose a new or empty folder"
+        )
+
+
 def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str, Path]:
-    """Write every file of the table above into ``folder`` (which must exist).
+    """Write every file of the table above as the folder ``folder``, whole (see the module
+    notes): a previous result there is replaced only once the new one is complete.
 
     Returns
     -------
@@ -337,10 +397,27 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     Raises
     ------
     OutputError
-        A file cannot be written (``graph.g2o`` excepted: a graph the library cannot write is
-        recorded in ``info.warnings``, ``summary.json`` and ``report.md``, and the other files
-        are still written).
+        The folder is refused (:func:`check_slam_folder`) or a file cannot be written
+        (``graph.g2o`` excepted: a graph the library cannot write is recorded in
+        ``info.warnings``, ``summary.json`` and ``report.md``, and the other files are still
+        written); nothing is changed under ``folder`` then.
+    InvalidParamsError
+        The grid would be too big at ``info.resolution`` (before anything is written).
     """
+    check_slam_folder(folder)
+    grid = result_grid(result, info.resolution) if len(result.scans) else None
+    staging = staging_folder(folder)
+    try:
+        paths = _write_files(result, staging, info, grid)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    publish_folder(staging, folder)
+    return {key: folder / path.name for key, path in paths.items()}
+
+
+def _write_files(result: Any, folder: Path, info: SlamRunInfo, grid: Any) -> dict[str, Path]:
+    """Every file into the (new, empty) ``folder``; the grid made already (None: no map)."""
     paths = {"trajectory": folder / "trajectory.tum"}
     header = f"laser-corners slam {info.source}: base pose in the map frame, one line per scan"
     write_tum(paths["trajectory"], result.stamps, result.poses, header=header)
@@ -354,12 +431,8 @@ def write_slam_outputs(result: Any, folder: Path, info: SlamRunInfo) -> dict[str
     _write_graph(result, folder / "graph.g2o", paths, info)
     paths["landmarks"] = write_landmarks(folder / "landmarks.csv", result.landmarks)
     paths["keyframes"] = save_map_data(result, folder)  # what `localise` reads
-    grid = result_grid(result, info.resolution) if len(result.scans) else None
     if grid is not None:
         paths["map_yaml"], paths["map_pgm"] = write_map(grid, folder / "map.yaml")
-    else:  # no keyframe, no grid: no stale map of an earlier run either
-        (folder / "map.yaml").unlink(missing_ok=True)
-        (folder / "map.pgm").unlink(missing_ok=True)
     title = Path(info.source).name + (" (interrupted)" if result.interrupted else "")
     paths["map_png"] = save_slam_map(folder / "map.png", result, grid, title)
     summary = slam_summary(result, info)
