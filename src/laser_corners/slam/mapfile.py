@@ -21,6 +21,11 @@ occupancy grid:
 :func:`load_map` reads a folder (``keyframes.npz``, ``map.yaml`` + ``map.pgm`` and
 ``landmarks.csv`` when present) into a :class:`SavedMap`. Every problem of a folder is one
 :class:`~laser_corners.errors.InputError` line naming the folder and what is wrong.
+
+:func:`load_map` also reads a map made by another package: a ``map_server`` YAML (``.yaml`` /
+``.yml`` path) becomes a :class:`SavedMap` of *virtual keyframes* placed over the grid's
+free space (:mod:`laser_corners.slam.gridmap`), their points made as a real keyframe's, their
+360° scans kept in :attr:`SavedMap.virtual_scans`, a zero mount.
 """
 
 from __future__ import annotations
@@ -37,6 +42,8 @@ from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid, read_map
 from laser_corners.registration.points import scan_points
+from laser_corners.scan import LaserScan
+from laser_corners.slam.gridmap import virtual_keyframes
 from laser_corners.slam.options import SlamOptions
 
 __all__ = [
@@ -61,6 +68,7 @@ class SavedMap:
     Attributes
     ----------
     folder : Path
+        The map folder, or the ``map_server`` YAML of a foreign map.
     poses : ndarray, shape (K, 3)
         Keyframe base poses in the map frame.
     stamps : ndarray, shape (K,)
@@ -74,6 +82,9 @@ class SavedMap:
         ``map.yaml`` + ``map.pgm`` when present.
     landmarks : ndarray, shape (L, 2)
         Landmark positions from ``landmarks.csv`` (empty when absent or header only).
+    virtual_scans : list of LaserScan or None
+        A foreign map's (a ``map_server`` YAML): keyframe ``k``'s virtual 360° scan, taken at
+        ``poses[k]`` (:mod:`laser_corners.slam.gridmap`); None for a map folder.
     """
 
     folder: Path
@@ -87,6 +98,7 @@ class SavedMap:
     mount: NDArray[np.float64]
     grid: OccupancyGrid | None = None
     landmarks: NDArray[np.float64] | None = None
+    virtual_scans: list[LaserScan] | None = None
 
     def __len__(self) -> int:
         return int(self.poses.shape[0])
@@ -202,15 +214,21 @@ def _landmarks(folder: Path) -> NDArray[np.float64]:
 
 
 def load_map(folder: str | Path) -> SavedMap:
-    """Read a map folder written by ``laser-corners slam``.
+    """Read a map folder written by ``laser-corners slam``, or a ``map_server`` YAML (a map
+    made by another package, or our ``map.yaml`` alone) as virtual keyframes.
 
     Raises
     ------
     InputError
         The folder or ``keyframes.npz`` is missing, of another format version, incomplete or
-        inconsistent; ``map.yaml`` is present but unreadable.
+        inconsistent; ``map.yaml`` is present but unreadable; a YAML map is unreadable, has a
+        bad field or no free space to place a keyframe in.
     """
     folder = Path(folder)
+    if not folder.is_dir() and folder.suffix.lower() in (".yaml", ".yml"):
+        return _grid_map(folder)
+    if folder.is_file():
+        raise InputError(f"{folder}: not a map folder nor a map_server .yaml")
     a = _read_npz(folder)
     _check(folder / KEYFRAMES_FILE, a)
     grid = read_map(folder / "map.yaml") if (folder / "map.yaml").is_file() else None
@@ -226,6 +244,25 @@ def load_map(folder: str | Path) -> SavedMap:
         mount=a["mount"].astype(np.float64),
         grid=grid,
         landmarks=_landmarks(folder),
+    )
+
+
+def _grid_map(path: Path) -> SavedMap:
+    """A ``map_server`` map as a :class:`SavedMap` of virtual keyframes."""
+    grid = read_map(path)
+    virtual = virtual_keyframes(grid)
+    if not len(virtual):
+        raise InputError(
+            f"{path}: no free cell far enough from the walls to localise in "
+            "(is the image a map_server occupancy map? see its 'negate' and thresholds)"
+        )
+    a = keyframe_arrays(virtual)
+    return SavedMap(
+        folder=path,
+        grid=grid,
+        landmarks=np.zeros((0, 2)),
+        virtual_scans=virtual.scans,
+        **{k: a[k] for k in _ARRAYS},
     )
 
 
