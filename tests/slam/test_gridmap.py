@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -223,7 +224,7 @@ def test_virtual_keyframes_of_an_empty_grid_are_none() -> None:
 def path_through(waypoints) -> np.ndarray:
     """Poses at RATE Hz along ``waypoints`` at 0.5 m/s, turning in place at each corner."""
     poses = []
-    for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
+    for a, b in itertools.pairwise(waypoints):
         a, b = np.asarray(a, float), np.asarray(b, float)
         heading = math.atan2(b[1] - a[1], b[0] - a[0])
         if poses:  # turn towards the leg, 0.15 rad a scan
