@@ -10,15 +10,18 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import real_file
 from laser_corners.errors import InputError
-from laser_corners.io.occupancy import OccupancyGrid, read_map
-from laser_corners.localise import Localiser
+from laser_corners.io.occupancy import OccupancyGrid, read_map, write_map
+from laser_corners.localise import LocaliseOptions, Localiser, run_localise
 from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG, World, cast_circles, cast_ranges
 from laser_corners.slam import SlamOptions
+from laser_corners.slam.grid import result_grid
 from laser_corners.slam.gridmap import BEAMS, CLEARANCE, RANGE_MAX, SPACING, virtual_keyframes
 from laser_corners.slam.mapfile import load_map
+from laser_corners.slam.run import run_slam
 
 RATE = 10.0
 RES = 0.05
@@ -294,3 +297,50 @@ def test_read_map_of_the_foreign_map_keeps_its_grid(foreign, saved) -> None:
     assert saved.grid is not None and saved.grid.shape == grid.shape
     np.testing.assert_array_equal(saved.grid.occupancy, grid.occupancy)
     assert saved.folder == foreign
+
+
+# ---------------------------------------------------------------- fr079: our map.yaml alone
+MAPPED = 1500
+"""fr079 scans mapped (its first part)."""
+LATER = (900, 1500)
+"""The scans localised: the later part of the mapped stretch (the robot drives back along
+the corridor it mapped)."""
+
+
+@pytest.fixture(scope="module")
+def fr079_yaml(tmp_path_factory):
+    """fr079's first part mapped by our SLAM; its map.yaml + map.pgm written as ``slam``
+    writes them, without keyframes.npz: localisation sees only the grid."""
+    bag = real_file("fr079.bag")
+    result = run_slam(bag, stop_scan=MAPPED)
+    folder = tmp_path_factory.mktemp("fr079")
+    yaml_path, _ = write_map(result_grid(result), folder / "map.yaml")
+    assert sorted(p.name for p in folder.iterdir()) == ["map.pgm", "map.yaml"]
+    return bag, yaml_path, result
+
+
+def slam_errors(run, result) -> np.ndarray:
+    """Distance (m) of each estimate from the SLAM's pose of its scan."""
+    index = np.searchsorted(result.stamps, run.stamps)
+    assert np.allclose(result.stamps[index], run.stamps)
+    return np.hypot(*(run.poses[:, :2] - result.poses[index, :2]).T)
+
+
+def test_fr079_our_map_yaml_as_a_foreign_map(fr079_yaml) -> None:
+    bag, yaml_path, result = fr079_yaml
+    options = LocaliseOptions(smooth=False)
+    run = run_localise(yaml_path, bag, options, start_scan=LATER[0], stop_scan=LATER[1])
+    assert run.fixes, run.counts
+    for fix in run.fixes:  # every fix right
+        assert np.hypot(*(np.asarray(fix.pose[:2]) - result.poses[fix.scan_index, :2])) < 0.3
+    d = slam_errors(run, result)
+    after = LATER[1] - run.fixes[0].scan_index
+    assert len(d) >= 0.9 * after and np.mean(d < 0.3) >= 0.98 and np.median(d) < 0.05
+    # from an initial pose: every scan tracked
+    start = result.poses[LATER[0]]
+    run = run_localise(
+        yaml_path, bag, options, start_scan=LATER[0], stop_scan=LATER[1], initial_pose=start
+    )
+    d = slam_errors(run, result)
+    assert len(d) >= 0.95 * (LATER[1] - LATER[0])
+    assert np.mean(d < 0.3) >= 0.98 and np.percentile(d, 95) < 0.1
