@@ -19,7 +19,14 @@ from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG, World, cast_circles, cast_ranges
 from laser_corners.slam import SlamOptions
 from laser_corners.slam.grid import result_grid
-from laser_corners.slam.gridmap import BEAMS, CLEARANCE, RANGE_MAX, SPACING, virtual_keyframes
+from laser_corners.slam.gridmap import (
+    BEAMS,
+    CLEARANCE,
+    RANGE_MAX,
+    SPACING,
+    cast_grid,
+    virtual_keyframes,
+)
 from laser_corners.slam.mapfile import load_map
 from laser_corners.slam.run import run_slam
 
@@ -221,6 +228,44 @@ def test_grid_map_problems_are_one_line(tmp_path: Path) -> None:
 def test_virtual_keyframes_of_an_empty_grid_are_none() -> None:
     grid = OccupancyGrid(np.full((20, 20), -1, np.int8), 0.05, (0.0, 0.0, 0.0))
     assert len(virtual_keyframes(grid)) == 0
+
+
+def room_grid(size: int = 100) -> np.ndarray:
+    """Occupancy of a free square room (``size`` cells of 0.05 m) walled by occupied cells,
+    in unknown space (row 0 the bottom)."""
+    occupancy = np.full((size + 20, size + 20), -1, np.int8)
+    occupancy[10 : size + 10, 10 : size + 10] = 100
+    occupancy[11 : size + 9, 11 : size + 9] = 0
+    return occupancy
+
+
+def test_a_wall_with_one_cell_holes_does_not_leak() -> None:
+    """A wall seen sparsely (every other cell) stops the beams: they end on it."""
+    occupancy = room_grid()
+    occupancy[60, 11:109] = 100  # a wall across the room at y = 3.0-3.05 m ...
+    occupancy[60, 12:109:2] = 0  # ... every other cell missing (seen sparsely) ...
+    occupancy[60, 40:80:2] = -1  # ... here never seen (a foreign map's unknown)
+    grid = OccupancyGrid(occupancy, RES, (0.0, 0.0, 0.0))
+    pose = np.array([[3.0, 1.5, 0.0]])  # below the wall
+    ranges = cast_grid(grid, pose)[0]
+    angles = -math.pi + 2 * math.pi / BEAMS * np.arange(BEAMS)
+    up = (angles > 0.7) & (angles < math.pi - 0.7)  # the beams reaching the wall
+    assert np.all(np.isfinite(ranges[up]))
+    ends_y = pose[0, 1] + ranges[up] * np.sin(angles[up])
+    assert np.all(np.abs(ends_y - 3.0) < 2 * RES), ends_y.max()  # on the wall, not behind
+
+
+def test_unknown_specks_in_free_space_do_not_stop_the_beams() -> None:
+    occupancy = room_grid()
+    rows, cols = np.mgrid[0 : occupancy.shape[0], 0 : occupancy.shape[1]]
+    speck = (occupancy == 0) & ((rows * 7 + cols * 3) % 11 == 0)  # isolated cells never seen
+    occupancy[speck] = -1
+    grid = OccupancyGrid(occupancy, RES, (0.0, 0.0, 0.0))
+    virtual = virtual_keyframes(grid)
+    # one keyframe per 0.75 m block clear of the walls: 0.3 m clearance in a 4.9 m room
+    assert len(virtual) >= 36
+    ranges = np.array([s.ranges for s in virtual.scans])
+    assert np.isfinite(ranges).mean() > 0.99  # every beam ends on a wall
 
 
 # ---------------------------------------------------------------- localisation in it

@@ -16,9 +16,14 @@ normals. :func:`virtual_keyframes` makes them from the grid alone:
    kernel, Amanatides-Woo cell traversal): a beam ends in the first *occupied* cell
    (occupancy >= :data:`~laser_corners.io.occupancy.OCCUPIED_PERCENT`), at the middle of its
    path through that cell (a wall's surface lies anywhere in the cell it marks, so the middle
-   is unbiased), and gives no return (``inf``) when it first meets an unknown or uncertain
-   cell, leaves the image or passes ``range_max``: unknown space is not evidence of a wall.
-   Free cells are those with occupancy 0..:data:`~laser_corners.io.occupancy.FREE_PERCENT`.
+   is unbiased), or where it passes between two occupied cells less than
+   :data:`_WIDTH` cells on either side of it (walls seen sparsely, every other cell, or drawn
+   8-connected, do not leak); it gives no return (``inf``) when it first meets an unknown or
+   uncertain cell, leaves the image or passes ``range_max``: unknown space is not evidence of
+   a wall. Free cells are those with occupancy 0..:data:`~laser_corners.io.occupancy.FREE_PERCENT`,
+   and so are unknown *specks* (unknown cells that a 3 x 3 opening removes: the cells between
+   the rays of a far, sparse scan), which would otherwise stop the beams and keep keyframes
+   out of most of a room.
 3. **Points.** The scans become keyframe points + normals exactly as a real keyframe's do
    (:func:`~laser_corners.slam.mapfile.keyframe_arrays` ->
    :func:`~laser_corners.registration.points.scan_points`, the SLAM's default range limits and
@@ -42,7 +47,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import distance_transform_edt
+from scipy.ndimage import binary_dilation, binary_opening, distance_transform_edt
 
 from laser_corners.io.occupancy import FREE_PERCENT, OCCUPIED_PERCENT, OccupancyGrid
 from laser_corners.scan import LaserScan
@@ -70,9 +75,38 @@ RANGE_MAX = 30.0
 """Range (m) of the virtual scanner (the SLAM's default ``max_range``)."""
 FRAME = "virtual"
 """``frame_id`` of the virtual scans."""
-_FREE, _OCCUPIED, _STOP = 0, 1, 2
+_FREE, _OCCUPIED, _STOP, _NEAR = 0, 1, 2, 4
 """Cell states of the ray casting: free (walk on), occupied (a return), anything else (stop,
-no return)."""
+no return); the flag ``_NEAR`` marks the cells next to an occupied one."""
+_KIND = 3
+"""The bits of the free / occupied / stop state."""
+_WIDTH = 1.5
+"""A beam passing between two occupied cells whose centres are within this (cells) of it,
+one on each side, stops there: walls with one-cell holes or drawn 8-connected (Bresenham) do
+not leak."""
+
+
+@numba.njit(cache=True)
+def _gap(
+    state: NDArray[np.int8], ix: int, iy: int, x0: float, y0: float, dx: float, dy: float
+) -> float:
+    """Along-ray distance (cells) at which the ray passes between two occupied cells of the
+    3 x 3 around ``(ix, iy)``, one on each side within :data:`_WIDTH` of it (a wall with a
+    one-cell hole, or drawn 8-connected); ``inf`` when it does not."""
+    rows, cols = state.shape
+    left = np.inf
+    right = np.inf
+    for y in range(iy - 1, iy + 2):
+        for x in range(ix - 1, ix + 2):
+            if 0 <= x < cols and 0 <= y < rows and state[y, x] & _KIND == _OCCUPIED:
+                cx, cy = x + 0.5 - x0, y + 0.5 - y0
+                along = cx * dx + cy * dy
+                across = cx * dy - cy * dx
+                if 0.0 < across <= _WIDTH:
+                    left = min(left, along)
+                elif -_WIDTH <= across < 0.0:
+                    right = min(right, along)
+    return max(left, right)
 
 
 @numba.njit(cache=True)
@@ -83,8 +117,9 @@ def _cast(
     limit: float,
 ) -> NDArray[np.float64]:
     """Ranges (K, N) in cells of the beams ``angles`` from ``starts`` (K, 2; cell units, x =
-    column, y = row): to the middle of the first occupied cell's stretch, ``inf`` at an
-    unknown cell, off the grid or past ``limit`` cells."""
+    column, y = row): to the middle of the first occupied cell's stretch, or to where the
+    beam passes between two occupied cells; ``inf`` at an unknown cell, off the grid or past
+    ``limit`` cells."""
     rows, cols = state.shape
     out = np.full((starts.shape[0], angles.size), np.inf)
     for k in range(starts.shape[0]):
@@ -102,12 +137,18 @@ def _cast(
             while entry <= limit and 0 <= ix < cols and 0 <= iy < rows:
                 s = state[iy, ix]
                 leave = min(next_x, next_y)
-                if s == _OCCUPIED:
-                    middle = 0.5 * (entry + leave)
-                    if middle <= limit:
-                        out[k, b] = middle
+                hit = np.inf
+                if s & _KIND == _OCCUPIED:
+                    hit = 0.5 * (entry + leave)
+                elif s & _NEAR:
+                    gap = _gap(state, ix, iy, x0, y0, dx, dy)
+                    if gap <= leave + 1.0:  # the gap is here, not cells ahead
+                        hit = max(gap, entry)
+                if hit < np.inf:
+                    if hit <= limit:
+                        out[k, b] = hit
                     break
-                if s != _FREE:
+                if s & _KIND != _FREE:
                     break
                 if next_x < next_y:
                     ix += step_x
@@ -121,12 +162,18 @@ def _cast(
 
 
 def _states(grid: OccupancyGrid) -> NDArray[np.int8]:
-    """Free / occupied / stop state of every cell (row 0 the bottom)."""
+    """Free / occupied / stop state of every cell (row 0 the bottom), with the flag
+    :data:`_NEAR` on the cells next to an occupied one."""
     occ = grid.occupancy
     state = np.full(occ.shape, _STOP, dtype=np.int8)
     state[(occ >= 0) & (occ <= FREE_PERCENT)] = _FREE
-    state[occ >= OCCUPIED_PERCENT] = _OCCUPIED
-    return state
+    occupied = occ >= OCCUPIED_PERCENT
+    state[occupied] = _OCCUPIED
+    # unknown specks inside free space (between the rays of a far, sparse scan): free
+    stop = state == _STOP
+    state[stop & ~binary_opening(stop, np.ones((3, 3), bool))] = _FREE
+    near = binary_dilation(occupied, np.ones((3, 3), bool))
+    return state | np.where(near, _NEAR, 0).astype(np.int8)
 
 
 def _to_map(grid: OccupancyGrid, local: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -146,7 +193,7 @@ def free_poses(
     farthest from every occupied or unknown cell, kept when at least ``clearance`` (m) away;
     heading the grid's. Ordered by block (row-major from the grid's lower-left corner)."""
     res = grid.resolution
-    free = _states(grid) == _FREE
+    free = (_states(grid) & _KIND) == _FREE
     padded = np.pad(free, 1, constant_values=False)  # beyond the image: unknown
     distance = distance_transform_edt(padded)[1:-1, 1:-1] * res
     rows, cols = np.nonzero(distance >= max(clearance, 1e-9))
