@@ -225,6 +225,21 @@ def test_grid_map_problems_are_one_line(tmp_path: Path) -> None:
         load_map(tmp_path / "none.yaml")
 
 
+@pytest.mark.parametrize(
+    ("values", "name"),
+    [
+        ({"spacing": 0.0}, "spacing"),
+        ({"clearance": -1.0}, "clearance"),
+        ({"beams": 2}, "beams"),
+        ({"range_max": float("inf")}, "range_max"),
+    ],
+)
+def test_bad_virtual_keyframe_parameters_are_named(values, name) -> None:
+    grid = OccupancyGrid(room_grid(), RES, (0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match=f"^{name} must be"):
+        virtual_keyframes(grid, **values)
+
+
 def test_virtual_keyframes_of_an_empty_grid_are_none() -> None:
     grid = OccupancyGrid(np.full((20, 20), -1, np.int8), 0.05, (0.0, 0.0, 0.0))
     assert len(virtual_keyframes(grid)) == 0

@@ -300,7 +300,20 @@ def virtual_keyframes(
     -------
     VirtualKeyframes
         Empty when no free cell is ``clearance`` from the walls.
+
+    Raises
+    ------
+    ValueError
+        ``spacing`` or ``range_max`` not a finite number > 0, ``clearance`` < 0 or not finite,
+        ``beams`` < 8 (named).
     """
+    for name, value, low in (("spacing", spacing, 0.0), ("range_max", range_max, 0.0)):
+        if not (math.isfinite(value) and value > low):
+            raise ValueError(f"{name} must be a finite number > 0, got {value}")
+    if not (math.isfinite(clearance) and clearance >= 0.0):
+        raise ValueError(f"clearance must be a finite number >= 0, got {clearance}")
+    if int(beams) != beams or beams < 8:
+        raise ValueError(f"beams must be an integer >= 8, got {beams}")
     poses = free_poses(grid, spacing, clearance)
     ranges = cast_grid(grid, poses, beams, range_max)
     increment = 2.0 * math.pi / beams
