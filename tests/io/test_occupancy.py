@@ -76,3 +76,65 @@ def test_bad_maps_are_one_line_errors(tmp_path: Path) -> None:
     (tmp_path / "b.pgm").write_bytes(b"P5\n4 4\n255\n\x00")
     with pytest.raises(InputError, match="4x4 pixels declared, 1 bytes found"):
         read_map(tmp_path / "b.yaml")
+
+
+def _foreign(tmp_path: Path, pixels: np.ndarray, **fields) -> Path:
+    """A map_server map as another package writes it: ``pixels`` (top row first) + YAML."""
+    rows, cols = pixels.shape
+    (tmp_path / "f.pgm").write_bytes(
+        f"P5\n{cols} {rows}\n255\n".encode() + pixels.astype(np.uint8).tobytes()
+    )
+    meta = {"image": "f.pgm", "resolution": 0.05, "origin": [0.0, 0.0, 0.0], **fields}
+    (tmp_path / "f.yaml").write_text(yaml.safe_dump(meta))
+    return tmp_path / "f.yaml"
+
+
+# one row of pixels: black, dark grey, mid grey, light grey, white
+_ROW = np.array([[0, 30, 128, 230, 255]])
+
+
+@pytest.mark.parametrize(
+    ("fields", "expected"),
+    [
+        ({}, [100, 100, -1, 0, 0]),  # trinary (the default)
+        ({"mode": "trinary"}, [100, 100, -1, 0, 0]),
+        ({"mode": "trinary", "negate": 1}, [0, 0, -1, 100, 100]),
+        # scale: between the thresholds 1 + 98 * (occ - free) / (occupied - free)
+        ({"mode": "scale"}, [100, 100, 66, 0, 0]),
+        ({"mode": "raw"}, [0, 30, -1, -1, -1]),  # the pixel is the value (0..100, else unknown)
+        ({"mode": "raw", "negate": 1}, [-1, -1, -1, 25, 0]),
+        ({"occupied_thresh": 0.9, "free_thresh": 0.1}, [100, -1, -1, 0, 0]),
+    ],
+)
+def test_foreign_maps_read_as_map_server_reads_them(tmp_path: Path, fields, expected) -> None:
+    grid = read_map(_foreign(tmp_path, _ROW, **fields))
+    assert grid.occupancy[0].tolist() == expected
+
+
+@pytest.mark.parametrize(
+    ("fields", "needle"),
+    [
+        ({"mode": "ternary"}, "field 'mode': 'ternary' is not one of trinary, scale, raw"),
+        ({"resolution": 0.0}, "field 'resolution': must be a number > 0, got 0.0"),
+        ({"resolution": "fine"}, "field 'resolution': must be a number > 0, got 'fine'"),
+        ({"resolution": float("nan")}, "field 'resolution': must be a number > 0"),
+        ({"origin": [0.0, "a", 0.0]}, "field 'origin'"),
+        ({"origin": 3}, "field 'origin': expected [x, y, yaw]"),
+        ({"negate": 2}, "field 'negate': must be 0 or 1, got 2"),
+        ({"occupied_thresh": 1.5}, "field 'occupied_thresh': must be in [0, 1], got 1.5"),
+        ({"free_thresh": 0.8}, "field 'free_thresh' (0.8) must be below occupied_thresh (0.65)"),
+        ({"image": ""}, "field 'image'"),
+    ],
+)
+def test_bad_fields_are_one_line_naming_file_and_field(tmp_path: Path, fields, needle) -> None:
+    path = _foreign(tmp_path, _ROW, **fields)
+    with pytest.raises(InputError) as err:
+        read_map(path)
+    message = str(err.value)
+    assert message.startswith(str(path)) and "\n" not in message
+    assert needle in message, message
+
+
+def test_negate_may_be_a_boolean(tmp_path: Path) -> None:
+    grid = read_map(_foreign(tmp_path, _ROW, negate=True))
+    assert grid.occupancy[0].tolist() == [0, 0, -1, 100, 100]

@@ -309,3 +309,42 @@ def test_a_partial_map_is_a_warning(mapped, tmp_path: Path) -> None:
     assert json.loads((out / "summary.json").read_text())["map_partial_reason"] == (
         "terminated (SIGTERM)"
     )
+
+
+def test_localise_in_a_map_server_yaml_alone(mapped, tmp_path: Path) -> None:
+    """MAP may be a map_server YAML (a map made by another package): here the slam folder's
+    map.yaml + map.pgm copied alone, without keyframes.npz (virtual keyframes)."""
+    import shutil
+
+    bag, map_dir, _, _ = mapped
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    for name in ("map.yaml", "map.pgm"):
+        shutil.copy(map_dir / name, foreign / name)
+    out = tmp_path / "out"
+    result = _invoke("localise", foreign / "map.yaml", bag, "-o", out, "--set", "smooth=false")
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["first_fix"] is not None and summary["map"] == str(foreign / "map.yaml")
+    online_t, online_p = read_tum(out / "online.tum")
+    map_t, map_p = read_tum(map_dir / "trajectory.tum")
+    d = np.hypot(*(online_p[:, :2] - map_p[np.searchsorted(map_t, online_t), :2]).T)
+    assert len(d) >= 0.8 * len(map_t) - summary["first_fix"]["scan_index"]
+    assert np.percentile(d, 95) < 0.15 and d.max() < 0.3
+    # a bad YAML is one line naming the file and the field
+    (foreign / "map.yaml").write_text(
+        (map_dir / "map.yaml").read_text().replace("resolution: 0.05", "resolution: -1")
+    )
+    _one_line_error(
+        _invoke("localise", foreign / "map.yaml", bag, "-o", tmp_path / "bad"),
+        "map.yaml: field 'resolution'",
+    )
+    _one_line_error(
+        _invoke("localise", foreign / "map.pgm", bag, "-o", tmp_path / "pgm"),
+        "not a map folder nor a map_server .yaml",
+    )
+
+
+def test_help_says_map_may_be_a_yaml() -> None:
+    result = _invoke("localise", "--help")
+    assert result.exit_code == 0 and "map.yaml" in result.output

@@ -217,7 +217,7 @@ def test_write_map_writes_the_slam_folder(tmp_path) -> None:
     [
         ({"mode": "slam", "mape": "x"}, "ROS 2 parameters: unknown parameter 'mape'"),
         ({"mode": "slam", "mount": [1.0, 2.0]}, "mount: expected [x, y, yaw]"),
-        ({"mode": "localise"}, "map: mode localise needs -p map:=DIR"),
+        ({"mode": "localise"}, "map: mode localise needs -p map:=DIR (or a map_server .yaml)"),
         ({"mode": "slam", "map_period": 0.0}, "map_period"),
         ({"mode": "slam", "queue_size": "many"}, "queue_size"),
     ],
@@ -300,6 +300,26 @@ def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) ->
         )
     assert core.set_pose(truth[0], None)  # once running, handed over at once
     assert core.estimator.status == "tracking"
+
+
+def test_localise_in_a_map_server_yaml(saved_map) -> None:
+    """``-p map:=.../map.yaml``: a map_server map (here the slam folder's own map.yaml) is
+    localised in through virtual keyframes (``slam.gridmap``); its grid is published."""
+    folder, truth, scans = saved_map
+    config = {"mode": "localise", "map": str(folder / "map.yaml"), "mount": list(MOUNT)}
+    core = MappingCore(MappingConfig.from_mapping(config))
+    assert core.saved is not None and core.saved.virtual_scans is not None
+    assert core.grid() is core.saved.grid and core.grid().shape[0] > 50
+    assert core.set_pose(truth[10], np.diag([0.01, 0.01, 0.001]))
+    out = _feed(core, truth, scans, start=10)
+    assert len(out) >= 45, core.summary()
+    for update in out:
+        np.testing.assert_allclose(update.pose[:2], truth[round(update.stamp * RATE)][:2], atol=0.1)
+    bad = folder.parent / "bad.yaml"
+    bad.write_text("image: map.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: grey\n")
+    config = MappingConfig.from_mapping({"mode": "localise", "map": str(bad)})
+    with pytest.raises(InputError, match=r"bad.yaml: field 'mode'"):
+        MappingCore(config)
 
 
 def test_initial_pose_is_refused_in_slam_mode() -> None:

@@ -1,4 +1,6 @@
-"""``localise MAP INPUT -o DIR``: the pose of a recording's robot in a map ``slam`` wrote.
+"""``localise MAP INPUT -o DIR``: the pose of a recording's robot in a map ``slam`` wrote
+(a folder) or another package made (a ``map_server`` ``map.yaml``: virtual keyframes,
+:mod:`laser_corners.slam.gridmap`).
 
 See docs/localise.md. Parses the options, makes one call (``localise.run_localise``) that
 writes ``online.tum`` as the estimates come (what the robot knew at each scan), then writes
@@ -39,7 +41,11 @@ __all__ = ["localise_command", "localise_options", "parse_pose"]
 _MapArg = Annotated[
     Path,
     typer.Argument(
-        metavar="MAP", help="Map folder written by `laser-corners slam -o`.", show_default=False
+        metavar="MAP",
+        help="Map folder written by `laser-corners slam -o`, or a map_server map.yaml "
+        "(slam_toolbox, Cartographer, GMapping...; the mount: --mount, else the "
+        "recording's, else zero).",
+        show_default=False,
     ),
 ]
 _Set = Annotated[

@@ -14,7 +14,10 @@ With ``negate: 0`` map_server reads a pixel ``p`` as occupancy ``(255 - p) / 255
 above ``occupied_thresh``, free below ``free_thresh``, unknown in between. The writer uses
 the three values ``map_saver`` writes: 0 (occupied), 254 (free) and 205 (unknown), from
 cells of occupancy >= :data:`OCCUPIED_PERCENT` and <= :data:`FREE_PERCENT` (``map_saver``'s
-own thresholds).
+own thresholds). :func:`read_map` also reads the maps other packages save (slam_toolbox,
+Cartographer, GMapping through map_saver): ``mode: trinary | scale | raw``, ``negate``, any
+thresholds, an origin with a yaw (kept in :attr:`OccupancyGrid.origin`); every bad field is
+one :class:`~laser_corners.errors.InputError` line naming the file and the field.
 
 :class:`OccupancyGrid` holds cells the way ``nav_msgs/OccupancyGrid`` does: row 0 is the
 bottom (smallest y), values ``-1`` unknown or 0..100 percent occupied.
@@ -174,48 +177,134 @@ def _read_pgm(path: Path) -> NDArray[np.uint8]:
     return pixels[: rows * cols].reshape(rows, cols)
 
 
+MODES = ("trinary", "scale", "raw")
+"""The ``mode`` values of a map_server YAML (default ``trinary``)."""
+
+
 def _field(meta: dict[str, object], key: str, path: Path) -> object:
     if key not in meta:
         raise InputError(f"{path}: missing field {key!r}")
     return meta[key]
 
 
+def _positive(meta: dict[str, object], key: str, path: Path) -> float:
+    value = _field(meta, key, path)
+    number = value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+    if number is None or not math.isfinite(number) or number <= 0:
+        raise InputError(f"{path}: field {key!r}: must be a number > 0, got {value!r}")
+    return float(number)
+
+
+def _origin(meta: dict[str, object], path: Path) -> tuple[float, float, float]:
+    value = _field(meta, "origin", path)
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise InputError(f"{path}: field 'origin': expected [x, y, yaw], got {value!r}")
+    try:
+        origin = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{path}: field 'origin': [x, y, yaw] must be numbers, got {value!r}"
+        ) from None
+    if not all(math.isfinite(v) for v in origin):
+        raise InputError(f"{path}: field 'origin': [x, y, yaw] must be finite, got {value!r}")
+    return origin  # type: ignore[return-value]
+
+
+def _threshold(meta: dict[str, object], key: str, default: float, path: Path) -> float:
+    value = meta.get(key, default)
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not ok or not 0.0 <= float(value) <= 1.0:  # type: ignore[arg-type]
+        raise InputError(f"{path}: field {key!r}: must be in [0, 1], got {value!r}")
+    return float(value)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class _Fields:
+    """The checked fields of a map_server YAML."""
+
+    image: Path
+    resolution: float
+    origin: tuple[float, float, float]
+    mode: str
+    negate: bool
+    occupied: float
+    free: float
+
+
+def _fields(meta: dict[str, object], path: Path) -> _Fields:
+    """Every field checked; a bad one is an :class:`InputError` naming it."""
+    image = _field(meta, "image", path)
+    if not isinstance(image, str) or not image.strip():
+        raise InputError(f"{path}: field 'image': expected a file name, got {image!r}")
+    mode = meta.get("mode", "trinary")
+    if mode not in MODES:
+        raise InputError(f"{path}: field 'mode': {mode!r} is not one of {', '.join(MODES)}")
+    negate = meta.get("negate", 0)
+    if negate not in (0, 1):  # True / False compare equal to 1 / 0
+        raise InputError(f"{path}: field 'negate': must be 0 or 1, got {negate!r}")
+    occupied = _threshold(meta, "occupied_thresh", OCCUPIED_THRESH, path)
+    free = _threshold(meta, "free_thresh", FREE_THRESH, path)
+    if free >= occupied:
+        raise InputError(
+            f"{path}: field 'free_thresh' ({free}) must be below occupied_thresh ({occupied})"
+        )
+    image_path = Path(image) if Path(image).is_absolute() else path.parent / image
+    return _Fields(
+        image_path,
+        _positive(meta, "resolution", path),
+        _origin(meta, path),
+        str(mode),
+        bool(negate),
+        occupied,
+        free,
+    )
+
+
+def _occupancy(pixels: NDArray[np.uint8], f: _Fields) -> NDArray[np.int8]:
+    """Cell values (image rows, top first) of ``pixels`` as map_server's ``mode`` makes them."""
+    value = 255 - pixels.astype(np.int64) if f.negate else pixels.astype(np.int64)
+    occupancy = np.full(pixels.shape, -1, dtype=np.int8)
+    if f.mode == "raw":
+        raw = value <= 100
+        occupancy[raw] = value[raw]
+        return occupancy
+    p = (255.0 - value) / 255.0
+    if f.mode == "scale":
+        between = (p >= f.free) & (p <= f.occupied)
+        ratio = (p[between] - f.free) / (f.occupied - f.free)
+        occupancy[between] = (1.0 + 98.0 * ratio).astype(np.int8)
+    occupancy[p > f.occupied] = 100
+    occupancy[p < f.free] = 0
+    return occupancy
+
+
 def read_map(yaml_path: str | Path) -> OccupancyGrid:
     """Read a map_server map (``map.yaml`` and the image it names, a P5 PGM) as map_server does.
 
-    Cells darker than ``occupied_thresh`` read as 100, lighter than ``free_thresh`` as 0,
-    the others as -1 (trinary mode; ``negate`` honoured).
+    ``mode`` (default ``trinary``) as ROS map_server reads it, after ``negate`` (a pixel
+    ``p`` becomes ``255 - p``): *trinary*: occupancy ``(255 - p) / 255`` above
+    ``occupied_thresh`` reads 100, below ``free_thresh`` 0, else -1; *scale*: the same,
+    with the values between the thresholds ``1 + 98 * (occ - free) / (occupied - free)``;
+    *raw*: the pixel value itself where it is 0..100, else -1 (unknown).
 
     Raises
     ------
     InputError
-        A missing file, a YAML without the map_server fields, or an image that is not P5.
+        A missing file, a YAML without the map_server fields or with a bad one (named:
+        ``resolution`` not > 0, an unknown ``mode``, ``negate`` not 0/1, thresholds outside
+        [0, 1] or not ordered, ``origin`` not three numbers), or an image that is not P5.
     """
     yaml_path = Path(yaml_path)
     if not yaml_path.is_file():
         raise InputError(f"{yaml_path}: no such file")
     try:
         meta = yaml.safe_load(yaml_path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise InputError(f"{yaml_path}: not a map YAML ({str(exc).splitlines()[0]})") from None
     if not isinstance(meta, dict):
         raise InputError(f"{yaml_path}: not a map YAML (a mapping of fields is expected)")
-    try:
-        resolution = float(_field(meta, "resolution", yaml_path))  # type: ignore[arg-type]
-        origin = tuple(float(v) for v in _field(meta, "origin", yaml_path))  # type: ignore[attr-defined]
-        negate = int(meta.get("negate", 0))
-        occupied = float(meta.get("occupied_thresh", OCCUPIED_THRESH))
-        free = float(meta.get("free_thresh", FREE_THRESH))
-    except (TypeError, ValueError):
-        raise InputError(f"{yaml_path}: resolution, origin or thresholds are not numbers") from None
-    if len(origin) != 3:
-        raise InputError(f"{yaml_path}: origin needs [x, y, yaw], got {len(origin)} values")
-    image_path = yaml_path.parent / str(_field(meta, "image", yaml_path))
-    if not image_path.is_file():
-        raise InputError(f"{yaml_path}: its image {image_path} does not exist")
-    pixels = _read_pgm(image_path).astype(np.float64)
-    p = pixels / 255.0 if negate else (255.0 - pixels) / 255.0
-    occupancy = np.full(pixels.shape, -1, dtype=np.int8)
-    occupancy[p > occupied] = 100
-    occupancy[p < free] = 0
-    return OccupancyGrid(occupancy[::-1].copy(), resolution, origin)  # type: ignore[arg-type]
+    f = _fields(meta, yaml_path)
+    if not f.image.is_file():
+        raise InputError(f"{yaml_path}: field 'image': its image {f.image} does not exist")
+    occupancy = _occupancy(_read_pgm(f.image), f)
+    return OccupancyGrid(occupancy[::-1].copy(), f.resolution, f.origin)

@@ -1,6 +1,7 @@
 """The rclpy adapter of the ROS 2 node's ``slam`` and ``localise`` modes.
 
-``laser-corners ros2 --ros-args -p mode:=slam`` (or ``-p mode:=localise -p map:=DIR``):
+``laser-corners ros2 --ros-args -p mode:=slam`` (or ``-p mode:=localise -p map:=DIR``, or
+``-p map:=map.yaml`` for a map_server map another package made):
 
 * subscribes ``scan`` (sensor-data QoS) and odometry: ``/tf`` (the ``odom -> base``
   transform) and ``/tf_static`` (the base -> laser mount) when ``tf2_msgs`` is importable,

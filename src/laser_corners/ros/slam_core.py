@@ -62,7 +62,9 @@ class MappingConfig(Options):
     ----------
     mode : {"slam", "localise"}
     map : str
-        ``localise``: the map folder ``laser-corners slam`` wrote (required).
+        ``localise``: the map folder ``laser-corners slam`` wrote, or a ``map_server`` YAML
+        (a map made by another package: virtual keyframes, :mod:`laser_corners.slam.gridmap`)
+        (required).
     output : str
         ``slam``: folder to write the map into at shutdown ("" = none).
     mount : list of float
@@ -118,7 +120,7 @@ class MappingConfig(Options):
     @classmethod
     def _map(cls, folder: str, info: ValidationInfo) -> str:
         if info.data.get("mode") == "localise" and not folder:
-            raise ValueError("mode localise needs -p map:=DIR")
+            raise ValueError("mode localise needs -p map:=DIR (or a map_server .yaml)")
         return folder
 
     @classmethod

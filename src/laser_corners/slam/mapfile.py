@@ -32,6 +32,11 @@ writing) and a folder missing a file its summary lists (incomplete: copied or ed
 A *partial* map, one whose run stopped early (Ctrl-C, SIGTERM, an error; ``"partial": true``
 in its summary), is complete as far as it goes: it loads, and says so in
 :attr:`SavedMap.partial_reason` (``localise`` warns of it).
+
+:func:`load_map` also reads a map made by another package: a ``map_server`` YAML (``.yaml`` /
+``.yml`` path) becomes a :class:`SavedMap` of *virtual keyframes* placed over the grid's
+free space (:mod:`laser_corners.slam.gridmap`), their points made as a real keyframe's, their
+360° scans kept in :attr:`SavedMap.virtual_scans`, a zero mount.
 """
 
 from __future__ import annotations
@@ -56,6 +61,8 @@ from laser_corners.registration.place_index import (
     index_from_arrays,
 )
 from laser_corners.registration.points import scan_points
+from laser_corners.scan import LaserScan
+from laser_corners.slam.gridmap import virtual_keyframes
 from laser_corners.slam.options import SlamOptions
 
 __all__ = [
@@ -80,6 +87,7 @@ class SavedMap:
     Attributes
     ----------
     folder : Path
+        The map folder, or the ``map_server`` YAML of a foreign map.
     poses : ndarray, shape (K, 3)
         Keyframe base poses in the map frame.
     stamps : ndarray, shape (K,)
@@ -99,6 +107,9 @@ class SavedMap:
     partial_reason : str or None
         Why the run that made the map stopped early (its ``summary.json``); None for a map
         of the whole recording, or a folder without a summary.
+    virtual_scans : list of LaserScan or None
+        A foreign map's (a ``map_server`` YAML): keyframe ``k``'s virtual 360° scan, taken at
+        ``poses[k]`` (:mod:`laser_corners.slam.gridmap`); None for a map folder.
     """
 
     folder: Path
@@ -114,6 +125,7 @@ class SavedMap:
     landmarks: NDArray[np.float64] | None = None
     places: PlaceIndex | None = None
     partial_reason: str | None = None
+    virtual_scans: list[LaserScan] | None = None
 
     def __len__(self) -> int:
         return int(self.poses.shape[0])
@@ -264,16 +276,22 @@ def _landmarks(folder: Path) -> NDArray[np.float64]:
 
 
 def load_map(folder: str | Path) -> SavedMap:
-    """Read a map folder written by ``laser-corners slam``.
+    """Read a map folder written by ``laser-corners slam``, or a ``map_server`` YAML (a map
+    made by another package, or our ``map.yaml`` alone) as virtual keyframes.
 
     Raises
     ------
     InputError
         The folder or ``keyframes.npz`` is missing, of another format version, incomplete or
         inconsistent; ``map.yaml`` is present but unreadable; the folder is a staging folder
-        or misses a file its ``summary.json`` lists (see the module notes).
+        or misses a file its ``summary.json`` lists (see the module notes); a YAML map is
+        unreadable, has a bad field or no free space to place a keyframe in.
     """
     folder = Path(folder)
+    if not folder.is_dir() and folder.suffix.lower() in (".yaml", ".yml"):
+        return _grid_map(folder)
+    if folder.is_file():
+        raise InputError(f"{folder}: not a map folder nor a map_server .yaml")
     a = _read_npz(folder)
     partial = _summary(folder)
     _check(folder / KEYFRAMES_FILE, a)
@@ -292,6 +310,26 @@ def load_map(folder: str | Path) -> SavedMap:
         landmarks=_landmarks(folder),
         places=index_from_arrays(a, PlaceOptions()),
         partial_reason=partial,
+    )
+
+
+def _grid_map(path: Path) -> SavedMap:
+    """A ``map_server`` map as a :class:`SavedMap` of virtual keyframes."""
+    grid = read_map(path)
+    virtual = virtual_keyframes(grid)
+    if not len(virtual):
+        raise InputError(
+            f"{path}: no free cell far enough from the walls to localise in "
+            "(is the image a map_server occupancy map? see its 'negate' and thresholds)"
+        )
+    a = keyframe_arrays(virtual)
+    return SavedMap(
+        folder=path,
+        grid=grid,
+        landmarks=np.zeros((0, 2)),
+        virtual_scans=virtual.scans,
+        places=index_from_arrays(a, PlaceOptions()),
+        **{k: a[k] for k in _ARRAYS},
     )
 
 
