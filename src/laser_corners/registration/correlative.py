@@ -110,13 +110,17 @@ def search(
     center: NDArray[np.float64],
     window_xy: float,
     window_yaw: float,
+    yaw_step: float | None = None,
 ) -> tuple[float, NDArray[np.float64]]:
-    """Best pose of ``points`` (base frame) in the window around ``center`` and its mean score."""
+    """Best pose of ``points`` (base frame) in the window around ``center`` and its mean score;
+    the heading step moves the farthest point by about a cell (0.008-0.05 rad) unless
+    ``yaw_step`` is given."""
     res = grid.resolution
     if points.shape[0] == 0:
         return 0.0, np.asarray(center, dtype=np.float64)
     reach = float(np.max(np.hypot(points[:, 0], points[:, 1])))
     step = min(max(math.acos(max(1.0 - res * res / (2.0 * reach * reach), -1.0)), 0.008), 0.05)
+    step = yaw_step or step
     n_yaw = math.ceil(window_yaw / step)
     yaws = center[2] + step * np.arange(-n_yaw, n_yaw + 1)
     n_xy = math.ceil(window_xy / res)

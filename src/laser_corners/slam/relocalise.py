@@ -14,8 +14,8 @@ back into the map built before it (:class:`Relocaliser`):
    keyframes; each candidate is moved by a bounded correlative check of the segment's last
    keyframes' points on a likelihood grid of the old map; the :data:`CANDIDATES` best are
    verified. Only when the index has nothing to propose (too few corners), on the first
-   :data:`FALLBACK_FIRST` attempts and two of every :data:`FALLBACK_EVERY` after, the
-   exhaustive search runs instead: the points scored by a correlative search
+   :data:`FALLBACK_FIRST` attempts of a segment, the exhaustive search runs instead: the
+   points scored by a correlative search
    (:func:`~laser_corners.registration.correlative.search`, every heading) around each old
    keyframe position (thinned to :data:`CENTER_SPACING`); the best distinct poses are kept.
 2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
@@ -95,9 +95,10 @@ AGREE_YAW = 0.1
 """... and by less than this (rad)."""
 FALLBACK_FIRST = 4
 """The exhaustive search (no candidate from the place index) runs on the first this many
-attempts of a lost segment..."""
-FALLBACK_EVERY = 5
-"""... and then on two of every this many (two consecutive attempts must agree)."""
+attempts of a lost segment only (a segment still lost after them is mapping new ground, or
+lies where the map has no corners: it is left to the index and the ordinary loop closure)."""
+SEARCH_YAW_STEP = 0.02
+"""Heading step (rad) of the exhaustive search (its candidates are verified by a finer search)."""
 
 
 @dataclass
@@ -132,7 +133,9 @@ class OldMap:
         map, with their mean likelihood, best first."""
         pts = query[np.linspace(0, len(query) - 1, min(len(query), QUERY_POINTS)).astype(int)]
         found = [
-            search(self.grid, pts, np.array([c[0], c[1], 0.0]), CENTER_WINDOW, math.pi)
+            search(
+                self.grid, pts, np.array([c[0], c[1], 0.0]), CENTER_WINDOW, math.pi, SEARCH_YAW_STEP
+            )
             for c in self.centres
         ]
         found.sort(key=lambda item: -item[0])
@@ -278,8 +281,7 @@ class Relocaliser:
 
     def _candidates(self, k: int, query: NDArray, estimate: NDArray) -> list[NDArray]:
         """Poses of keyframe ``k`` to verify: the place index's (dense-checked), else, on the
-        first :data:`FALLBACK_FIRST` attempts and two of every :data:`FALLBACK_EVERY` after,
-        the exhaustive search's."""
+        first :data:`FALLBACK_FIRST` attempts, the exhaustive search's."""
         assert self.old is not None and self.start is not None
         if self.places is not None and self.options.places.enabled:
             opt = self.options.places
@@ -290,8 +292,8 @@ class Relocaliser:
             if found:
                 checked = dense_check(found, self.old.grid, query, opt)
                 return [c.pose for c in checked[:CANDIDATES]]
-        if self.attempts > FALLBACK_FIRST and (self.attempts - 1) % FALLBACK_EVERY > 1:
-            return []  # pairs of attempts: two consecutive ones must agree
+        if self.attempts > FALLBACK_FIRST:
+            return []
         self.counts["exhaustive"] += 1
         return [pose for _, pose in self.old.search(query)]
 
