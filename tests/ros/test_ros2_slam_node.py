@@ -2,11 +2,14 @@
 
 As ``test_ros2_node.py`` (same isolation: a domain from the pid, loopback discovery, a
 namespace per node): the node runs as ``laser-corners ros2 --ros-args -p mode:=slam``; this
-process replays the first scans of ``fr079.bag`` with the bag's odometry and listens. The
-PyPI wheels have no ``tf2_msgs``, so there odometry goes over ``nav_msgs/Odometry`` (with
-``-p odom_topic``, ``-p mount``) and ``map -> odom`` comes back on ``map_to_odom``; with a
-ROS 2 installation that has ``tf2_msgs`` the test replays ``/tf`` + ``/tf_static`` instead and
-reads ``map -> odom`` from ``/tf``.
+process replays the first scans of ``fr079.bag`` with the bag's odometry on ``/tf`` and the
+laser mount on ``/tf_static`` (``tf2_msgs``, which ``make test`` builds from
+``ros2/interfaces/tf2_msgs`` with ``ros2/build_tf2_msgs.sh``), and looks up ``map ->
+base_link`` from the ``/tf`` messages it receives (a small buffer: the latest ``map -> odom``
+composed with ``odom -> base_link`` interpolated at the stamp; ``tf2_ros`` is not on PyPI).
+Without ``tf2_msgs`` (skipped, failed in CI) odometry goes over ``nav_msgs/Odometry`` and
+``map -> odom`` comes back on ``map_to_odom``; that fallback also runs with ``tf2_msgs``
+hidden from the node.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 from ros2_tools import RATE_HZ, STARTUP_TIMEOUT, Key, key_of, to_msg, wait_exit
-from ros_helpers import FR079, isolated_message_packages, stop, wait_for
+from ros_helpers import FR079, isolated_message_packages, skip_or_fail, stop, wait_for
 from test_ros2_node import Ros2, _run_ros2
 
 from laser_corners.pose import compose_many, invert_many
@@ -41,6 +44,7 @@ pytestmark = [
 
 N_SCANS = 300  # the first 64 s of fr079
 HAS_TF = importlib.util.find_spec("tf2_msgs") is not None
+TOLERANCE = 0.1  # the node's default transform_tolerance: map -> odom is future-dated by it
 
 
 @pytest.fixture(scope="module")
@@ -97,14 +101,23 @@ def _tf_msg(parent: str, child: str, stamp: float, pose: Any) -> Any:
     return TFMessage(transforms=[ts])
 
 
-class Received:
-    """Poses and map -> odom transforms by stamp, with receive times (thread-safe)."""
+def _shift(key: Key, seconds: float) -> Key:
+    """``key`` (sec, nanosec) plus ``seconds``."""
+    sec, nanosec = divmod(key[0] * 10**9 + key[1] + round(seconds * 1e9), 10**9)
+    return (sec, nanosec)
 
-    def __init__(self) -> None:
+
+class Received:
+    """Poses, map -> odom and odom -> base_link transforms by stamp, with receive times
+    (thread-safe); ``tolerance``: the node's transform_tolerance."""
+
+    def __init__(self, tolerance: float = TOLERANCE, tf: bool = HAS_TF) -> None:
         self.lock = threading.Lock()
+        self.tolerance, self.tf = tolerance, tf
         self.poses: dict[Key, Any] = {}
         self.received_at: dict[Key, float] = {}
         self.map_to_odom: dict[Key, Any] = {}
+        self.odom_tf: dict[Key, Any] = {}  # odom -> base_link seen on /tf (our replay's)
         self.grids: list[Any] = []
 
     def on_pose(self, msg: Any) -> None:
@@ -120,6 +133,8 @@ class Received:
             for ts in transforms:
                 if ts.child_frame_id == "odom" and ts.header.frame_id == "map":
                     self.map_to_odom.setdefault(key_of(ts.header.stamp), ts)
+                elif ts.child_frame_id == "base_link" and ts.header.frame_id == "odom":
+                    self.odom_tf.setdefault(key_of(ts.header.stamp), ts)
 
     def on_grid(self, msg: Any) -> None:
         with self.lock:
@@ -127,7 +142,28 @@ class Received:
 
     def count(self, keys: list[Key]) -> int:
         with self.lock:
-            return sum(k in self.poses and k in self.map_to_odom for k in keys)
+            return sum(k in self.poses and self.answered(k) for k in keys)
+
+    def answered(self, key: Key) -> bool:
+        """map -> odom of the scan stamped ``key`` came: stamped ``key + tolerance``."""
+        return _shift(key, self.tolerance) in self.map_to_odom
+
+    def lookup(self, stamp: float, odometry: list[tuple[float, Any]]) -> np.ndarray:
+        """``map -> base_link`` at ``stamp``, as tf2 would look it up from what came on /tf:
+        the latest map -> odom stamped at or before ``stamp + tolerance`` composed with
+        odom -> base_link interpolated at ``stamp`` (from /tf; without tf2_msgs, the bag's
+        odometry that went to the node as nav_msgs/Odometry)."""
+        with self.lock:
+            transforms = sorted(self.map_to_odom.items())
+            odom = sorted(self.odom_tf.items())
+        limit = stamp + self.tolerance + 1e-9
+        earlier = [ts for k, ts in transforms if k[0] + k[1] * 1e-9 <= limit]
+        assert earlier, f"no map -> odom at or before {stamp:.3f} + {self.tolerance} s"
+        if self.tf:
+            samples = [(k[0] + k[1] * 1e-9, _transform(ts)) for k, ts in odom]
+        else:
+            samples = [(t, _planar(msg.pose.pose)) for t, msg in odometry]
+        return compose_many(_transform(earlier[-1]), _interpolate(samples, stamp))
 
 
 def _planar(pose: Any) -> np.ndarray:
@@ -147,14 +183,16 @@ def _transform(ts: Any) -> np.ndarray:
 class Replay:
     """Publishes fr079's scans with its odometry (topic or /tf), odometry slightly ahead."""
 
-    def __init__(self, ros2: Ros2, name: str, odometry: list[tuple[float, Any]], mount) -> None:
+    def __init__(
+        self, ros2: Ros2, name: str, odometry: list[tuple[float, Any]], mount, tf: bool = HAS_TF
+    ) -> None:
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import LaserScan as LaserScanMsg
 
         node = ros2.node
-        self.node, self.odometry, self.next_odom = node, odometry, 0
+        self.node, self.odometry, self.next_odom, self.tf = node, odometry, 0, tf
         self.scan_pub = node.create_publisher(LaserScanMsg, ros2.topic(name, "scan"), 1000)
-        if HAS_TF:
+        if tf:
             from rclpy.qos import DurabilityPolicy, QoSProfile
             from tf2_msgs.msg import TFMessage
 
@@ -168,11 +206,11 @@ class Replay:
     def odometry_until(self, stamp: float) -> None:
         while self.next_odom < len(self.odometry) and self.odometry[self.next_odom][0] <= stamp:
             msg = self.odometry[self.next_odom][1]
-            if HAS_TF:
+            if self.tf:
                 p, o = msg.pose.pose.position, msg.pose.pose.orientation
                 yaw = 2.0 * np.arctan2(o.z, o.w)
-                stamp = self.odometry[self.next_odom][0]
-                self.odom_pub.publish(_tf_msg("odom", "base_link", stamp, (p.x, p.y, yaw)))
+                at = self.odometry[self.next_odom][0]
+                self.odom_pub.publish(_tf_msg("odom", "base_link", at, (p.x, p.y, yaw)))
             else:
                 self.odom_pub.publish(_odometry_msg(msg))
             self.next_odom += 1
@@ -180,7 +218,7 @@ class Replay:
     def destroy(self) -> None:
         self.node.destroy_publisher(self.scan_pub)
         self.node.destroy_publisher(self.odom_pub)
-        if HAS_TF:
+        if self.tf:
             self.node.destroy_publisher(self.static_pub)
 
 
@@ -208,7 +246,7 @@ def _reference_poses(scans: list[Any], mount) -> np.ndarray:
     return np.array(out)
 
 
-def _subscribe(ros2: Ros2, name: str, got: Received) -> list[Any]:
+def _subscribe(ros2: Ros2, name: str, got: Received, tf: bool = HAS_TF) -> list[Any]:
     """Our subscriptions to the node's pose and map -> odom."""
     from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 
@@ -218,7 +256,7 @@ def _subscribe(ros2: Ros2, name: str, got: Received) -> list[Any]:
             PoseWithCovarianceStamped, ros2.topic(name, "pose"), got.on_pose, 1000
         )
     ]
-    if HAS_TF:
+    if tf:
         from tf2_msgs.msg import TFMessage
 
         subs.append(node.create_subscription(TFMessage, "/tf", got.on_transform, 1000))
@@ -285,24 +323,27 @@ def _play_rest(replay: Replay, scans, msgs, keys) -> dict[Key, float]:
     return published_at
 
 
-def _odometry_at(odometry: list[tuple[float, Any]], stamp: float) -> np.ndarray:
-    stamps = np.array([o[0] for o in odometry])
-    raw = np.array([_planar(o[1].pose.pose) for o in odometry])
+def _interpolate(samples: list[tuple[float, np.ndarray]], stamp: float) -> np.ndarray:
+    """The planar pose at ``stamp`` between timed samples (linear, yaw unwrapped; the first
+    or last sample outside them, as the node's odometry track within its tolerance)."""
+    assert samples, "no odometry"
+    stamps = np.array([t for t, _ in samples])
+    raw = np.array([pose for _, pose in samples])
     yaw = np.unwrap(raw[:, 2])
     return np.array([np.interp(stamp, stamps, column) for column in (raw[:, 0], raw[:, 1], yaw)])
 
 
 def _check_pose_messages(got: Received, keys, scans, odometry) -> np.ndarray:
-    """map -> odom ∘ odometry(stamp) = the published pose; frames; covariance. The poses."""
+    """map -> base_link looked up from /tf = the published pose; frames; covariance. The
+    poses."""
     poses = []
     for key, scan in zip(keys, scans, strict=True):
         pose = _planar(got.poses[key].pose.pose)
-        base = _odometry_at(odometry, scan.stamp)
-        transform = _transform(got.map_to_odom[key])
+        assert got.answered(key), f"scan {key}: no map -> odom stamped {got.tolerance} s later"
         # 5 mm: under load the node's odometry queue (keep last N) may drop a sample, so its
         # interpolation bracket can be wider than ours (0.5 mm seen); a wrong composition is
         # off by centimetres to metres
-        np.testing.assert_allclose(compose_many(transform, base)[:2], pose[:2], atol=5e-3)
+        np.testing.assert_allclose(got.lookup(scan.stamp, odometry)[:2], pose[:2], atol=5e-3)
         assert got.poses[key].header.frame_id == "map"
         cov = np.asarray(got.poses[key].pose.covariance).reshape(6, 6)
         assert cov[0, 0] > 0 and cov[1, 1] > 0 and cov[5, 5] > 0
@@ -400,11 +441,11 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     keys = [key_of(m.header.stamp) for m in msgs]
     name = "lc_localise"
     args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'map'}"]
-    args += ["-p", f"queue_size:={N_SCANS}"]
+    args += ["-p", f"queue_size:={N_SCANS}", "-p", "transform_tolerance:=0.25"]
     if not HAS_TF:
         args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
     proc = ros2.start(name, *args)
-    got = Received()
+    got = Received(tolerance=0.25)
     subs = _subscribe(ros2, name, got)
     replay = Replay(ros2, name, odometry, mount)
     initial = fill_pose_with_covariance(
@@ -432,7 +473,7 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     assert returncode == 0, log
     assert "Traceback" not in log, log
     assert re.search(r"initial pose \[.*\] applied", log), log
-    answered = [i for i, k in enumerate(keys) if k in got.poses and k in got.map_to_odom]
+    answered = [i for i, k in enumerate(keys) if k in got.poses and got.answered(k)]
     assert len(answered) >= 0.95 * N_SCANS, f"{len(answered)} of {N_SCANS} scans got a pose"
     poses = _check_pose_messages(
         got, [keys[i] for i in answered], [scans[i] for i in answered], odometry
@@ -471,13 +512,72 @@ def test_mapping_modes_refuse_bad_parameters(ros2: Ros2, args: list[str], messag
     assert len(errors) == 1 and message in errors[0], log
 
 
-@pytest.mark.skipif(HAS_TF, reason="tf2_msgs is importable here: the node uses /tf")
-def test_without_tf2_msgs_slam_mode_needs_an_odometry_topic(ros2: Ros2) -> None:
-    """The PyPI wheels have no tf2_msgs: one line saying what to do, exit code 2."""
+def test_tf2_msgs_is_importable() -> None:
+    """``make test`` builds tf2_msgs into the venv (ros2/build_tf2_msgs.sh): /tf works."""
+    if not HAS_TF:
+        skip_or_fail("tf2_msgs is not importable: run ros2/build_tf2_msgs.sh .venv/bin/python")
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TF2Error, TFMessage
+
+    msg = TFMessage(transforms=[TransformStamped(child_frame_id="odom")])
+    assert msg.transforms[0].child_frame_id == "odom" and TF2Error.LOOKUP_ERROR == 1
+
+
+@pytest.fixture
+def hidden_tf2_msgs(tmp_path: Path) -> dict[str, str]:
+    """Environment of a node that cannot import tf2_msgs (a package on PYTHONPATH that raises
+    ImportError shadows the built one), as with the PyPI wheels alone."""
+    shadow = tmp_path / "shadow" / "tf2_msgs"
+    shadow.mkdir(parents=True)
+    (shadow / "__init__.py").write_text('raise ImportError("tf2_msgs hidden by the test")\n')
+    path = os.pathsep.join(p for p in (str(shadow.parent), os.environ.get("PYTHONPATH")) if p)
+    return {"PYTHONPATH": path}
+
+
+def test_without_tf2_msgs_slam_mode_needs_an_odometry_topic(
+    ros2: Ros2, hidden_tf2_msgs: dict[str, str]
+) -> None:
+    """Without tf2_msgs and without odom_topic: one line saying what to do, exit code 2."""
     name = "lc_no_tf"
-    proc = ros2.start(name, "-p", "mode:=slam")
+    proc = ros2.start(name, "-p", "mode:=slam", env=hidden_tf2_msgs)
     returncode = wait_exit(proc, "mode slam without tf2_msgs")
     log = ros2.log(name)
     assert returncode == 2, log
     errors = [line for line in log.splitlines() if "error:" in line]
     assert len(errors) == 1 and "-p odom_topic:=/odom" in errors[0], log
+    assert "build_tf2_msgs.sh" in errors[0], log
+
+
+def test_without_tf2_msgs_map_to_odom_goes_to_a_topic(
+    ros2: Ros2, hidden_tf2_msgs: dict[str, str]
+) -> None:
+    """The fallback: odometry from nav_msgs/Odometry, map -> odom (future-dated) on
+    ``map_to_odom``, and one warning saying so."""
+    n = 40
+    scans, odometry, mount = _fr079(n)
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name = "lc_fallback"
+    args = ["-p", "mode:=slam", "-p", "odom_topic:=odom", "-p", f"queue_size:={n}"]
+    args += ["-p", f"mount:=[{', '.join(map(str, mount))}]"]
+    proc = ros2.start(name, *args, env=hidden_tf2_msgs)
+    got = Received(tf=False)
+    subs = _subscribe(ros2, name, got, tf=False)
+    replay = Replay(ros2, name, odometry, mount, tf=False)
+    try:
+        _wait_matched(ros2, name, proc)
+        _probe_first(replay, scans, msgs, keys, got, proc)
+        _play_rest(replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys) == n, 60.0, "a pose for every scan", proc)
+        os.kill(proc.pid, signal.SIGINT)
+        returncode = wait_exit(proc, "SIGINT")
+    finally:
+        for sub in subs:
+            ros2.node.destroy_subscription(sub)
+        replay.destroy()
+        stop(proc, name)
+    log = ros2.log(name)
+    assert returncode == 0 and "Traceback" not in log, log
+    assert log.count("tf2_msgs is not importable") == 1, log
+    assert "map -> odom goes to" in log and "map_to_odom" in log, log
+    _check_pose_messages(got, keys, scans, odometry)

@@ -5,8 +5,9 @@
 * subscribes ``scan`` (sensor-data QoS) and odometry: ``/tf`` (the ``odom -> base``
   transform) and ``/tf_static`` (the base -> laser mount) when ``tf2_msgs`` is importable,
   or a ``nav_msgs/Odometry`` topic (``-p odom_topic:=/odom``, with ``-p mount:=[x, y, yaw]``);
-* publishes ``map -> odom`` on ``/tf`` (without ``tf2_msgs``: as a
-  ``geometry_msgs/TransformStamped`` on ``map_to_odom``), the base pose as
+* publishes ``map -> odom`` on ``/tf``, future-dated by ``transform_tolerance`` (without
+  ``tf2_msgs``: as a ``geometry_msgs/TransformStamped`` on ``map_to_odom``, with one warning;
+  ``ros2/build_tf2_msgs.sh`` builds ``tf2_msgs`` for PyPI installs), the base pose as
   ``geometry_msgs/PoseWithCovarianceStamped`` on ``pose``, the occupancy grid on ``map``
   (``nav_msgs/OccupancyGrid``, transient local: a late subscriber gets the last one; slam: every
   ``map_period`` s while keyframes are added; localise: the saved ``map.pgm`` once) and
@@ -43,9 +44,15 @@ from laser_corners.ros.slam_core import MappingConfig, MappingCore, Update
 __all__ = ["MappingAdapter", "messages"]
 
 TF_HINT = (
-    "tf2_msgs is not importable (ROS 2's PyPI wheels do not include it): source a ROS 2 "
-    "installation for /tf, or take odometry from a topic with -p odom_topic:=/odom "
+    "tf2_msgs is not importable (ROS 2's PyPI wheels do not include it): build it into this "
+    "Python with ros2/build_tf2_msgs.sh of the laser-corners checkout (make test does), or "
+    "source a ROS 2 installation, or take odometry from a topic with -p odom_topic:=/odom "
     "(and the laser mount with -p mount:=[x,y,yaw])"
+)
+TF_FALLBACK = (
+    "tf2_msgs is not importable: map -> odom goes to {topic} (geometry_msgs/TransformStamped), "
+    "not /tf, and /tf_static is not read; build tf2_msgs with ros2/build_tf2_msgs.sh "
+    "(docs/ros.md)"
 )
 
 
@@ -132,6 +139,8 @@ class MappingAdapter:
         self.map_pub = node.create_publisher(m.OccupancyGrid, "map", latched)
         self.marker_pub = node.create_publisher(m.MarkerArray, "landmarks", latched)
         self._subscribe(sensor, latched, depth)
+        if m.tf is None:
+            node.get_logger().warning(TF_FALLBACK.format(topic=self.tf_pub.topic_name))
         scan_sub = node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
         if self.config.mode == "localise":
             node.create_subscription(
@@ -151,10 +160,10 @@ class MappingAdapter:
         if self.config.odom_topic:
             node.create_subscription(m.Odometry, self.config.odom_topic, self.on_odometry, sensor)
         if m.tf is not None:
-            tf_qos = m.qos.QoSProfile(
+            tf_qos = m.qos.QoSProfile(  # tf2_ros's listener QoS (reliable), deeper queue
                 history=m.qos.HistoryPolicy.KEEP_LAST,
                 depth=max(depth, 100),
-                reliability=m.qos.ReliabilityPolicy.BEST_EFFORT,
+                reliability=m.qos.ReliabilityPolicy.RELIABLE,
             )
             static_qos = m.qos.QoSProfile(
                 history=m.qos.HistoryPolicy.KEEP_LAST,
@@ -237,7 +246,8 @@ class MappingAdapter:
 
     # ------------------------------------------------------------------ outputs
     def publish(self, update: Update) -> None:
-        """Pose and ``map -> odom`` of one processed scan."""
+        """Pose and ``map -> odom`` of one processed scan (``map -> odom`` future-dated by
+        ``transform_tolerance``, as AMCL does: valid until the next scan's)."""
         m, config = self.m, self.config
         stamp = _stamp(m, update.stamp)
         pose = fill_pose_with_covariance(
@@ -248,7 +258,7 @@ class MappingAdapter:
         ts = fill_transform(
             m.TransformStamped(), config.map_frame, self.core.book.odom_frame, update.map_to_odom
         )
-        ts.header.stamp = stamp
+        ts.header.stamp = _stamp(m, update.stamp + config.transform_tolerance)
         self.tf_pub.publish(m.tf(transforms=[ts]) if m.tf is not None else ts)
         self.node.get_logger().debug(f"{update.status}: {update.ms:.2f} ms")
 

@@ -84,6 +84,10 @@ class MappingConfig(Options):
         Seconds (wall clock) a scan may wait for odometry after its stamp once it arrived:
         a lagging odometry callback (several odometry messages per scan) is not a missing
         odometry.
+    transform_tolerance : float
+        Seconds ``map -> odom`` is future-dated by (its stamp is the scan's plus this), so
+        that tf lookups up to then succeed until the next scan (AMCL's parameter, same
+        default).
     """
 
     what: ClassVar[str] = "parameter"
@@ -101,6 +105,7 @@ class MappingConfig(Options):
     slam_config: str = ""
     queue_size: int = Field(50, ge=1, le=100_000)
     tf_wait: float = Field(1.0, gt=0.0, le=60.0)
+    transform_tolerance: float = Field(0.1, ge=0.0, le=10.0)
 
     @field_validator("mount")
     @classmethod
@@ -446,5 +451,5 @@ class MappingCore:
         )
         return (
             f"{c.scans} scans, {c.processed} processed, {c.no_odometry} without odometry, "
-            f"{c.no_fix} before a fix{timing}"
+            f"{c.no_fix} before a fix, {self.book.n_odometry} odometry samples{timing}"
         )
