@@ -119,6 +119,7 @@ class Received:
         self.map_to_odom: dict[Key, Any] = {}
         self.odom_tf: dict[Key, Any] = {}  # odom -> base_link seen on /tf (our replay's)
         self.grids: list[Any] = []
+        self.metadata: list[Any] = []
 
     def on_pose(self, msg: Any) -> None:
         now = time.perf_counter()
@@ -139,6 +140,10 @@ class Received:
     def on_grid(self, msg: Any) -> None:
         with self.lock:
             self.grids.append(msg)
+
+    def on_metadata(self, msg: Any) -> None:
+        with self.lock:
+            self.metadata.append(msg)
 
     def count(self, keys: list[Key]) -> int:
         with self.lock:
@@ -266,9 +271,10 @@ def _subscribe(ros2: Ros2, name: str, got: Received, tf: bool = HAS_TF) -> list[
     return subs
 
 
-def _latched_map(ros2: Ros2, name: str, got: Received, proc: Any) -> Any:
-    """Subscribe ``map`` now (a late subscriber, transient local) and wait for a grid."""
-    from nav_msgs.msg import OccupancyGrid
+def _latched_map(ros2: Ros2, name: str, got: Received, proc: Any) -> list[Any]:
+    """Subscribe ``map`` and ``map_metadata`` now (a late subscriber, transient local) and
+    wait for a grid and its metadata."""
+    from nav_msgs.msg import MapMetaData, OccupancyGrid
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     latched = QoSProfile(
@@ -276,10 +282,25 @@ def _latched_map(ros2: Ros2, name: str, got: Received, proc: Any) -> Any:
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
         reliability=ReliabilityPolicy.RELIABLE,
     )
-    topic = ros2.topic(name, "map")
-    sub = ros2.node.create_subscription(OccupancyGrid, topic, got.on_grid, latched)
-    wait_for(lambda: got.grids, 20.0, "the latched map", proc)
-    return sub
+    node = ros2.node
+    subs = [
+        node.create_subscription(OccupancyGrid, ros2.topic(name, "map"), got.on_grid, latched),
+        node.create_subscription(
+            MapMetaData, ros2.topic(name, "map_metadata"), got.on_metadata, latched
+        ),
+    ]
+    wait_for(lambda: got.grids and got.metadata, 20.0, "the latched map and metadata", proc)
+    return subs
+
+
+def _check_metadata(got: Received, grid: Any) -> None:
+    """``map_metadata`` (latched) describes the latched grid, as map_server's does."""
+    with got.lock:
+        meta = got.metadata[-1]
+    assert (meta.width, meta.height) == (grid.info.width, grid.info.height)
+    assert meta.resolution == pytest.approx(grid.info.resolution)
+    assert meta.origin.position.x == pytest.approx(grid.info.origin.position.x)
+    assert meta.origin.position.y == pytest.approx(grid.info.origin.position.y)
 
 
 def _wait_matched(ros2: Ros2, name: str, proc: Any) -> None:
@@ -377,7 +398,7 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
         published_at = _play_rest(replay, scans, msgs, keys)
         wait_for(lambda: got.count(keys) == N_SCANS, 60.0, "a pose for every scan", proc)
         time.sleep(1.5)  # one map_period after the last keyframe: the final grid
-        subs.append(_latched_map(ros2, name, got, proc))  # a late subscriber gets it
+        subs += _latched_map(ros2, name, got, proc)  # a late subscriber gets it
         os.kill(proc.pid, signal.SIGINT)
         returncode = wait_exit(proc, "SIGINT")
     finally:
@@ -406,7 +427,9 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     assert 5.0 < width < 100.0 and 5.0 < height < 100.0, (width, height)
     data = np.asarray(grid.data, dtype=np.int8)
     assert data.size == grid.info.width * grid.info.height
-    assert (data >= 65).sum() > 500 and ((data >= 0) & (data <= 25)).sum() > 5000
+    assert set(np.unique(data).tolist()) <= {-1, 0, 100}  # trinary, as map_server publishes
+    assert (data == 100).sum() > 500 and (data == 0).sum() > 5000
+    _check_metadata(got, grid)
     for file in ("map.yaml", "map.pgm", "trajectory.tum", "summary.json", "keyframes.npz"):
         assert (output / file).is_file(), file  # the folder of `laser-corners slam`
     print(
@@ -454,7 +477,7 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     initial.header.frame_id = "map"
     initial_pub = ros2.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", 10)
     try:
-        subs.append(_latched_map(ros2, name, got, proc))  # at start: the saved map.pgm
+        subs += _latched_map(ros2, name, got, proc)  # at start: the saved map.pgm
         _wait_matched(ros2, name, proc)
         # no fix without it on the first scan: an answer proves /initialpose arrived
         _probe_first(replay, scans, msgs, keys, got, proc, lambda: initial_pub.publish(initial))
@@ -484,6 +507,9 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     grid = got.grids[0]
     saved = (tmp_path / "map" / "map.pgm").read_bytes()
     assert grid.info.width * grid.info.height == len(grid.data) and len(grid.data) < len(saved)
+    data = np.asarray(grid.data, dtype=np.int8)
+    assert set(np.unique(data).tolist()) == {-1, 0, 100}  # the same convention as slam's
+    _check_metadata(got, grid)
     print(
         f"\nROS 2 localise node, fr079 in its own map: {_latency(got, published_at)}; "
         f"{len(answered)} of {N_SCANS} scans localised, max error {err.max() * 100:.1f} cm / "

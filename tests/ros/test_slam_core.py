@@ -384,7 +384,7 @@ def test_odometry_of() -> None:
 
 
 def test_occupancy_grid_message_keeps_rows_bottom_up() -> None:
-    occupancy = np.array([[0, 100, -1], [50, 0, 0]], dtype=np.int8)
+    occupancy = np.array([[0, 100, -1], [0, 0, 0]], dtype=np.int8)
     grid = OccupancyGrid(occupancy, 0.1, (-1.0, 2.0, 0.0))
     info = SimpleNamespace(
         resolution=0.0,
@@ -396,7 +396,38 @@ def test_occupancy_grid_message_keeps_rows_bottom_up() -> None:
     assert (msg.info.width, msg.info.height) == (3, 2)
     assert msg.info.resolution == pytest.approx(0.1)
     assert (msg.info.origin.position.x, msg.info.origin.position.y) == (-1.0, 2.0)
-    assert list(msg.data) == [0, 100, -1, 50, 0, 0]  # row 0 (bottom) first, as ROS
+    assert list(msg.data) == [0, 100, -1, 0, 0, 0]  # row 0 (bottom) first, as ROS
+
+
+def _message_cells(occupancy: np.ndarray) -> list[int]:
+    info = SimpleNamespace(
+        resolution=0.0,
+        width=0,
+        height=0,
+        origin=SimpleNamespace(position=_vec(), orientation=_quat()),
+    )
+    grid = OccupancyGrid(np.asarray(occupancy, dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    return list(fill_occupancy_grid(SimpleNamespace(info=info, data=None), grid).data)
+
+
+def test_occupancy_grid_message_is_trinary_as_map_server() -> None:
+    """Probabilities become -1/0/100 with map_server's rule: occupied above occupied_thresh
+    (0.65), free below free_thresh (0.196), unknown between; unknown stays unknown."""
+    cells = [-1, 0, 1, 19, 20, 50, 65, 66, 99, 100]
+    assert _message_cells(np.array([cells])) == [-1, 0, 0, 0, -1, -1, -1, 100, 100, 100]
+
+
+def test_saved_map_cells_go_over_unchanged(tmp_path) -> None:
+    """The localise mode's map (read from map.pgm with map_server's rule) is already trinary:
+    the same function leaves it as it is, so both modes publish one convention."""
+    from laser_corners.io.occupancy import read_map, write_map
+
+    rng = np.random.default_rng(1)
+    grid = OccupancyGrid(rng.integers(-1, 101, (6, 7)).astype(np.int8), 0.05, (0.0, 0.0, 0.0))
+    write_map(grid, tmp_path / "map.yaml")
+    saved = read_map(tmp_path / "map.yaml").occupancy
+    assert set(np.unique(saved)) <= {-1, 0, 100}
+    assert _message_cells(saved) == saved.reshape(-1).tolist()
 
 
 def test_landmark_markers() -> None:

@@ -9,8 +9,10 @@
   ``tf2_msgs``: as a ``geometry_msgs/TransformStamped`` on ``map_to_odom``, with one warning;
   ``ros2/build_tf2_msgs.sh`` builds ``tf2_msgs`` for PyPI installs), the base pose as
   ``geometry_msgs/PoseWithCovarianceStamped`` on ``pose``, the occupancy grid on ``map``
-  (``nav_msgs/OccupancyGrid``, transient local: a late subscriber gets the last one; slam: every
-  ``map_period`` s while keyframes are added; localise: the saved ``map.pgm`` once) and
+  (``nav_msgs/OccupancyGrid``, cells -1/0/100 as map_server's; transient local: a late
+  subscriber gets the last one; slam: every ``map_period`` s while keyframes are added;
+  localise: the saved ``map.pgm`` once) and its ``nav_msgs/MapMetaData`` on ``map_metadata``
+  (transient local), and
   landmarks on ``landmarks`` (``visualization_msgs/MarkerArray``) when there are any;
 * localise: ``/initialpose`` (RViz's 2D Pose Estimate) sets the localiser's pose;
 * slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``.
@@ -90,6 +92,7 @@ def messages() -> SimpleNamespace:
         Marker=visualization.Marker,
         MarkerArray=visualization.MarkerArray,
         OccupancyGrid=nav.OccupancyGrid,
+        MapMetaData=nav.MapMetaData,
         Odometry=nav.Odometry,
         tf=None if tf2 is None else tf2.TFMessage,
         qos=qos,
@@ -137,6 +140,7 @@ class MappingAdapter:
         )
         self.pose_pub = node.create_publisher(m.PoseWithCovarianceStamped, "pose", depth)
         self.map_pub = node.create_publisher(m.OccupancyGrid, "map", latched)
+        self.metadata_pub = node.create_publisher(m.MapMetaData, "map_metadata", latched)
         self.marker_pub = node.create_publisher(m.MarkerArray, "landmarks", latched)
         self._subscribe(sensor, latched, depth)
         if m.tf is None:
@@ -272,6 +276,7 @@ class MappingAdapter:
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.info.map_load_time = msg.header.stamp
         self.map_pub.publish(msg)
+        self.metadata_pub.publish(msg.info)
         markers = landmark_marker_fields(self.core.landmarks())
         if markers:
             m = self.m
