@@ -146,6 +146,7 @@ class MappingAdapter:
         if m.tf is None:
             node.get_logger().warning(TF_FALLBACK.format(topic=self.tf_pub.topic_name))
         scan_sub = node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
+        self.core.watch.scan_topic = scan_sub.topic_name
         if self.config.mode == "localise":
             node.create_subscription(
                 m.PoseWithCovarianceStamped, "/initialpose", self.on_initial_pose, 10
@@ -188,7 +189,10 @@ class MappingAdapter:
         try:
             scan = scan_from_msg(msg)
         except LaserCornersError as exc:
-            self._skip(f"skipped a malformed scan: {exc}")
+            self.core.malformed_scan()
+            self.node.get_logger().warning(
+                f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
+            )
             return
         self._run(lambda: self.core.add_scan(scan))
 
@@ -236,17 +240,19 @@ class MappingAdapter:
         self.node.get_logger().warning(text, throttle_duration_sec=5.0)
 
     def _run(self, step: Any) -> None:
+        """Run a core step, publish what it released, log the watch's warnings due."""
+        updates = []
         try:
             updates = step()
         except LaserCornersError as exc:
             self._skip(f"scan skipped: {exc}")
-            return
         except Exception as exc:  # a bug: keep the node alive, show the error
             self.n_skipped += 1
             self.node.get_logger().error(f"scan processing failed: {exc!r}")
-            return
         for update in updates:
             self.publish(update)
+        for text in self.core.watch.warnings(self.core.book):
+            self.node.get_logger().warning(text)
 
     # ------------------------------------------------------------------ outputs
     def publish(self, update: Update) -> None:

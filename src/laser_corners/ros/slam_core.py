@@ -38,6 +38,7 @@ from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.options import Options
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.ros.mapping_watch import MappingWatch
 from laser_corners.scan import LaserScan
 from laser_corners.slam.grid import occupancy_grid
 from laser_corners.slam.mapfile import SavedMap, load_map
@@ -88,6 +89,10 @@ class MappingConfig(Options):
         Seconds ``map -> odom`` is future-dated by (its stamp is the scan's plus this), so
         that tf lookups up to then succeed until the next scan (AMCL's parameter, same
         default).
+    odom_timeout : float
+        Seconds (wall clock) without odometry while scans arrive before a warning.
+    max_odom_jump : float
+        slam: metres the odometry may move between consecutive scans before a warning.
     """
 
     what: ClassVar[str] = "parameter"
@@ -106,6 +111,8 @@ class MappingConfig(Options):
     queue_size: int = Field(50, ge=1, le=100_000)
     tf_wait: float = Field(1.0, gt=0.0, le=60.0)
     transform_tolerance: float = Field(0.1, ge=0.0, le=10.0)
+    odom_timeout: float = Field(2.0, gt=0.0, le=3600.0)
+    max_odom_jump: float = Field(1.0, gt=0.0, le=1e6)
 
     @field_validator("mount")
     @classmethod
@@ -174,12 +181,14 @@ class OdometryBook:
         self._dynamic: list[tuple[str, str, float, tuple[float, float, float]]] = []
         self.n_odometry = 0
         self._stamps: set[float] = set()
+        self.on_input: Callable[[str, str], None] = lambda parent, child: None
 
     def add_odometry(
         self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
     ) -> None:
         """One odometry sample (``nav_msgs/Odometry`` or the ``odom -> base`` transform)."""
         odom, base = frame_name(odom_frame), frame_name(base_frame)
+        self.on_input(odom, base)
         self.odom_frame = self.odom_frame or odom
         self.base_frame = self.base_frame or base
         if (odom, base) != (self.odom_frame, self.base_frame) or stamp in self._stamps:
@@ -201,6 +210,7 @@ class OdometryBook:
             if self._is_odometry(frame_name(parent), frame_name(child)):
                 self.add_odometry(parent, child, stamp, pose)
             else:
+                self.on_input(frame_name(parent), frame_name(child))
                 tree.append((parent, child, pose))
         if tree:
             self.track.add_transforms(tree, False)
@@ -246,12 +256,14 @@ class Update:
 
 @dataclass
 class Counts:
-    """Scans seen, processed, dropped (no odometry in time), and without an estimate
-    (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms)."""
+    """Scans arrived, processed, dropped (no odometry in time), malformed, and without an
+    estimate (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms).
+    Every scan that arrived is in one of these or still waiting."""
 
     scans: int = 0
     processed: int = 0
     no_odometry: int = 0
+    malformed: int = 0
     no_fix: int = 0
     ms: list[float] = field(default_factory=list)
 
@@ -278,6 +290,14 @@ class MappingCore:
         )
         self.pending: deque[tuple[LaserScan, float]] = deque()  # with the arrival time
         self.counts = Counts()
+        self.watch = MappingWatch(
+            config.odom_topic or "/tf",
+            config.map_frame,
+            config.odom_timeout,
+            config.max_odom_jump,
+            clock,
+        )
+        self.book.on_input = self.watch.saw
         self.last: Update | None = None
         self._grid_at = -math.inf
         self._grid_keyframes = -1
@@ -292,8 +312,15 @@ class MappingCore:
     def add_scan(self, scan: LaserScan) -> list[Update]:
         """Queue a scan; process every queued scan whose odometry is in, in stamp order."""
         self.counts.scans += 1
+        self.watch.scan_arrived()
         self.pending.append((scan, self.clock()))
         return self.release()
+
+    def malformed_scan(self) -> None:
+        """Count a scan message that could not be read (it arrived, too)."""
+        self.counts.scans += 1
+        self.counts.malformed += 1
+        self.watch.scan_arrived()
 
     def release(self) -> list[Update]:
         """Process the queued scans that can be (call after new odometry too)."""
@@ -312,6 +339,7 @@ class MappingCore:
             odom = self.book.base_pose(scan.stamp) if ready else None
             if odom is None:
                 self.counts.no_odometry += 1
+                self.watch.dropped(scan.stamp, self.counts.no_odometry, self.book)
                 continue
             update = self._process(scan, odom)
             if update is not None:
@@ -324,6 +352,7 @@ class MappingCore:
         if self.estimator is None:
             self._start(scan)
         if self.config.mode == "slam":
+            self.watch.processed(scan.stamp, odom, self.book)
             pose, cov = self.estimator.add(scan, odom, scan.stamp)
             update = Update(scan.stamp, pose, cov, map_to_odom(pose, odom))
         else:
@@ -449,7 +478,10 @@ class MappingCore:
             if ms.size
             else ""
         )
+        w = self.watch
         return (
             f"{c.scans} scans, {c.processed} processed, {c.no_odometry} without odometry, "
-            f"{c.no_fix} before a fix, {self.book.n_odometry} odometry samples{timing}"
+            f"{c.malformed} malformed, {len(self.pending)} still waiting, {c.no_fix} before a "
+            f"fix; {self.book.n_odometry} odometry samples ({self.watch.pair(self.book)}), "
+            f"{w.counts.odom_jumps} odometry jumps; seen on {w.source}: {w.seen_pairs()}{timing}"
         )
