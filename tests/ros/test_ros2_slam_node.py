@@ -607,3 +607,76 @@ def test_without_tf2_msgs_map_to_odom_goes_to_a_topic(
     assert log.count("tf2_msgs is not importable") == 1, log
     assert "map -> odom goes to" in log and "map_to_odom" in log, log
     _check_pose_messages(got, keys, scans, odometry)
+
+
+def _summary_counts(log: str, signal_name: str) -> dict[str, int]:
+    """The scan counts of the node's shutdown line."""
+    line = re.search(rf"stopped by {signal_name}: .*", log)
+    assert line, log
+    names = ("scans", "processed", "without odometry", "malformed", "still waiting")
+    found = {n: re.search(rf"(\d+) {n}\b", line.group(0)) for n in names}
+    assert all(found.values()), line.group(0)
+    return {n: int(m.group(1)) for n, m in found.items()}
+
+
+def _warnings(log: str) -> list[str]:
+    return [line for line in log.splitlines() if line.startswith("[WARN]")]
+
+
+@pytest.mark.parametrize("case", ["wrong base_frame", "no odometry"])
+def test_missing_odometry_is_never_silent(ros2: Ros2, case: str) -> None:
+    """Scans with odometry in other frames, or none at all: throttled warnings on stderr
+    naming the frames and topics seen, and every scan counted in the summary."""
+    n = 60  # 3 s at 20 Hz: past odom_timeout (2 s)
+    scans, odometry, mount = _fr079(n)
+    msgs = [to_msg(s) for s in scans]
+    name = "lc_wrong_frame" if case == "wrong base_frame" else "lc_no_odom"
+    args = ["-p", "mode:=slam", "-p", f"queue_size:={n}", "-p", "tf_wait:=0.5"]
+    if case == "wrong base_frame":
+        args += ["-p", "base_frame:=base_footprint"]
+    proc = ros2.start(name, *args)
+    replay = Replay(ros2, name, odometry, mount)
+    try:
+        wait_for(
+            lambda: (
+                ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1
+                and ros2.node.count_subscribers("/tf") >= 1
+            ),
+            STARTUP_TIMEOUT,
+            "the node's scan and /tf subscriptions",
+            proc,
+        )
+        time.sleep(0.5)  # our side matched; give the node's side a moment (best effort)
+        start = time.perf_counter()
+        for i, msg in enumerate(msgs):
+            time.sleep(max(0.0, start + i / 20.0 - time.perf_counter()))
+            if case == "wrong base_frame":
+                replay.odometry_until(scans[i].stamp + 0.5)
+            replay.scan_pub.publish(msg)
+        wait_for(lambda: "no odometry for" in ros2.log(name), 10.0, "the warning", proc)
+        time.sleep(1.0)  # the last scans' tf_wait: dropped, not waiting
+        os.kill(proc.pid, signal.SIGINT)
+        returncode = wait_exit(proc, "SIGINT")
+    finally:
+        replay.destroy()
+        stop(proc, name)
+    log = ros2.log(name)
+    assert returncode == 0 and "Traceback" not in log, log
+    warnings = _warnings(log)
+    topic = ros2.topic(name, "scan")
+    lost = [w for w in warnings if "no odometry for" in w]
+    assert len(lost) == 1, log  # throttled: one in 3 s (every 5 s)
+    assert f"while scans arrive on {topic}" in lost[0], lost
+    dropped = [w for w in warnings if "dropped so far without odometry" in w]
+    assert dropped and topic in dropped[0], log
+    if case == "wrong base_frame":
+        frames = [w for w in warnings if "no odometry in frames odom -> base_footprint" in w]
+        assert frames and re.search(r"seen there: odom -> base_link \(\d+\)", frames[0]), log
+        assert re.search(r"seen there: odom -> base_link \(\d+\)", lost[0]), lost
+    else:
+        assert "expecting odom -> (any child) on /tf (none yet); seen there: nothing" in lost[0]
+    counts = _summary_counts(log, "SIGINT")
+    assert counts["processed"] == 0 and counts["malformed"] == 0, log
+    assert counts["without odometry"] + counts["still waiting"] == counts["scans"], log
+    assert 0.9 * n <= counts["scans"] <= n and counts["without odometry"] >= 0.9 * n, log
+    assert "0 odometry samples" in log, log
