@@ -63,6 +63,7 @@ class Node:
     def __init__(self) -> None:
         self.pubs: dict[str, Publisher] = {}
         self.subs: dict[str, Any] = {}
+        self.services: dict[str, Any] = {}
         self.logs: list[str] = []
         logger = SimpleNamespace(
             info=self.logs.append,
@@ -82,6 +83,9 @@ class Node:
 
     def create_timer(self, period: float, callback: Any) -> None:
         self.timer = callback
+
+    def create_service(self, cls: Any, name: str, callback: Any) -> None:
+        self.services[name] = callback
 
 
 def _transform(parent: str, child: str, stamp: float, pose: Any) -> Any:

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ros2_tools import RATE_HZ, STARTUP_TIMEOUT, Key, key_of, to_msg, wait_exit
+from ros2_tools import RATE_HZ, STARTUP_TIMEOUT, Key, call_service, key_of, to_msg, wait_exit
 from ros_helpers import FR079, isolated_message_packages, skip_or_fail, stop, wait_for
 from test_ros2_node import Ros2, _run_ros2
 
@@ -483,6 +483,10 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
         _probe_first(replay, scans, msgs, keys, got, proc, lambda: initial_pub.publish(initial))
         published_at = _play_rest(replay, scans, msgs, keys)
         wait_for(lambda: got.count(keys[-1:]) == 1, 60.0, "a pose for the last scan", proc)
+        restarted = _trigger(ros2, name, "reinitialize_global_localization", proc)
+        assert restarted.success, restarted.message
+        refused = _trigger(ros2, name, "serialize_map", proc)  # the map is the input here
+        assert not refused.success and "mode slam" in refused.message, refused.message
         os.kill(proc.pid, signal.SIGTERM)
         returncode = wait_exit(proc, "SIGTERM")
     finally:
@@ -496,6 +500,7 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     assert returncode == 0, log
     assert "Traceback" not in log, log
     assert re.search(r"initial pose \[.*\] applied", log), log
+    assert "reinitialize_global_localization: global search from the next scan" in log, log
     answered = [i for i, k in enumerate(keys) if k in got.poses and got.answered(k)]
     assert len(answered) >= 0.95 * N_SCANS, f"{len(answered)} of {N_SCANS} scans got a pose"
     poses = _check_pose_messages(
@@ -680,3 +685,73 @@ def test_missing_odometry_is_never_silent(ros2: Ros2, case: str) -> None:
     assert counts["without odometry"] + counts["still waiting"] == counts["scans"], log
     assert 0.9 * n <= counts["scans"] <= n and counts["without odometry"] >= 0.9 * n, log
     assert "0 odometry samples" in log, log
+
+
+def _trigger(ros2: Ros2, name: str, service: str, proc: Any) -> Any:
+    """Call the node's ``std_srvs/Trigger`` service ``service``; the response."""
+    from std_srvs.srv import Trigger
+
+    client = ros2.node.create_client(Trigger, ros2.topic(name, service))
+    try:
+        wait_for(client.service_is_ready, STARTUP_TIMEOUT, f"the {service} service", proc)
+        return call_service(lambda: client.call_async(Trigger.Request()), service)
+    finally:
+        ros2.node.destroy_client(client)
+
+
+def test_slam_services_write_the_map_while_running(ros2: Ros2, tmp_path: Path) -> None:
+    """save_map writes map_server's files, serialize_map the folder `localise` reads, while
+    the node runs; reinitialize_global_localization is refused in slam mode."""
+    from laser_corners.io.occupancy import read_map
+    from laser_corners.slam.mapfile import load_map
+
+    n = 60
+    scans, odometry, mount = _fr079(n)
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name, output = "lc_services", tmp_path / "live"
+    proc = ros2.start(name, "-p", "mode:=slam", "-p", f"output:={output}", "-p", "queue_size:=60")
+    got = Received()
+    subs = _subscribe(ros2, name, got)
+    replay = Replay(ros2, name, odometry, mount)
+    try:
+        _wait_matched(ros2, name, proc)
+        _probe_first(replay, scans, msgs, keys, got, proc)
+        _play_rest(replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys) == n, 60.0, "a pose for every scan", proc)
+        assert not (output / "map.yaml").exists()
+        saved = _trigger(ros2, name, "save_map", proc)
+        assert saved.success and str(output / "map.yaml") in saved.message, saved.message
+        grid = read_map(output / "map.yaml")
+        assert (grid.occupancy == 100).sum() > 100 and (grid.occupancy == 0).sum() > 1000
+        folder = _trigger(ros2, name, "serialize_map", proc)
+        assert folder.success and str(output) in folder.message, folder.message
+        saved_map = load_map(output)  # what `laser-corners localise` and mode:=localise read
+        assert len(saved_map) >= 5 and saved_map.grid is not None
+        refused = _trigger(ros2, name, "reinitialize_global_localization", proc)
+        assert not refused.success and "mode localise" in refused.message, refused.message
+        os.kill(proc.pid, signal.SIGINT)
+        returncode = wait_exit(proc, "SIGINT")
+    finally:
+        for sub in subs:
+            ros2.node.destroy_subscription(sub)
+        replay.destroy()
+        stop(proc, name)
+    log = ros2.log(name)
+    assert returncode == 0 and "Traceback" not in log, log
+    assert f"save_map: wrote {output / 'map.yaml'}" in log, log
+
+
+def test_an_unwritable_output_stops_the_node_at_start(ros2: Ros2, tmp_path: Path) -> None:
+    """`output` is checked at start (not at shutdown, after the run): one line, exit 2."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    name = "lc_bad_output"
+    started = time.monotonic()
+    proc = ros2.start(name, "-p", "mode:=slam", "-p", f"output:={blocker / 'map'}")
+    returncode = wait_exit(proc, "an unwritable output")
+    log = ros2.log(name)
+    assert returncode == 2 and "Traceback" not in log, log
+    errors = [line for line in log.splitlines() if "error:" in line]
+    assert len(errors) == 1 and f"output {blocker / 'map'}" in errors[0], log
+    assert time.monotonic() - started < STARTUP_TIMEOUT

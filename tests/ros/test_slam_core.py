@@ -454,3 +454,36 @@ def test_without_a_mount_the_first_scan_waits_tf_wait_then_uses_identity() -> No
     out = core.release()
     assert len(out) == len(scans) and core.counts.no_odometry == 0
     np.testing.assert_allclose(core.estimator.mount, [0.0, 0.0, 0.0])
+
+
+def test_an_unwritable_output_is_refused_at_start(tmp_path) -> None:
+    from laser_corners.errors import OutputError
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    with pytest.raises(OutputError, match=f"output {blocker / 'map'}: not writable"):
+        _core(output=str(blocker / "map"))
+    _core(output=str(tmp_path / "new" / "map"))  # created, writable
+    assert (tmp_path / "new" / "map").is_dir() and not any((tmp_path / "new" / "map").iterdir())
+
+
+def test_save_grid_writes_map_server_files_and_slam_has_nothing_to_reinitialize(
+    tmp_path,
+) -> None:
+    from laser_corners.errors import OutputError
+    from laser_corners.io.occupancy import read_map
+
+    truth, scans = _drive(20)
+    core = _core()
+    with pytest.raises(OutputError, match="nothing mapped yet"):
+        core.save_grid(tmp_path)
+    core.book.add_transforms([_tf("base_link", "laser", 0, MOUNT)], static=True)
+    for i, scan in enumerate(scans):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        core.add_scan(scan)
+    path = core.save_grid(tmp_path / "live")
+    assert path == tmp_path / "live" / "map.yaml" and path.with_suffix(".pgm").is_file()
+    grid = read_map(path)
+    assert (grid.occupancy == 100).sum() > 50 and (grid.occupancy == 0).sum() > 500
+    assert core.reinitialize() is False

@@ -15,7 +15,11 @@
   (transient local), and
   landmarks on ``landmarks`` (``visualization_msgs/MarkerArray``) when there are any;
 * localise: ``/initialpose`` (RViz's 2D Pose Estimate) sets the localiser's pose;
-* slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``.
+* slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``
+  (``output`` is checked at start);
+* ``std_srvs/Trigger`` services: ``save_map`` (map_server's map.yaml + map.pgm into
+  ``output``), ``serialize_map`` (slam: the whole map folder into ``output``) and
+  ``reinitialize_global_localization`` (localise: search the whole map again).
 
 All decisions are in :mod:`laser_corners.ros.slam_core` (ROS-free, unit-tested); this module
 turns messages into its calls and its results into messages.
@@ -29,7 +33,12 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from laser_corners.errors import InvalidParamsError, LaserCornersError, MissingDependencyError
+from laser_corners.errors import (
+    InvalidParamsError,
+    LaserCornersError,
+    MissingDependencyError,
+    first_line,
+)
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.ros.convert import fill_marker_array, scan_from_msg, seconds_to_sec_nanosec
 from laser_corners.ros.nav_convert import (
@@ -51,6 +60,7 @@ TF_HINT = (
     "source a ROS 2 installation, or take odometry from a topic with -p odom_topic:=/odom "
     "(and the laser mount with -p mount:=[x,y,yaw])"
 )
+NO_OUTPUT = "no output folder: start the node with -p output:=DIR"
 TF_FALLBACK = (
     "tf2_msgs is not importable: map -> odom goes to {topic} (geometry_msgs/TransformStamped), "
     "not /tf, and /tf_static is not read; build tf2_msgs with ros2/build_tf2_msgs.sh "
@@ -82,6 +92,10 @@ def messages() -> SimpleNamespace:
         import tf2_msgs.msg as tf2  # type: ignore[import-not-found]
     except ImportError:
         tf2 = None
+    try:
+        from std_srvs.srv import Trigger  # type: ignore[import-not-found]
+    except ImportError:
+        Trigger = None
     return SimpleNamespace(
         Duration=builtin.Duration,
         Time=builtin.Time,
@@ -95,6 +109,7 @@ def messages() -> SimpleNamespace:
         MapMetaData=nav.MapMetaData,
         Odometry=nav.Odometry,
         tf=None if tf2 is None else tf2.TFMessage,
+        Trigger=Trigger,
         qos=qos,
     )
 
@@ -153,6 +168,7 @@ class MappingAdapter:
             )
             self.publish_map()
         node.create_timer(1.0, self.on_timer)
+        self._services()
         odometry = self.config.odom_topic or "/tf"
         node.get_logger().info(
             f"mode {self.config.mode}: scans on {scan_sub.topic_name}, odometry "
@@ -182,6 +198,72 @@ class MappingAdapter:
             self.tf_pub = node.create_publisher(m.tf, "/tf", 100)
         else:
             self.tf_pub = node.create_publisher(m.TransformStamped, "map_to_odom", depth)
+
+    def _services(self) -> None:
+        """``std_srvs/Trigger`` services: save_map, serialize_map,
+        reinitialize_global_localization (a warning without std_srvs)."""
+        m, node = self.m, self.node
+        if m.Trigger is None:
+            node.get_logger().warning(
+                "std_srvs is not importable: no save_map, serialize_map or "
+                "reinitialize_global_localization services (pip install 'laser-corners[ros2]')"
+            )
+            return
+        node.create_service(m.Trigger, "save_map", self.on_save_map)
+        node.create_service(m.Trigger, "serialize_map", self.on_serialize_map)
+        node.create_service(m.Trigger, "reinitialize_global_localization", self.on_reinitialize)
+
+    # ------------------------------------------------------------------ services
+    def _answer(self, response: Any, service: str, step: Any) -> Any:
+        """Fill a Trigger response from ``step() -> (success, message)``; log it."""
+        try:
+            ok, text = step()
+        except LaserCornersError as exc:
+            ok, text = False, first_line(exc)
+        response.success, response.message = bool(ok), text
+        if ok:  # two call sites: rclpy refuses one site logging at two severities
+            self.node.get_logger().info(f"{service}: {text}")
+        else:
+            self.node.get_logger().warning(f"{service}: {text}")
+        return response
+
+    def on_save_map(self, request: Any, response: Any) -> Any:
+        """``save_map``: map_server's map.yaml + map.pgm of the current grid into ``output``."""
+
+        def step() -> tuple[bool, str]:
+            if not self.config.output:
+                return False, NO_OUTPUT
+            path = self.core.save_grid(Path(self.config.output))
+            return True, f"wrote {path}, {path.with_suffix('.pgm')}"
+
+        return self._answer(response, "save_map", step)
+
+    def on_serialize_map(self, request: Any, response: Any) -> Any:
+        """``serialize_map`` (slam): the whole map folder (what ``localise`` reads) into
+        ``output``, as at shutdown."""
+
+        def step() -> tuple[bool, str]:
+            if self.config.mode != "slam":
+                return False, "mode localise: the map is the input here (needs mode slam)"
+            if not self.config.output:
+                return False, NO_OUTPUT
+            wall = time.monotonic() - self.started
+            folder = self.core.write_map(Path(self.config.output), wall)
+            if folder is None:
+                return False, "nothing mapped yet"
+            return True, f"wrote the map folder {folder}"
+
+        return self._answer(response, "serialize_map", step)
+
+    def on_reinitialize(self, request: Any, response: Any) -> Any:
+        """``reinitialize_global_localization`` (localise): search the whole map again."""
+
+        def step() -> tuple[bool, str]:
+            if self.core.reinitialize():
+                return True, "global search from the next scan"
+            return False, "nothing to reinitialize in mode slam (mode localise only)"
+
+        return self._answer(response, "reinitialize_global_localization", step)
 
     # ------------------------------------------------------------------ inputs
     def on_scan(self, msg: Any) -> None:

@@ -20,6 +20,7 @@ this module and its results into messages.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -33,7 +34,7 @@ from numpy.typing import NDArray
 from pydantic import Field, ValidationInfo, field_validator
 
 from laser_corners.errors import OutputError
-from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.options import Options
@@ -52,8 +53,26 @@ __all__ = [
     "MappingCore",
     "OdometryBook",
     "Update",
+    "check_output",
     "map_to_odom",
 ]
+
+
+def check_output(folder: Path) -> None:
+    """Create ``folder`` and check a file can be written there.
+
+    Raises
+    ------
+    OutputError
+        One line naming the folder and the reason.
+    """
+    probe = folder / f".laser-corners-check-{os.getpid()}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"output {folder}: not writable ({exc.strerror or exc})") from None
 
 
 class MappingConfig(Options):
@@ -65,7 +84,9 @@ class MappingConfig(Options):
     map : str
         ``localise``: the map folder ``laser-corners slam`` wrote (required).
     output : str
-        ``slam``: folder to write the map into at shutdown ("" = none).
+        Folder for the map ("" = none): slam writes the map folder there at shutdown and on
+        ``serialize_map``; ``save_map`` writes map.yaml + map.pgm there. Created and checked
+        for writing at start.
     mount : list of float
         Base -> laser ``[x, y, yaw]``; empty: from ``/tf_static`` (identity without it).
     odom_topic : str
@@ -307,6 +328,8 @@ class MappingCore:
         if config.mode == "localise":  # read (and checked) at start: InputError, one line
             self.saved = load_map(config.map)
             self.saved_grid = self.saved.grid
+        if config.output:  # checked now, not after the run: OutputError, one line
+            check_output(Path(config.output))
 
     # ------------------------------------------------------------------ scans
     def add_scan(self, scan: LaserScan) -> list[Update]:
@@ -409,6 +432,32 @@ class MappingCore:
             raise OutputError(f"output {folder}: {exc}") from None
         write_slam_outputs(result, folder, info)
         return folder
+
+    def save_grid(self, folder: Path) -> Path:
+        """Write the current grid as map_server's ``map.yaml`` + ``map.pgm`` into ``folder``
+        (slam: built from the keyframes now; localise: the map's); the YAML path.
+
+        Raises
+        ------
+        OutputError
+            Nothing mapped yet, or the files cannot be written.
+        """
+        grid = self.grid()
+        if grid is None:
+            raise OutputError("nothing mapped yet: no keyframe")
+        folder.mkdir(parents=True, exist_ok=True)
+        return write_map(grid, folder / "map.yaml")[0]
+
+    def reinitialize(self) -> bool:
+        """localise: forget the pose and hypotheses; the next scans search the whole map
+        (a new ``Localiser`` on the same map). False in slam mode."""
+        if self.config.mode != "localise":
+            return False
+        self._initial = None
+        if self.estimator is not None:
+            assert self.saved is not None and self.mount is not None
+            self.estimator = Localiser(self.saved, options=LocaliseOptions(), mount=self.mount)
+        return True
 
     def set_pose(self, pose: NDArray[np.float64], covariance: NDArray[np.float64] | None) -> bool:
         """``/initialpose`` (localise): hand it to the localiser (kept until the first scan
