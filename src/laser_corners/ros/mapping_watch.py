@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,6 +29,15 @@ __all__ = ["WARN_PERIOD", "MappingWatch", "WatchCounts"]
 
 WARN_PERIOD = 5.0
 """Seconds between two warnings of one kind."""
+
+
+class OdometryBook(Protocol):
+    """What the watch reads of :class:`laser_corners.ros.slam_core.OdometryBook`."""
+
+    odom_frame: str
+    base_frame: str
+    n_odometry: int
+    span: tuple[float, float] | None
 
 
 @dataclass
@@ -85,17 +94,16 @@ class MappingWatch:
     def scan_arrived(self) -> None:
         self._scan_at = self.clock()
 
-    def dropped(self, stamp: float, n_dropped: int, book: Any) -> None:
+    def dropped(self, stamp: float, n_dropped: int, book: OdometryBook) -> None:
         """A scan was dropped without odometry (``book``: the core's odometry book)."""
-        times = book.track._t
-        have = f"{times[0]:.3f} .. {times[-1]:.3f} s" if times else "none"
+        have = "none" if book.span is None else f"{book.span[0]:.3f} .. {book.span[1]:.3f} s"
         self._pending["dropped"] = (
             f"{n_dropped} scan(s) on {self.scan_topic} dropped so far without odometry: the "
             f"last at stamp {stamp:.3f} s; odometry in hand ({self.pair(book)} from "
             f"{self.source}): {have}"
         )
 
-    def processed(self, stamp: float, odom: NDArray[np.float64], book: Any) -> None:
+    def processed(self, stamp: float, odom: NDArray[np.float64], book: OdometryBook) -> None:
         """slam: compare the odometry of a processed scan with the previous one's."""
         previous, self._previous = self._previous, (stamp, np.asarray(odom, dtype=np.float64))
         if previous is None:
@@ -110,7 +118,7 @@ class MappingWatch:
             )
 
     # ------------------------------------------------------------------ warnings
-    def warnings(self, book: Any) -> list[str]:
+    def warnings(self, book: OdometryBook) -> list[str]:
         """The warnings due now (each kind at most every :data:`WARN_PERIOD` s)."""
         now = self.clock()
         if book.n_odometry != self._n_odometry:
@@ -138,7 +146,7 @@ class MappingWatch:
                 del self._pending[kind]
         return out
 
-    def pair(self, book: Any) -> str:
+    def pair(self, book: OdometryBook) -> str:
         """The odometry frames expected, ``odom -> base`` (as configured or found)."""
         return f"{book.odom_frame or 'odom'} -> {book.base_frame or '(any child)'}"
 

@@ -203,6 +203,9 @@ class OdometryBook:
         self.n_odometry = 0
         self._stamps: set[float] = set()
         self.on_input: Callable[[str, str], None] = lambda parent, child: None
+        """Called with the frames of every odometry-like input (the watch counts them)."""
+        self.span: tuple[float, float] | None = None
+        """First and last stamp of the odometry samples taken."""
 
     def add_odometry(
         self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
@@ -217,6 +220,8 @@ class OdometryBook:
         self._stamps.add(stamp)
         self.track.add_odometry(odom, base, (float(stamp), *map(float, pose)))
         self.n_odometry += 1
+        first, last = self.span if self.span is not None else (stamp, stamp)
+        self.span = (min(first, float(stamp)), max(last, float(stamp)))
 
     def add_transforms(
         self, transforms: list[tuple[str, str, float, tuple[float, float, float]]], static: bool
