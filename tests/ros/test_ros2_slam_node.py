@@ -196,6 +196,7 @@ class Replay:
 
         node = ros2.node
         self.node, self.odometry, self.next_odom, self.tf = node, odometry, 0, tf
+        self.jump: tuple[float, float] | None = None  # (from stamp, metres added to x): /tf
         self.scan_pub = node.create_publisher(LaserScanMsg, ros2.topic(name, "scan"), 1000)
         if tf:
             from rclpy.qos import DurabilityPolicy, QoSProfile
@@ -215,7 +216,8 @@ class Replay:
                 p, o = msg.pose.pose.position, msg.pose.pose.orientation
                 yaw = 2.0 * np.arctan2(o.z, o.w)
                 at = self.odometry[self.next_odom][0]
-                self.odom_pub.publish(_tf_msg("odom", "base_link", at, (p.x, p.y, yaw)))
+                dx = self.jump[1] if self.jump is not None and at >= self.jump[0] else 0.0
+                self.odom_pub.publish(_tf_msg("odom", "base_link", at, (p.x + dx, p.y, yaw)))
             else:
                 self.odom_pub.publish(_odometry_msg(msg))
             self.next_odom += 1
@@ -765,3 +767,40 @@ def test_an_unwritable_output_stops_the_node_at_start(ros2: Ros2, tmp_path: Path
     errors = [line for line in log.splitlines() if "error:" in line]
     assert len(errors) == 1 and f"output {blocker / 'map'}" in errors[0], log
     assert time.monotonic() - started < STARTUP_TIMEOUT
+
+
+def test_an_odometry_jump_is_never_silent(ros2: Ros2) -> None:
+    """slam: the odometry teleports 5 m (a reset, a wrong message): a warning naming it and
+    the count in the summary; the scans are still mapped."""
+    n = 40
+    scans, odometry, mount = _fr079(n)
+    msgs = [to_msg(s) for s in scans]
+    keys = [key_of(m.header.stamp) for m in msgs]
+    name = "lc_jump"
+    proc = ros2.start(name, "-p", "mode:=slam", "-p", f"queue_size:={n}")
+    got = Received()
+    subs = _subscribe(ros2, name, got)
+    replay = Replay(ros2, name, odometry, mount)
+    replay.jump = ((scans[19].stamp + scans[20].stamp) / 2.0, 5.0)
+    try:
+        _wait_matched(ros2, name, proc)
+        _probe_first(replay, scans, msgs, keys, got, proc)
+        _play_rest(replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys) == n, 60.0, "a pose for every scan", proc)
+        os.kill(proc.pid, signal.SIGINT)
+        returncode = wait_exit(proc, "SIGINT")
+    finally:
+        for sub in subs:
+            ros2.node.destroy_subscription(sub)
+        replay.destroy()
+        stop(proc, name)
+    log = ros2.log(name)
+    assert returncode == 0 and "Traceback" not in log, log
+    jumps = [w for w in _warnings(log) if "odometry jumped" in w]
+    assert len(jumps) == 1 and "odom -> base_link from /tf; max_odom_jump 1 m" in jumps[0], log
+    found = re.search(r"odometry jumped (\d+\.\d+) m", jumps[0])
+    assert found and 1.0 < float(found.group(1)) < 6.0, jumps
+    summary = re.search(r"stopped by SIGINT: .*", log).group(0)
+    found = re.search(r"(\d+) odometry jumps", summary)
+    assert found and 1 <= int(found.group(1)) <= 2, summary  # the scan straddling it: 2
+    assert _summary_counts(log, "SIGINT")["processed"] >= n, log  # + repeated probes
