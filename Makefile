@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test test-ros lint bench clean ros1-deps
+.PHONY: demo test test-ros lint bench clean ros1-deps tf2-msgs
 
 # Debian's ROS 1 (bookworm: ros-core 1.16, rospy 1.15) for tests/ros/test_ros1_node.py. Installed
 # with apt-get only when something is missing, as root (or passwordless sudo); without apt-get
@@ -25,6 +25,19 @@ $(VENV)/.test: $(VENV)/.base
 	$(VENV)/bin/laser-corners warmup   # now with gtsam: the SLAM kernels too
 	touch $@
 
+# tf2_msgs (/tf, /tf_static) is not among ROS 2's PyPI wheels: build it from
+# ros2/interfaces/tf2_msgs into the venv with the rosidl wheels of the ros2 extra (cmake and a
+# C/C++ compiler from the system; about 30 s, once). Without cmake or a compiler it says so and
+# the node falls back to map_to_odom (its /tf tests then skip, and fail in CI). docs/ros.md
+$(VENV)/.tf2_msgs: $(VENV)/.test ros2/build_tf2_msgs.sh $(wildcard ros2/interfaces/tf2_msgs/* ros2/interfaces/tf2_msgs/msg/*)
+	@if [ -e $@ ]; then export FORCE=1; fi; \
+	ros2/build_tf2_msgs.sh $(PY); status=$$?; \
+	if [ $$status = 3 ]; then exit 0; fi; \
+	if [ $$status != 0 ]; then exit $$status; fi; \
+	touch $@
+
+tf2-msgs: $(VENV)/.tf2_msgs
+
 demo: $(VENV)/.base
 	$(VENV)/bin/laser-corners demo --output demo.png
 
@@ -42,13 +55,13 @@ ros1-deps:
 	$$sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
 	$$sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing
 
-test: $(VENV)/.test ros1-deps
+test: $(VENV)/.test $(VENV)/.tf2_msgs ros1-deps
 	$(PY) -m ruff check src tests benchmarks
 	$(PY) -m ruff format --check src tests benchmarks
 	$(PY) -m pytest -rsx
 
 # the ROS 1 and ROS 2 node tests alone, printing the end-to-end latencies (docs/ros.md)
-test-ros: $(VENV)/.test ros1-deps
+test-ros: $(VENV)/.test $(VENV)/.tf2_msgs ros1-deps
 	$(PY) -m pytest tests/ros -rs -s -q
 
 lint: $(VENV)/.test

@@ -1,10 +1,10 @@
 """The rclpy adapter of the slam mode on its ``/tf`` path, without DDS.
 
-The PyPI wheels have no ``tf2_msgs``, so the end-to-end test over DDS
-(``test_ros2_slam_node.py``) runs the ``odom_topic`` path. Here the adapter runs on a recording
-stand-in for the node, with rclpy's real message classes and a stand-in ``TFMessage``: odometry
-and the mount come in as ``/tf`` and ``/tf_static`` transforms, ``map -> odom`` goes out on
-``/tf``.
+The end-to-end test over DDS (``test_ros2_slam_node.py``) runs this path with the
+``tf2_msgs`` that ``ros2/build_tf2_msgs.sh`` builds; here the adapter runs on a recording
+stand-in for the node, with rclpy's real message classes and a stand-in ``TFMessage``, so it
+runs without that build too: odometry and the mount come in as ``/tf`` and ``/tf_static``
+transforms, ``map -> odom`` goes out on ``/tf``.
 """
 
 from __future__ import annotations
@@ -63,6 +63,7 @@ class Node:
     def __init__(self) -> None:
         self.pubs: dict[str, Publisher] = {}
         self.subs: dict[str, Any] = {}
+        self.services: dict[str, Any] = {}
         self.logs: list[str] = []
         logger = SimpleNamespace(
             info=self.logs.append,
@@ -82,6 +83,9 @@ class Node:
 
     def create_timer(self, period: float, callback: Any) -> None:
         self.timer = callback
+
+    def create_service(self, cls: Any, name: str, callback: Any) -> None:
+        self.services[name] = callback
 
 
 def _transform(parent: str, child: str, stamp: float, pose: Any) -> Any:
@@ -134,11 +138,13 @@ def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None
     np.testing.assert_allclose(adapter.core.estimator.mount, MOUNT)  # from /tf_static
     for i, (ts, pose_msg) in enumerate(zip(sent, poses, strict=True)):
         parent, child, stamp, map_to_odom = transform_of(ts)
-        assert (parent, child) == ("map", "odom") and stamp == pytest.approx(i / 10.0)
+        # future-dated by transform_tolerance (default 0.1 s), as AMCL does
+        assert (parent, child) == ("map", "odom") and stamp == pytest.approx(i / 10.0 + 0.1)
         o = pose_msg.pose.pose
         pose = (o.position.x, o.position.y, 2 * np.arctan2(o.orientation.z, o.orientation.w))
         np.testing.assert_allclose(
             compose_many(np.array(map_to_odom), odom[i])[:2], pose[:2], atol=1e-6
         )
     node.subs["scan"](SimpleNamespace(header=None))  # malformed: logged, counted, no raise
-    assert adapter.n_skipped == 1 and any("malformed scan" in line for line in node.logs)
+    assert adapter.core.counts.malformed == 1  # counted with the scans that arrived
+    assert any("malformed scan" in line for line in node.logs)

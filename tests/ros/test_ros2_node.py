@@ -75,8 +75,11 @@ class Ros2:
     tmp: Path
     processes: list[tuple[subprocess.Popen[bytes], str]] = field(default_factory=list)
 
-    def start(self, name: str, *ros_args: str) -> subprocess.Popen[bytes]:
-        """``laser-corners ros2`` as node ``name`` in its own namespace; stopped at teardown."""
+    def start(
+        self, name: str, *ros_args: str, env: dict[str, str] | None = None
+    ) -> subprocess.Popen[bytes]:
+        """``laser-corners ros2`` as node ``name`` in its own namespace (``env``: variables
+        to set besides the test's); stopped at teardown."""
         args = cli_command(
             "ros2",
             "--ros-args",
@@ -87,7 +90,7 @@ class Ros2:
             *ros_args,
         )
         with (self.tmp / f"{name}.log").open("wb") as log:
-            proc = spawn(args, self.env, log)
+            proc = spawn(args, {**self.env, **(env or {})}, log)
         self.processes.append((proc, name))
         return proc
 

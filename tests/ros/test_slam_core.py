@@ -404,7 +404,7 @@ def test_odometry_of() -> None:
 
 
 def test_occupancy_grid_message_keeps_rows_bottom_up() -> None:
-    occupancy = np.array([[0, 100, -1], [50, 0, 0]], dtype=np.int8)
+    occupancy = np.array([[0, 100, -1], [0, 0, 0]], dtype=np.int8)
     grid = OccupancyGrid(occupancy, 0.1, (-1.0, 2.0, 0.0))
     info = SimpleNamespace(
         resolution=0.0,
@@ -416,7 +416,38 @@ def test_occupancy_grid_message_keeps_rows_bottom_up() -> None:
     assert (msg.info.width, msg.info.height) == (3, 2)
     assert msg.info.resolution == pytest.approx(0.1)
     assert (msg.info.origin.position.x, msg.info.origin.position.y) == (-1.0, 2.0)
-    assert list(msg.data) == [0, 100, -1, 50, 0, 0]  # row 0 (bottom) first, as ROS
+    assert list(msg.data) == [0, 100, -1, 0, 0, 0]  # row 0 (bottom) first, as ROS
+
+
+def _message_cells(occupancy: np.ndarray) -> list[int]:
+    info = SimpleNamespace(
+        resolution=0.0,
+        width=0,
+        height=0,
+        origin=SimpleNamespace(position=_vec(), orientation=_quat()),
+    )
+    grid = OccupancyGrid(np.asarray(occupancy, dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    return list(fill_occupancy_grid(SimpleNamespace(info=info, data=None), grid).data)
+
+
+def test_occupancy_grid_message_is_trinary_as_map_server() -> None:
+    """Probabilities become -1/0/100 with map_server's rule: occupied above occupied_thresh
+    (0.65), free below free_thresh (0.196), unknown between; unknown stays unknown."""
+    cells = [-1, 0, 1, 19, 20, 50, 65, 66, 99, 100]
+    assert _message_cells(np.array([cells])) == [-1, 0, 0, 0, -1, -1, -1, 100, 100, 100]
+
+
+def test_saved_map_cells_go_over_unchanged(tmp_path) -> None:
+    """The localise mode's map (read from map.pgm with map_server's rule) is already trinary:
+    the same function leaves it as it is, so both modes publish one convention."""
+    from laser_corners.io.occupancy import read_map, write_map
+
+    rng = np.random.default_rng(1)
+    grid = OccupancyGrid(rng.integers(-1, 101, (6, 7)).astype(np.int8), 0.05, (0.0, 0.0, 0.0))
+    write_map(grid, tmp_path / "map.yaml")
+    saved = read_map(tmp_path / "map.yaml").occupancy
+    assert set(np.unique(saved)) <= {-1, 0, 100}
+    assert _message_cells(saved) == saved.reshape(-1).tolist()
 
 
 def test_landmark_markers() -> None:
@@ -443,3 +474,36 @@ def test_without_a_mount_the_first_scan_waits_tf_wait_then_uses_identity() -> No
     out = core.release()
     assert len(out) == len(scans) and core.counts.no_odometry == 0
     np.testing.assert_allclose(core.estimator.mount, [0.0, 0.0, 0.0])
+
+
+def test_an_unwritable_output_is_refused_at_start(tmp_path) -> None:
+    from laser_corners.errors import OutputError
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    with pytest.raises(OutputError, match=f"output {blocker / 'map'}: not writable"):
+        _core(output=str(blocker / "map"))
+    _core(output=str(tmp_path / "new" / "map"))  # created, writable
+    assert (tmp_path / "new" / "map").is_dir() and not any((tmp_path / "new" / "map").iterdir())
+
+
+def test_save_grid_writes_map_server_files_and_slam_has_nothing_to_reinitialize(
+    tmp_path,
+) -> None:
+    from laser_corners.errors import OutputError
+    from laser_corners.io.occupancy import read_map
+
+    truth, scans = _drive(20)
+    core = _core()
+    with pytest.raises(OutputError, match="nothing mapped yet"):
+        core.save_grid(tmp_path)
+    core.book.add_transforms([_tf("base_link", "laser", 0, MOUNT)], static=True)
+    for i, scan in enumerate(scans):
+        core.book.add_odometry("odom", "base_link", i / RATE, truth[i])
+        core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
+        core.add_scan(scan)
+    path = core.save_grid(tmp_path / "live")
+    assert path == tmp_path / "live" / "map.yaml" and path.with_suffix(".pgm").is_file()
+    grid = read_map(path)
+    assert (grid.occupancy == 100).sum() > 50 and (grid.occupancy == 0).sum() > 500
+    assert core.reinitialize() is False

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.errors import InvalidScanError
-from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.io.occupancy import FREE_THRESH, OCCUPIED_THRESH, OccupancyGrid
 from laser_corners.io.poses import yaw_from_quaternion
 from laser_corners.ros.convert import stamp_to_sec
 
@@ -31,6 +31,7 @@ __all__ = [
     "odometry_of",
     "pose_with_covariance_of",
     "transform_of",
+    "trinary",
 ]
 
 COVARIANCE_INDEX = (0, 1, 5)
@@ -144,17 +145,35 @@ def fill_pose_with_covariance(msg: Any, pose: ArrayLike, covariance: ArrayLike) 
     return msg
 
 
-def fill_occupancy_grid(msg: Any, grid: OccupancyGrid) -> Any:
-    """Set a ``nav_msgs/OccupancyGrid``'s ``info`` and ``data`` (not the header).
+def trinary(occupancy: ArrayLike) -> NDArray[np.int8]:
+    """Cells ``-1`` / 0..100 as map_server publishes a map in trinary mode: occupied (100)
+    above ``occupied_thresh`` 0.65, free (0) below ``free_thresh`` 0.196, else unknown (-1).
 
-    Both use row 0 = the bottom of the map (``y`` up), so the cells go over as they are.
+    The rule :func:`~laser_corners.io.occupancy.read_map` applies to a ``map.pgm``, so a map
+    read from a map folder goes over unchanged and the live SLAM grid (probabilities) follows
+    the same convention; planners (nav2's costmap) read only these three values.
+    """
+    occ = np.asarray(occupancy, dtype=np.int16)
+    p = occ / 100.0
+    out = np.full(occ.shape, -1, dtype=np.int8)
+    out[(occ >= 0) & (p > OCCUPIED_THRESH)] = 100
+    out[(occ >= 0) & (p < FREE_THRESH)] = 0
+    return out
+
+
+def fill_occupancy_grid(msg: Any, grid: OccupancyGrid) -> Any:
+    """Set a ``nav_msgs/OccupancyGrid``'s ``info`` and ``data`` (not the header); the cells
+    :func:`trinary`, as map_server publishes them.
+
+    Both use row 0 = the bottom of the map (``y`` up), so the rows go over as they are.
+    ``msg.info`` is the ``nav_msgs/MapMetaData`` to publish on ``map_metadata``.
     """
     rows, cols = grid.shape
     info = msg.info
     info.resolution = float(grid.resolution)
     info.width, info.height = int(cols), int(rows)
     fill_pose(info.origin, grid.origin)
-    msg.data = array("b", np.ascontiguousarray(grid.occupancy, dtype=np.int8).tobytes())
+    msg.data = array("b", np.ascontiguousarray(trinary(grid.occupancy)).tobytes())
     return msg
 
 

@@ -6,14 +6,21 @@
 * subscribes ``scan`` (sensor-data QoS) and odometry: ``/tf`` (the ``odom -> base``
   transform) and ``/tf_static`` (the base -> laser mount) when ``tf2_msgs`` is importable,
   or a ``nav_msgs/Odometry`` topic (``-p odom_topic:=/odom``, with ``-p mount:=[x, y, yaw]``);
-* publishes ``map -> odom`` on ``/tf`` (without ``tf2_msgs``: as a
-  ``geometry_msgs/TransformStamped`` on ``map_to_odom``), the base pose as
+* publishes ``map -> odom`` on ``/tf``, future-dated by ``transform_tolerance`` (without
+  ``tf2_msgs``: as a ``geometry_msgs/TransformStamped`` on ``map_to_odom``, with one warning;
+  ``ros2/build_tf2_msgs.sh`` builds ``tf2_msgs`` for PyPI installs), the base pose as
   ``geometry_msgs/PoseWithCovarianceStamped`` on ``pose``, the occupancy grid on ``map``
-  (``nav_msgs/OccupancyGrid``, transient local: a late subscriber gets the last one; slam: every
-  ``map_period`` s while keyframes are added; localise: the saved ``map.pgm`` once) and
+  (``nav_msgs/OccupancyGrid``, cells -1/0/100 as map_server's; transient local: a late
+  subscriber gets the last one; slam: every ``map_period`` s while keyframes are added;
+  localise: the saved ``map.pgm`` once) and its ``nav_msgs/MapMetaData`` on ``map_metadata``
+  (transient local), and
   landmarks on ``landmarks`` (``visualization_msgs/MarkerArray``) when there are any;
 * localise: ``/initialpose`` (RViz's 2D Pose Estimate) sets the localiser's pose;
-* slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``.
+* slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``
+  (``output`` is checked at start);
+* ``std_srvs/Trigger`` services: ``save_map`` (map_server's map.yaml + map.pgm into
+  ``output``), ``serialize_map`` (slam: the whole map folder into ``output``) and
+  ``reinitialize_global_localization`` (localise: search the whole map again).
 
 All decisions are in :mod:`laser_corners.ros.slam_core` (ROS-free, unit-tested); this module
 turns messages into its calls and its results into messages.
@@ -27,7 +34,12 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from laser_corners.errors import InvalidParamsError, LaserCornersError, MissingDependencyError
+from laser_corners.errors import (
+    InvalidParamsError,
+    LaserCornersError,
+    MissingDependencyError,
+    first_line,
+)
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.ros.convert import fill_marker_array, scan_from_msg, seconds_to_sec_nanosec
 from laser_corners.ros.nav_convert import (
@@ -44,9 +56,16 @@ from laser_corners.ros.slam_core import MappingConfig, MappingCore, Update
 __all__ = ["MappingAdapter", "messages"]
 
 TF_HINT = (
-    "tf2_msgs is not importable (ROS 2's PyPI wheels do not include it): source a ROS 2 "
-    "installation for /tf, or take odometry from a topic with -p odom_topic:=/odom "
+    "tf2_msgs is not importable (ROS 2's PyPI wheels do not include it): build it into this "
+    "Python with ros2/build_tf2_msgs.sh of the laser-corners checkout (make test does), or "
+    "source a ROS 2 installation, or take odometry from a topic with -p odom_topic:=/odom "
     "(and the laser mount with -p mount:=[x,y,yaw])"
+)
+NO_OUTPUT = "no output folder: start the node with -p output:=DIR"
+TF_FALLBACK = (
+    "tf2_msgs is not importable: map -> odom goes to {topic} (geometry_msgs/TransformStamped), "
+    "not /tf, and /tf_static is not read; build tf2_msgs with ros2/build_tf2_msgs.sh "
+    "(docs/ros.md)"
 )
 
 
@@ -74,6 +93,10 @@ def messages() -> SimpleNamespace:
         import tf2_msgs.msg as tf2  # type: ignore[import-not-found]
     except ImportError:
         tf2 = None
+    try:
+        from std_srvs.srv import Trigger  # type: ignore[import-not-found]
+    except ImportError:
+        Trigger = None
     return SimpleNamespace(
         Duration=builtin.Duration,
         Time=builtin.Time,
@@ -84,8 +107,10 @@ def messages() -> SimpleNamespace:
         Marker=visualization.Marker,
         MarkerArray=visualization.MarkerArray,
         OccupancyGrid=nav.OccupancyGrid,
+        MapMetaData=nav.MapMetaData,
         Odometry=nav.Odometry,
         tf=None if tf2 is None else tf2.TFMessage,
+        Trigger=Trigger,
         qos=qos,
     )
 
@@ -131,15 +156,20 @@ class MappingAdapter:
         )
         self.pose_pub = node.create_publisher(m.PoseWithCovarianceStamped, "pose", depth)
         self.map_pub = node.create_publisher(m.OccupancyGrid, "map", latched)
+        self.metadata_pub = node.create_publisher(m.MapMetaData, "map_metadata", latched)
         self.marker_pub = node.create_publisher(m.MarkerArray, "landmarks", latched)
         self._subscribe(sensor, latched, depth)
+        if m.tf is None:
+            node.get_logger().warning(TF_FALLBACK.format(topic=self.tf_pub.topic_name))
         scan_sub = node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
+        self.core.watch.scan_topic = scan_sub.topic_name
         if self.config.mode == "localise":
             node.create_subscription(
                 m.PoseWithCovarianceStamped, "/initialpose", self.on_initial_pose, 10
             )
             self.publish_map()
         node.create_timer(1.0, self.on_timer)
+        self._services()
         odometry = self.config.odom_topic or "/tf"
         node.get_logger().info(
             f"mode {self.config.mode}: scans on {scan_sub.topic_name}, odometry "
@@ -152,10 +182,10 @@ class MappingAdapter:
         if self.config.odom_topic:
             node.create_subscription(m.Odometry, self.config.odom_topic, self.on_odometry, sensor)
         if m.tf is not None:
-            tf_qos = m.qos.QoSProfile(
+            tf_qos = m.qos.QoSProfile(  # tf2_ros's listener QoS (reliable), deeper queue
                 history=m.qos.HistoryPolicy.KEEP_LAST,
                 depth=max(depth, 100),
-                reliability=m.qos.ReliabilityPolicy.BEST_EFFORT,
+                reliability=m.qos.ReliabilityPolicy.RELIABLE,
             )
             static_qos = m.qos.QoSProfile(
                 history=m.qos.HistoryPolicy.KEEP_LAST,
@@ -170,13 +200,82 @@ class MappingAdapter:
         else:
             self.tf_pub = node.create_publisher(m.TransformStamped, "map_to_odom", depth)
 
+    def _services(self) -> None:
+        """``std_srvs/Trigger`` services: save_map, serialize_map,
+        reinitialize_global_localization (a warning without std_srvs)."""
+        m, node = self.m, self.node
+        if m.Trigger is None:
+            node.get_logger().warning(
+                "std_srvs is not importable: no save_map, serialize_map or "
+                "reinitialize_global_localization services (pip install 'laser-corners[ros2]')"
+            )
+            return
+        node.create_service(m.Trigger, "save_map", self.on_save_map)
+        node.create_service(m.Trigger, "serialize_map", self.on_serialize_map)
+        node.create_service(m.Trigger, "reinitialize_global_localization", self.on_reinitialize)
+
+    # ------------------------------------------------------------------ services
+    def _answer(self, response: Any, service: str, step: Any) -> Any:
+        """Fill a Trigger response from ``step() -> (success, message)``; log it."""
+        try:
+            ok, text = step()
+        except LaserCornersError as exc:
+            ok, text = False, first_line(exc)
+        response.success, response.message = bool(ok), text
+        if ok:  # two call sites: rclpy refuses one site logging at two severities
+            self.node.get_logger().info(f"{service}: {text}")
+        else:
+            self.node.get_logger().warning(f"{service}: {text}")
+        return response
+
+    def on_save_map(self, request: Any, response: Any) -> Any:
+        """``save_map``: map_server's map.yaml + map.pgm of the current grid into ``output``."""
+
+        def step() -> tuple[bool, str]:
+            if not self.config.output:
+                return False, NO_OUTPUT
+            path = self.core.save_grid(Path(self.config.output))
+            return True, f"wrote {path}, {path.with_suffix('.pgm')}"
+
+        return self._answer(response, "save_map", step)
+
+    def on_serialize_map(self, request: Any, response: Any) -> Any:
+        """``serialize_map`` (slam): the whole map folder (what ``localise`` reads) into
+        ``output``, as at shutdown."""
+
+        def step() -> tuple[bool, str]:
+            if self.config.mode != "slam":
+                return False, "mode localise: the map is the input here (needs mode slam)"
+            if not self.config.output:
+                return False, NO_OUTPUT
+            wall = time.monotonic() - self.started
+            folder = self.core.write_map(Path(self.config.output), wall)
+            if folder is None:
+                return False, "nothing mapped yet"
+            return True, f"wrote the map folder {folder}"
+
+        return self._answer(response, "serialize_map", step)
+
+    def on_reinitialize(self, request: Any, response: Any) -> Any:
+        """``reinitialize_global_localization`` (localise): search the whole map again."""
+
+        def step() -> tuple[bool, str]:
+            if self.core.reinitialize():
+                return True, "global search from the next scan"
+            return False, "nothing to reinitialize in mode slam (mode localise only)"
+
+        return self._answer(response, "reinitialize_global_localization", step)
+
     # ------------------------------------------------------------------ inputs
     def on_scan(self, msg: Any) -> None:
         """Queue the scan; publish what the core released."""
         try:
             scan = scan_from_msg(msg)
         except LaserCornersError as exc:
-            self._skip(f"skipped a malformed scan: {exc}")
+            self.core.malformed_scan()
+            self.node.get_logger().warning(
+                f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
+            )
             return
         self._run(lambda: self.core.add_scan(scan))
 
@@ -224,21 +323,24 @@ class MappingAdapter:
         self.node.get_logger().warning(text, throttle_duration_sec=5.0)
 
     def _run(self, step: Any) -> None:
+        """Run a core step, publish what it released, log the watch's warnings due."""
+        updates = []
         try:
             updates = step()
         except LaserCornersError as exc:
             self._skip(f"scan skipped: {exc}")
-            return
         except Exception as exc:  # a bug: keep the node alive, show the error
             self.n_skipped += 1
             self.node.get_logger().error(f"scan processing failed: {exc!r}")
-            return
         for update in updates:
             self.publish(update)
+        for text in self.core.watch.warnings(self.core.book):
+            self.node.get_logger().warning(text)
 
     # ------------------------------------------------------------------ outputs
     def publish(self, update: Update) -> None:
-        """Pose and ``map -> odom`` of one processed scan."""
+        """Pose and ``map -> odom`` of one processed scan (``map -> odom`` future-dated by
+        ``transform_tolerance``, as AMCL does: valid until the next scan's)."""
         m, config = self.m, self.config
         stamp = _stamp(m, update.stamp)
         pose = fill_pose_with_covariance(
@@ -249,7 +351,7 @@ class MappingAdapter:
         ts = fill_transform(
             m.TransformStamped(), config.map_frame, self.core.book.odom_frame, update.map_to_odom
         )
-        ts.header.stamp = stamp
+        ts.header.stamp = _stamp(m, update.stamp + config.transform_tolerance)
         self.tf_pub.publish(m.tf(transforms=[ts]) if m.tf is not None else ts)
         self.node.get_logger().debug(f"{update.status}: {update.ms:.2f} ms")
 
@@ -263,6 +365,7 @@ class MappingAdapter:
         msg.header.stamp = self.node.get_clock().now().to_msg()
         msg.info.map_load_time = msg.header.stamp
         self.map_pub.publish(msg)
+        self.metadata_pub.publish(msg.info)
         markers = landmark_marker_fields(self.core.landmarks())
         if markers:
             m = self.m

@@ -20,6 +20,7 @@ this module and its results into messages.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
@@ -33,11 +34,12 @@ from numpy.typing import NDArray
 from pydantic import Field, ValidationInfo, field_validator
 
 from laser_corners.errors import OutputError
-from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.options import Options
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.ros.mapping_watch import MappingWatch
 from laser_corners.scan import LaserScan
 from laser_corners.slam.grid import occupancy_grid
 from laser_corners.slam.mapfile import SavedMap, load_map
@@ -51,8 +53,26 @@ __all__ = [
     "MappingCore",
     "OdometryBook",
     "Update",
+    "check_output",
     "map_to_odom",
 ]
+
+
+def check_output(folder: Path) -> None:
+    """Create ``folder`` and check a file can be written there.
+
+    Raises
+    ------
+    OutputError
+        One line naming the folder and the reason.
+    """
+    probe = folder / f".laser-corners-check-{os.getpid()}"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"output {folder}: not writable ({exc.strerror or exc})") from None
 
 
 class MappingConfig(Options):
@@ -66,7 +86,9 @@ class MappingConfig(Options):
         (a map made by another package: virtual keyframes, :mod:`laser_corners.slam.gridmap`)
         (required).
     output : str
-        ``slam``: folder to write the map into at shutdown ("" = none).
+        Folder for the map ("" = none): slam writes the map folder there at shutdown and on
+        ``serialize_map``; ``save_map`` writes map.yaml + map.pgm there. Created and checked
+        for writing at start.
     mount : list of float
         Base -> laser ``[x, y, yaw]``; empty: from ``/tf_static`` (identity without it).
     odom_topic : str
@@ -86,6 +108,14 @@ class MappingConfig(Options):
         Seconds (wall clock) a scan may wait for odometry after its stamp once it arrived:
         a lagging odometry callback (several odometry messages per scan) is not a missing
         odometry.
+    transform_tolerance : float
+        Seconds ``map -> odom`` is future-dated by (its stamp is the scan's plus this), so
+        that tf lookups up to then succeed until the next scan (AMCL's parameter, same
+        default).
+    odom_timeout : float
+        Seconds (wall clock) without odometry while scans arrive before a warning.
+    max_odom_jump : float
+        slam: metres the odometry may move between consecutive scans before a warning.
     """
 
     what: ClassVar[str] = "parameter"
@@ -103,6 +133,9 @@ class MappingConfig(Options):
     slam_config: str = ""
     queue_size: int = Field(50, ge=1, le=100_000)
     tf_wait: float = Field(1.0, gt=0.0, le=60.0)
+    transform_tolerance: float = Field(0.1, ge=0.0, le=10.0)
+    odom_timeout: float = Field(2.0, gt=0.0, le=3600.0)
+    max_odom_jump: float = Field(1.0, gt=0.0, le=1e6)
 
     @field_validator("mount")
     @classmethod
@@ -171,12 +204,17 @@ class OdometryBook:
         self._dynamic: list[tuple[str, str, float, tuple[float, float, float]]] = []
         self.n_odometry = 0
         self._stamps: set[float] = set()
+        self.on_input: Callable[[str, str], None] = lambda parent, child: None
+        """Called with the frames of every odometry-like input (the watch counts them)."""
+        self.span: tuple[float, float] | None = None
+        """First and last stamp of the odometry samples taken."""
 
     def add_odometry(
         self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
     ) -> None:
         """One odometry sample (``nav_msgs/Odometry`` or the ``odom -> base`` transform)."""
         odom, base = frame_name(odom_frame), frame_name(base_frame)
+        self.on_input(odom, base)
         self.odom_frame = self.odom_frame or odom
         self.base_frame = self.base_frame or base
         if (odom, base) != (self.odom_frame, self.base_frame) or stamp in self._stamps:
@@ -184,6 +222,8 @@ class OdometryBook:
         self._stamps.add(stamp)
         self.track.add_odometry(odom, base, (float(stamp), *map(float, pose)))
         self.n_odometry += 1
+        first, last = self.span if self.span is not None else (stamp, stamp)
+        self.span = (min(first, float(stamp)), max(last, float(stamp)))
 
     def add_transforms(
         self, transforms: list[tuple[str, str, float, tuple[float, float, float]]], static: bool
@@ -198,6 +238,7 @@ class OdometryBook:
             if self._is_odometry(frame_name(parent), frame_name(child)):
                 self.add_odometry(parent, child, stamp, pose)
             else:
+                self.on_input(frame_name(parent), frame_name(child))
                 tree.append((parent, child, pose))
         if tree:
             self.track.add_transforms(tree, False)
@@ -243,12 +284,14 @@ class Update:
 
 @dataclass
 class Counts:
-    """Scans seen, processed, dropped (no odometry in time), and without an estimate
-    (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms)."""
+    """Scans arrived, processed, dropped (no odometry in time), malformed, and without an
+    estimate (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms).
+    Every scan that arrived is in one of these or still waiting."""
 
     scans: int = 0
     processed: int = 0
     no_odometry: int = 0
+    malformed: int = 0
     no_fix: int = 0
     ms: list[float] = field(default_factory=list)
 
@@ -275,6 +318,14 @@ class MappingCore:
         )
         self.pending: deque[tuple[LaserScan, float]] = deque()  # with the arrival time
         self.counts = Counts()
+        self.watch = MappingWatch(
+            config.odom_topic or "/tf",
+            config.map_frame,
+            config.odom_timeout,
+            config.max_odom_jump,
+            clock,
+        )
+        self.book.on_input = self.watch.saw
         self.last: Update | None = None
         self._grid_at = -math.inf
         self._grid_keyframes = -1
@@ -284,13 +335,22 @@ class MappingCore:
         if config.mode == "localise":  # read (and checked) at start: InputError, one line
             self.saved = load_map(config.map)
             self.saved_grid = self.saved.grid
+        if config.output:  # checked now, not after the run: OutputError, one line
+            check_output(Path(config.output))
 
     # ------------------------------------------------------------------ scans
     def add_scan(self, scan: LaserScan) -> list[Update]:
         """Queue a scan; process every queued scan whose odometry is in, in stamp order."""
         self.counts.scans += 1
+        self.watch.scan_arrived()
         self.pending.append((scan, self.clock()))
         return self.release()
+
+    def malformed_scan(self) -> None:
+        """Count a scan message that could not be read (it arrived, too)."""
+        self.counts.scans += 1
+        self.counts.malformed += 1
+        self.watch.scan_arrived()
 
     def release(self) -> list[Update]:
         """Process the queued scans that can be (call after new odometry too)."""
@@ -309,6 +369,7 @@ class MappingCore:
             odom = self.book.base_pose(scan.stamp) if ready else None
             if odom is None:
                 self.counts.no_odometry += 1
+                self.watch.dropped(scan.stamp, self.counts.no_odometry, self.book)
                 continue
             update = self._process(scan, odom)
             if update is not None:
@@ -321,6 +382,7 @@ class MappingCore:
         if self.estimator is None:
             self._start(scan)
         if self.config.mode == "slam":
+            self.watch.processed(scan.stamp, odom, self.book)
             pose, cov = self.estimator.add(scan, odom, scan.stamp)
             update = Update(scan.stamp, pose, cov, map_to_odom(pose, odom))
         else:
@@ -377,6 +439,32 @@ class MappingCore:
             raise OutputError(f"output {folder}: {exc}") from None
         write_slam_outputs(result, folder, info)
         return folder
+
+    def save_grid(self, folder: Path) -> Path:
+        """Write the current grid as map_server's ``map.yaml`` + ``map.pgm`` into ``folder``
+        (slam: built from the keyframes now; localise: the map's); the YAML path.
+
+        Raises
+        ------
+        OutputError
+            Nothing mapped yet, or the files cannot be written.
+        """
+        grid = self.grid()
+        if grid is None:
+            raise OutputError("nothing mapped yet: no keyframe")
+        folder.mkdir(parents=True, exist_ok=True)
+        return write_map(grid, folder / "map.yaml")[0]
+
+    def reinitialize(self) -> bool:
+        """localise: forget the pose and hypotheses; the next scans search the whole map
+        (a new ``Localiser`` on the same map). False in slam mode."""
+        if self.config.mode != "localise":
+            return False
+        self._initial = None
+        if self.estimator is not None:
+            assert self.saved is not None and self.mount is not None
+            self.estimator = Localiser(self.saved, options=LocaliseOptions(), mount=self.mount)
+        return True
 
     def set_pose(self, pose: NDArray[np.float64], covariance: NDArray[np.float64] | None) -> bool:
         """``/initialpose`` (localise): hand it to the localiser (kept until the first scan
@@ -446,7 +534,10 @@ class MappingCore:
             if ms.size
             else ""
         )
+        w = self.watch
         return (
             f"{c.scans} scans, {c.processed} processed, {c.no_odometry} without odometry, "
-            f"{c.no_fix} before a fix{timing}"
+            f"{c.malformed} malformed, {len(self.pending)} still waiting, {c.no_fix} before a "
+            f"fix; {self.book.n_odometry} odometry samples ({self.watch.pair(self.book)}), "
+            f"{w.counts.odom_jumps} odometry jumps; seen on {w.source}: {w.seen_pairs()}{timing}"
         )
