@@ -165,8 +165,10 @@ def test_kidnap_is_detected_and_relocalised(building_map) -> None:
     assert estimates[-1] is not None and loc.status == "tracking"
 
 
-def test_symmetric_room_gives_no_fix() -> None:
-    # a bare rectangle looks the same turned by 180 degrees: no fix may be declared
+@pytest.mark.parametrize("places", [True, False], ids=["place-index", "exhaustive"])
+def test_symmetric_room_gives_no_fix(places: bool) -> None:
+    # a bare rectangle looks the same turned by 180 degrees: no fix may be declared, whether
+    # the place index or the exhaustive search proposes (both poses survive)
     world = World().add_polygon([[0, 0], [9, 0], [9, 5], [0, 5]])
     truth = loop_path(np.array([[1.5, 1.5], [7.5, 1.5], [7.5, 3.5], [1.5, 3.5]]), laps=2)
     import tempfile
@@ -174,12 +176,14 @@ def test_symmetric_room_gives_no_fix() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = map_folder(Path(tmp) / "m", world, truth[: len(truth) // 2])
+        options = LocaliseOptions().with_overrides([f"places.enabled={places}"])
         loc, estimates = localise(
-            folder, truth, scans_along(world, truth, 2), noisy_odometry(truth, 2)
+            folder, truth, scans_along(world, truth, 2), noisy_odometry(truth, 2), options
         )
     assert all(e is None for e in estimates)
     assert loc.status == "global" and not loc.fixes
-    assert loc.counts["searches"] > 5
+    # the place index proposes on every scan and needs no exhaustive search here
+    assert loc.counts["searches"] > 5 if not places else loc.counts["place_attempts"] > 500
 
 
 def test_map_folder_problems_are_one_line(tmp_path, building_map) -> None:

@@ -121,10 +121,11 @@ def _cross(loc: Localiser, drive: np.ndarray) -> list:
 
 
 def test_no_wrong_pose_in_the_unmapped_half_and_a_fix_back_in_the_map(half_map) -> None:
-    # the global search only near the mapping robot's path (the left room): the right room's
-    # look-alike is what it finds there, and must be refused
+    # the exhaustive search (a map without a place index) only near the mapping robot's path
+    # (the left room): the right room's look-alike is what it finds there, and must be refused
     drive = crossing()
-    loc = Localiser(half_map, LocaliseOptions(global_reach=0.75))
+    options = LocaliseOptions(global_reach=0.75).with_overrides(["places.enabled=false"])
+    loc = Localiser(half_map, options)
     got = _cross(loc, drive)
     assert all(drive[i, 0] < 10.5 for i, _ in got)  # nothing in the unmapped room
     assert loc.fixes, "no fix back in the mapped room"
@@ -143,3 +144,16 @@ def test_the_search_reaching_through_the_door_fixes_only_a_true_pose(half_map) -
     loc = Localiser(half_map)
     got = _cross(loc, drive)
     assert loc.fixes and len(got) >= 0.8 * (len(drive) - loc.fixes[0].scan_index)
+
+
+def test_the_place_index_fixes_through_the_door_and_tracks_the_unmapped_half(half_map) -> None:
+    # the corners seen through the door put the robot in the unmapped room at once, right;
+    # tracking then goes on there (local estimates) without a wrong pose
+    drive = crossing()
+    loc = Localiser(half_map, LocaliseOptions(global_reach=0.75))
+    got = _cross(loc, drive)  # none more than 0.5 m off
+    assert loc.fixes
+    fix = loc.fixes[0]
+    assert drive[fix.scan_index, 0] > 10.5  # in the unmapped room, seeing the map through the door
+    assert np.hypot(*(np.array(fix.pose[:2]) - drive[fix.scan_index, :2])) < 0.2
+    assert len(got) > 0.8 * len(drive)

@@ -8,18 +8,15 @@ import numpy as np
 import pytest
 
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.corners import Corners, QueryBuffer, corner_detector, scan_corners
 from laser_corners.registration.correlative import ScoreGrid
 from laser_corners.registration.place_index import (
-    Corners,
     PlaceIndex,
     PlaceOptions,
-    QueryBuffer,
     build_index,
-    corner_detector,
     dense_check,
     index_arrays,
     index_from_arrays,
-    scan_corners,
 )
 from laser_corners.registration.points import scan_points, transform
 from laser_corners.sim import UST_10LX, World
@@ -160,7 +157,7 @@ def test_keyframe_corners_form_a_query_in_a_keyframes_frame(mapped) -> None:
 
 
 def _corners_of(scan, index: PlaceIndex) -> Corners:
-    return scan_corners(scan, corner_detector(index.options, scan), MOUNT)
+    return scan_corners(scan, corner_detector(index.options.detector_preset, scan), MOUNT)
 
 
 def _map_points(world: World, poses: np.ndarray) -> np.ndarray:

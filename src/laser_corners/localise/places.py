@@ -18,16 +18,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.detector import CornerDetector
+from laser_corners.registration.corners import QueryBuffer, corner_detector, scan_corners
 from laser_corners.registration.correlative import ScoreGrid
-from laser_corners.registration.place_index import (
-    Candidate,
-    PlaceIndex,
-    PlaceOptions,
-    QueryBuffer,
-    corner_detector,
-    dense_check,
-    scan_corners,
-)
+from laser_corners.registration.place_index import Candidate, PlaceIndex, PlaceOptions, dense_check
 from laser_corners.scan import LaserScan
 
 __all__ = ["PlaceProposer"]
@@ -83,7 +76,7 @@ class PlaceProposer:
         if not self.usable:
             return
         if self._detector is None:
-            self._detector = corner_detector(self.options, scan)
+            self._detector = corner_detector(self.options.detector_preset, scan)
         self.buffer.add(odometry, scan_corners(scan, self._detector, self.mount))
 
     def clear(self) -> None:

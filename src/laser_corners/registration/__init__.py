@@ -2,6 +2,8 @@
 
 Modules: :mod:`~.points` (a scan's points and line normals in the base frame), :mod:`~.align`
 (point maps, point-to-line ICP, the share of a scan on a map), :mod:`~.correlative`
-(likelihood grids and the exhaustive correlative search), :mod:`~.place_index` (the map's
-corner keypoints and descriptors: candidate poses for a query in milliseconds).
+(likelihood grids and the exhaustive correlative search), :mod:`~.corners` (corner keypoints
+with descriptors, queries chained by odometry), :mod:`~.corner_grid` (the map's corners
+bucketed and grouped, the numba passes of a query), :mod:`~.place_index` (the map's corners
+as an index: candidate poses for a query in milliseconds).
 """

@@ -36,32 +36,31 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar, Literal
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
-from scipy.spatial import cKDTree
 
-from laser_corners.detector import CornerDetector
-from laser_corners.matching.descriptors import DescriptorParams, describe
 from laser_corners.options import Options
 from laser_corners.pose import between_many, compose_many, poses_apart, wrap_angle
+from laser_corners.registration.corner_grid import CornerGrid, count_votes, nearest
+from laser_corners.registration.corners import (
+    Corners,
+    corner_detector,
+    merge_close,
+    scan_corners,
+)
 from laser_corners.registration.correlative import ScoreGrid, search
 from laser_corners.scan import LaserScan
 
 __all__ = [
     "PLACES_VERSION",
     "Candidate",
-    "Corners",
     "PlaceIndex",
     "PlaceOptions",
-    "QueryBuffer",
     "build_index",
-    "corner_detector",
     "dense_check",
     "index_arrays",
     "index_from_arrays",
-    "scan_corners",
 ]
 
 PLACES_VERSION = 1
@@ -119,78 +118,6 @@ class PlaceOptions(Options):
 
 
 @dataclass
-class Corners:
-    """Corner keypoints in a base frame, with descriptors.
-
-    Attributes
-    ----------
-    xy : ndarray, shape (M, 2)
-        Positions (m).
-    orientation : ndarray, shape (M,)
-        Bisector orientations (rad).
-    opening : ndarray, shape (M,)
-        Opening angles (degrees).
-    descriptor : ndarray, shape (M, D), float32
-        ``csc`` descriptors (rotation invariant: the frame does not change them).
-    """
-
-    xy: NDArray[np.float64]
-    orientation: NDArray[np.float64]
-    opening: NDArray[np.float64]
-    descriptor: NDArray[np.float32]
-
-    def __len__(self) -> int:
-        return int(self.xy.shape[0])
-
-    @classmethod
-    def empty(cls, width: int = 0) -> Corners:
-        return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros((0, width), np.float32))
-
-    def moved(self, pose: NDArray[np.float64]) -> Corners:
-        """The corners in the frame where this frame's origin is at ``pose``."""
-        if len(self) == 0:
-            return self
-        xyt = compose_many(pose, np.column_stack([self.xy, self.orientation]))
-        return Corners(xyt[:, :2], xyt[:, 2], self.opening, self.descriptor)
-
-    @staticmethod
-    def joined(parts: list[Corners]) -> Corners:
-        """One set of the corners of ``parts`` (same frame)."""
-        full = [p for p in parts if len(p)]
-        if not full:
-            return Corners.empty(parts[0].descriptor.shape[1] if parts else 0)
-        parts = full
-        return Corners(
-            np.concatenate([p.xy for p in parts]).reshape(-1, 2),
-            np.concatenate([p.orientation for p in parts]),
-            np.concatenate([p.opening for p in parts]),
-            np.concatenate([p.descriptor for p in parts]),
-        )
-
-
-def corner_detector(options: PlaceOptions, scan: LaserScan) -> CornerDetector:
-    """The index's detector for ``scan``'s sensor (``auto``/``robust`` read the scan)."""
-    if options.detector_preset == "paper":
-        return CornerDetector("paper")
-    return CornerDetector.from_preset(options.detector_preset, scan)
-
-
-def scan_corners(scan: LaserScan, detector: CornerDetector, mount: NDArray[np.float64]) -> Corners:
-    """The corners of ``scan`` with ``csc`` descriptors, moved into the base frame by
-    ``mount`` (base -> laser)."""
-    kp = detector.detect(scan)
-    desc = describe(scan, kp, DescriptorParams("csc")).values.astype(np.float32)
-    ok = np.isfinite(kp.orientation) & np.isfinite(kp.xy).all(axis=1)
-    sensor = Corners(
-        np.asarray(kp.xy, dtype=np.float64)[ok],
-        np.asarray(kp.orientation, dtype=np.float64)[ok],
-        np.asarray(kp.opening_angle_deg, dtype=np.float64)[ok],
-        desc[ok],
-    )
-    return sensor.moved(np.asarray(mount, dtype=np.float64))
-
-
-@dataclass
 class Candidate:
     """A candidate pose of the query's frame in the map.
 
@@ -206,118 +133,6 @@ class Candidate:
     pose: NDArray[np.float64]
     votes: int
     score: float = math.nan
-
-
-@numba.njit(cache=True, nogil=True, fastmath=True)
-def _l1(a: NDArray[np.float32], b: NDArray[np.float32]) -> float:
-    acc = np.float32(0.0)
-    for c in range(a.shape[0]):
-        acc += abs(a[c] - b[c])
-    return acc
-
-
-@numba.njit(cache=True, nogil=True)
-def _nearest(
-    query: NDArray[np.float32],
-    q_open: NDArray[np.float64],
-    index: NDArray[np.float32],
-    m_open: NDArray[np.float64],
-    landmark: NDArray[np.int64],
-    n_landmarks: int,
-    max_open: float,
-    max_distance: float,
-    k: int,
-) -> NDArray[np.int64]:
-    """For each row of ``query``: the rows of ``index`` that are the best match (L1 distance)
-    of the ``k`` nearest distinct landmarks (``landmark``: each row's physical corner), among
-    rows with opening angles within ``max_open`` and distance at most ``max_distance``
-    (-1 where fewer qualify). Distinct landmarks: a corner seen from many keyframes must not
-    fill every place."""
-    nq = query.shape[0]
-    found = np.full((nq, k), -1, dtype=np.int64)
-    best = np.empty(n_landmarks)
-    arg = np.empty(n_landmarks, dtype=np.int64)
-    for q in range(nq):
-        best[:] = np.inf
-        arg[:] = -1
-        for m in range(index.shape[0]):
-            if abs(q_open[q] - m_open[m]) > max_open:
-                continue
-            d = _l1(query[q], index[m])
-            lm = landmark[m]
-            if d <= max_distance and d < best[lm]:
-                best[lm] = d
-                arg[lm] = m
-        for j in range(k):  # the k smallest of best, by selection (k is small)
-            pick = -1
-            for lm in range(n_landmarks):
-                if arg[lm] >= 0 and (pick < 0 or best[lm] < best[pick]):
-                    pick = lm
-            if pick < 0:
-                break
-            found[q, j] = arg[pick]
-            arg[pick] = -1
-    return found
-
-
-@numba.njit(cache=True, nogil=True)
-def _landmarks(
-    xy: NDArray[np.float64],
-    ori: NDArray[np.float64],
-    origin: NDArray[np.float64],
-    cell: float,
-    ny: int,
-    nx: int,
-    start: NDArray[np.int64],
-    order: NDArray[np.int64],
-    radius: float,
-    yaw_tol: float,
-) -> tuple[NDArray[np.int64], int]:
-    """A physical corner per group of observations: each unlabelled corner (in order) starts
-    a landmark and takes every unlabelled corner within ``radius`` and ``yaw_tol`` of it."""
-    n = xy.shape[0]
-    label = np.full(n, -1, dtype=np.int64)
-    count = 0
-    r2 = radius * radius
-    for i in range(n):
-        if label[i] >= 0:
-            continue
-        label[i] = count
-        ix = math.floor((xy[i, 0] - origin[0]) / cell)
-        iy = math.floor((xy[i, 1] - origin[1]) / cell)
-        for b in range(max(iy - 1, 0), min(iy + 2, ny)):
-            for a in range(max(ix - 1, 0), min(ix + 2, nx)):
-                key = b * nx + a
-                for t in range(start[key], start[key + 1]):
-                    m = order[t]
-                    if label[m] >= 0:
-                        continue
-                    dx = xy[m, 0] - xy[i, 0]
-                    dy = xy[m, 1] - xy[i, 1]
-                    turn = (ori[m] - ori[i] + math.pi) % (2.0 * math.pi) - math.pi
-                    if dx * dx + dy * dy <= r2 and abs(turn) <= yaw_tol:
-                        label[m] = count
-        count += 1
-    return label, count
-
-
-def merge_close(corners: Corners, radius: float, yaw: float) -> Corners:
-    """One corner per physical corner: a corner within ``radius`` and ``yaw`` of an earlier
-    kept one is dropped (the query's scans see one corner many times)."""
-    if len(corners) < 2:
-        return corners
-    tree = cKDTree(corners.xy)
-    keep = np.ones(len(corners), dtype=bool)
-    for i, near in enumerate(tree.query_ball_point(corners.xy, radius)):
-        if not keep[i]:
-            continue
-        near = np.asarray([j for j in near if j > i], dtype=np.int64)
-        if near.size:
-            same = np.abs(wrap_angle(corners.orientation[near] - corners.orientation[i])) <= yaw
-            keep[near[same]] = False
-    return Corners(
-        corners.xy[keep], corners.orientation[keep], corners.opening[keep], corners.descriptor[keep]
-    )
 
 
 @dataclass
@@ -404,7 +219,7 @@ class PlaceIndex:
         if grid is None or len(query) < opt.min_votes:
             return []
         mapped = grid.corners
-        found = _nearest(
+        found = nearest(
             np.ascontiguousarray(query.descriptor),
             np.ascontiguousarray(query.opening),
             np.ascontiguousarray(mapped.descriptor),
@@ -429,90 +244,10 @@ class PlaceIndex:
         return _distinct(poses_h, votes, opt)
 
 
-@dataclass
-class CornerGrid:
-    """Map corners bucketed in square cells (CSR: ``start[c]:start[c + 1]`` of ``order``),
-    for the consensus lookups, and grouped into physical corners (``landmark``: the corners
-    within ``radius`` and 0.35 rad of a first one, :func:`_landmarks`)."""
-
-    corners: Corners
-    origin: NDArray[np.float64]
-    cell: float
-    shape: tuple[int, int]
-    start: NDArray[np.int64]
-    order: NDArray[np.int64]
-    landmark: NDArray[np.int64]
-    n_landmarks: int
-
-    @classmethod
-    def build(cls, corners: Corners, radius: float) -> CornerGrid:
-        lo = corners.xy.min(axis=0) - radius
-        span = corners.xy.max(axis=0) + radius - lo
-        cell = max(radius, float(span.max()) / 4096.0)  # at most 4096 cells a side
-        nx, ny = (np.floor(span / cell).astype(np.int64) + 1).tolist()
-        ij = np.floor((corners.xy - lo) / cell).astype(np.int64)
-        key = ij[:, 1] * nx + ij[:, 0]
-        order = np.argsort(key, kind="stable")
-        start = np.searchsorted(key[order], np.arange(nx * ny + 1)).astype(np.int64)
-        xy = np.ascontiguousarray(corners.xy)
-        ori = np.ascontiguousarray(corners.orientation)
-        landmark, count = _landmarks(xy, ori, lo, cell, ny, nx, start, order, radius, 0.35)
-        return cls(corners, lo, cell, (ny, nx), start, order, landmark, count)
-
-
-@numba.njit(cache=True, nogil=True)
-def _count_votes(
-    poses: NDArray[np.float64],
-    qxy: NDArray[np.float64],
-    qori: NDArray[np.float64],
-    mxy: NDArray[np.float64],
-    mori: NDArray[np.float64],
-    origin: NDArray[np.float64],
-    cell: float,
-    ny: int,
-    nx: int,
-    start: NDArray[np.int64],
-    order: NDArray[np.int64],
-    radius: float,
-    yaw_tol: float,
-) -> NDArray[np.int64]:
-    """Per pose: the query corners landing within ``radius`` of a map corner whose bisector
-    is within ``yaw_tol`` of theirs."""
-    votes = np.zeros(poses.shape[0], dtype=np.int64)
-    r2 = radius * radius
-    for h in range(poses.shape[0]):
-        c = math.cos(poses[h, 2])
-        s = math.sin(poses[h, 2])
-        for q in range(qxy.shape[0]):
-            x = c * qxy[q, 0] - s * qxy[q, 1] + poses[h, 0]
-            y = s * qxy[q, 0] + c * qxy[q, 1] + poses[h, 1]
-            ori = qori[q] + poses[h, 2]
-            ix = math.floor((x - origin[0]) / cell)
-            iy = math.floor((y - origin[1]) / cell)
-            hit = False
-            for b in range(max(iy - 1, 0), min(iy + 2, ny)):
-                for a in range(max(ix - 1, 0), min(ix + 2, nx)):
-                    key = b * nx + a
-                    for t in range(start[key], start[key + 1]):
-                        m = order[t]
-                        dx = mxy[m, 0] - x
-                        dy = mxy[m, 1] - y
-                        turn = (mori[m] - ori + math.pi) % (2.0 * math.pi) - math.pi
-                        if dx * dx + dy * dy <= r2 and abs(turn) <= yaw_tol:
-                            hit = True
-                            break
-                    if hit:
-                        break
-                if hit:
-                    break
-            votes[h] += hit
-    return votes
-
-
 def _votes(poses: NDArray[np.float64], query: Corners, grid: CornerGrid, opt: PlaceOptions):
     """:func:`_count_votes` of ``poses`` for ``query`` against ``grid``."""
     m = grid.corners
-    return _count_votes(
+    return count_votes(
         np.ascontiguousarray(poses),
         np.ascontiguousarray(query.xy),
         np.ascontiguousarray(query.orientation),
@@ -558,50 +293,6 @@ def dense_check(
     return checked
 
 
-KEEP_STEP = 0.2
-"""A scan's corners join the query buffer after this much travel (m, turns 0.5 m per radian)
-since the last kept scan: consecutive scans see the same corners."""
-
-
-@dataclass
-class QueryBuffer:
-    """The corners of the last scans, chained by odometry: a query in the newest base frame.
-
-    :meth:`add` keeps a scan's corners (its base frame) with its odometry pose when the robot
-    moved :data:`KEEP_STEP` since the last kept scan; scans more than ``travel`` metres of
-    odometry before the newest are dropped.
-    """
-
-    travel: float
-    _items: list[tuple[NDArray[np.float64], float, Corners]] = field(default_factory=list)
-    _travelled: float = 0.0
-    _last: NDArray[np.float64] | None = None
-
-    def add(self, odometry: NDArray[np.float64], corners: Corners) -> None:
-        odometry = np.asarray(odometry, dtype=np.float64)
-        if self._last is not None:
-            d = between_many(self._last, odometry)
-            self._travelled += math.hypot(d[0], d[1]) + 0.5 * abs(d[2])
-        self._last = odometry
-        if self._items and self._travelled - self._items[-1][1] < KEEP_STEP:
-            return
-        self._items.append((odometry, self._travelled, corners))
-        while self._travelled - self._items[0][1] > self.travel:
-            self._items.pop(0)
-
-    def clear(self) -> None:
-        self._items.clear()
-        self._travelled = 0.0
-        self._last = None
-
-    def query(self) -> Corners:
-        """Every kept scan's corners in the newest scan's base frame (the last :meth:`add`)."""
-        if not self._items or self._last is None:
-            return Corners.empty()
-        parts = [c.moved(between_many(self._last, odo)) for odo, _, c in self._items if len(c)]
-        return Corners.joined(parts)
-
-
 def build_index(
     scans: list[LaserScan], mount: NDArray[np.float64], options: PlaceOptions
 ) -> PlaceIndex:
@@ -609,7 +300,7 @@ def build_index(
     index = PlaceIndex(options)
     detector = None
     for k, scan in enumerate(scans):
-        detector = detector or corner_detector(options, scan)
+        detector = detector or corner_detector(options.detector_preset, scan)
         index.add(k, scan_corners(scan, detector, mount))
     return index
 

@@ -19,8 +19,9 @@ from numpy.typing import ArrayLike, NDArray
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import compose, relative_pose, rotate_covariance, wrap_angle
 from laser_corners.registration.align import Alignment, PointMap, icp, match_share
+from laser_corners.registration.corners import corner_detector, scan_corners
 from laser_corners.registration.correlative import ScoreGrid, search
-from laser_corners.registration.place_index import PlaceIndex, corner_detector, scan_corners
+from laser_corners.registration.place_index import PlaceIndex
 from laser_corners.registration.points import scan_points
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
@@ -55,6 +56,10 @@ back from iSAM2; in between only the recent ones."""
 RESCUE_SHARE = 0.5
 """Share of a scan's points within half the inlier distance of the local map below which the
 tracking tries a correlative search (:meth:`Slam._rescue`)."""
+RESCUE_DROP = 0.1
+"""... and at least this much below the usual share of the recent scans (an average over
+about ten): where every scan fits loosely (far walls, glass, crowds) a loose fit is no sign
+of wrong odometry, and searching on every scan there is what made the SLAM slow."""
 RESCUE_GAIN = 0.15
 """How much larger that share must be after the correlative search to replace ICP's pose."""
 RESCUE_WINDOW = (0.3, 0.7)
@@ -140,6 +145,7 @@ class Slam:
         self._aligned_since_kf = True
         self._jump = False
         self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
+        self._usual_share = 1.0  # recent scans' share on the local map (_rescue)
         self._lost = False  # the last scan contradicts the local map: cut the graph
         self._pts = None  # the points of the scan being added
         self._local_occupied: NDArray[np.int64] | None = None  # cells of _local_all
@@ -286,13 +292,15 @@ class Slam:
 
     def _rescue(self, xy: NDArray, aligned: Alignment, share: float, pred: NDArray) -> Alignment:
         """When less than :data:`RESCUE_SHARE` of the scan lies within half the inlier
-        distance of the local map after ICP (``share``), a correlative search (:func:`search`,
+        distance of the local map after ICP (``share``), and :data:`RESCUE_DROP` less than
+        usual, a correlative search (:func:`search`,
         window :data:`RESCUE_WINDOW`) around the prediction, refined by ICP, replaces the
         alignment if it puts :data:`RESCUE_GAIN` more of the scan on the map: odometry wrong by
         more than ICP's reach (intel.bag's scans whose stamps are out of order) is recovered,
         and a match that is not clearly better is not taken."""
         assert self._local_all is not None
-        if share >= RESCUE_SHARE or len(self._local_all) < 20:
+        usual, self._usual_share = self._usual_share, 0.9 * self._usual_share + 0.1 * share
+        if share >= min(RESCUE_SHARE, usual - RESCUE_DROP) or len(self._local_all) < 20:
             return aligned
         self.counts["rescues"] += 1
         if self._local_grid is None:
@@ -444,7 +452,7 @@ class Slam:
         if not self.options.places.enabled:
             return
         if self._place_detector is None:
-            self._place_detector = corner_detector(self.options.places, scan)
+            self._place_detector = corner_detector(self.options.places.detector_preset, scan)
         self.places.add(k, scan_corners(scan, self._place_detector, self.mount))
 
     def _close_loops(self, k: int) -> bool:
