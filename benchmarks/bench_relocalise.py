@@ -33,12 +33,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import platform
 import sys
 import tempfile
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +47,7 @@ from laser_corners.slam.mapfile import load_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_localise import REAL, cached_map, read_log
+from report import write_table
 
 LOGS = ["fr079.bag", "aces.bag", "intel.bag", "edmonton.clf.gz"]
 WRONG_XY, WRONG_DEG = 0.5, 5.0
@@ -211,19 +209,6 @@ def table(rows: list[dict]) -> list[str]:
     return lines
 
 
-def machine() -> str:
-    cpu = next(
-        (
-            line.split(":", 1)[1].strip()
-            for line in Path("/proc/cpuinfo").read_text().splitlines()
-            if line.startswith("model name")
-        ),
-        platform.processor(),
-    )
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, load {load}"
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("logs", nargs="*", default=LOGS)
@@ -239,8 +224,6 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[])
     parser.add_argument("--output", type=Path, default=Path("docs/benchmarks/relocalise.md"))
     args = parser.parse_args()
-    command = "PYTHONPATH=src python benchmarks/bench_relocalise.py " + " ".join(sys.argv[1:])
-    began = datetime.now(timezone.utc)
     rows, records = [], []
     for name in args.logs:
         saved, log = load_log(name, args.cache)
@@ -261,19 +244,11 @@ def main() -> None:
             rows[-1]["wall_s"] = time.perf_counter() - t
             records.append({"log": name, "method": method, "starts": s, "kidnaps": k})
             print(json.dumps(rows[-1], default=float), flush=True)
-    text = [
-        "# Global relocalisation: place index vs correlative search",
-        "",
-        f"Command: `{command}`",
-        f"Date: {began:%Y-%m-%d %H:%M} UTC; machine: {machine()}.",
-        "",
-        *table(rows),
-        "",
-    ]
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text("\n".join(text))
+    write_table(
+        args.output, "Global relocalisation: place index vs correlative search", table(rows)
+    )
     args.output.with_suffix(".json").write_text(json.dumps(records, default=float))
-    print("\n".join(text))
+    print(args.output.read_text())
 
 
 if __name__ == "__main__":

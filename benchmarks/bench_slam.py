@@ -41,6 +41,9 @@ from matplotlib.figure import Figure
 
 from laser_corners.viz.slam import plot_ms_per_scan, save_figure
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import write_table
+
 DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 DEFAULT_LOGS = ("fr079.bag", "aces.bag", "intel.bag")
 
@@ -113,6 +116,15 @@ def _row(r: dict) -> str:
         f"{_pm(ours, 'rot_deg', 3)} ({_pm(odom, 'rot_deg', 1)})",
         " / ".join(str(v) for v in r["closures"]),
         contradicted,
+        " / ".join(
+            str(r["counts"].get(k, 0))
+            for k in (
+                "lost",
+                "relocalisations_attempted",
+                "relocalisations_accepted",
+                "relocalisations_exhaustive",
+            )
+        ),
     ]
     return "| " + " | ".join(cells) + " |"
 
@@ -140,6 +152,10 @@ def main() -> None:
         "--mount", help="base -> laser x,y,theta for every log (negative: --mount=-0.04,0,0)"
     )
     parser.add_argument("--out", type=Path, default=Path("bench_slam_out"))
+    parser.add_argument(
+        "--table", type=Path, help="also write the table (command, date, machine) to this file"
+    )
+    parser.add_argument("--append", action="store_true", help="add to --table, not replace it")
     parser.add_argument("--worker", nargs=2, metavar=("LOG", "JSON"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     overrides = list(args.overrides) + _mount_override(args.mount)
@@ -158,16 +174,19 @@ def main() -> None:
             subprocess.run(command, check=True)
             records.append(json.loads(output.read_text()))
             series.append(np.load(output.with_suffix(".npy")))
-    print(
+    lines = [
         "| log | scans | duration s | wall s | real-time factor | ms/scan mean / p95 | "
         "peak RSS MB | relation trans m, ours (odometry) | relation rot deg, ours (odometry) | "
-        "closures proposed / accepted / rejected | contradicted closures |"
-    )
-    print("|" + "---|" * 11)
-    for record in records:
-        print(_row(record))
+        "closures proposed / accepted / rejected | contradicted closures | lost / "
+        "relocalisations attempted / accepted / exhaustive searches |",
+        "|" + "---|" * 12,
+        *(_row(record) for record in records),
+    ]
     if overrides:
-        print(f"\noptions: {' '.join(overrides)}")
+        lines.append(f"\noptions: {' '.join(overrides)}")
+    print("\n".join(lines))
+    if args.table:
+        write_table(args.table, "SLAM on the shared logs", lines, args.append)
     _plot(records, series, args.out / "ms_per_scan.png")
     np.savez_compressed(args.out / "ms_per_scan.npz", *series)
     (args.out / "bench_slam.json").write_text(json.dumps(records, indent=2))
