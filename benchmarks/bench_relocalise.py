@@ -24,8 +24,8 @@ search runs only after ``places.fallback_travel`` without a fix; ``correlative``
   and per scan while searching (everything the localiser does for the scan: detection, the
   attempt, hypotheses' ICP), mean / p95 / max over every start.
 
-Writes the table (with the command, the date and the machine) to ``--output`` and the raw
-records to the same name with ``.json``. Times are this machine's, with whatever else runs.
+Writes the table (with the command, the date and the machine) to ``--output`` (``--append``:
+adds to it) and, with ``--json FILE``, every run's numbers. Times are this machine's, with whatever else runs.
 """
 
 from __future__ import annotations
@@ -223,6 +223,8 @@ def main() -> None:
     parser.add_argument("--after", type=int, default=100)
     parser.add_argument("--set", action="append", default=[])
     parser.add_argument("--output", type=Path, default=Path("docs/benchmarks/relocalise.md"))
+    parser.add_argument("--append", action="store_true", help="add to --output, not replace it")
+    parser.add_argument("--json", type=Path, help="every run's numbers (not in the repository)")
     args = parser.parse_args()
     rows, records = [], []
     for name in args.logs:
@@ -244,10 +246,10 @@ def main() -> None:
             rows[-1]["wall_s"] = time.perf_counter() - t
             records.append({"log": name, "method": method, "starts": s, "kidnaps": k})
             print(json.dumps(rows[-1], default=float), flush=True)
-    write_table(
-        args.output, "Global relocalisation: place index vs correlative search", table(rows)
-    )
-    args.output.with_suffix(".json").write_text(json.dumps(records, default=float))
+    title = "Global relocalisation: place index vs correlative search"
+    write_table(args.output, title, table(rows), args.append)
+    if args.json:
+        args.json.write_text(json.dumps(records, default=float))
     print(args.output.read_text())
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.corner_grid import VIEWS_PER_CORNER, CornerGrid
 from laser_corners.registration.corners import Corners, QueryBuffer, corner_detector, scan_corners
 from laser_corners.registration.correlative import ScoreGrid
 from laser_corners.registration.place_index import (
@@ -165,3 +166,11 @@ def _map_points(world: World, poses: np.ndarray) -> np.ndarray:
     for i, p in enumerate(poses):
         parts.append(transform(scan_points(scan_at(world, p, i), MOUNT, 0.1, 30.0, 0.05).xy, p))
     return np.concatenate(parts)
+
+
+def test_every_physical_corner_keeps_a_few_views(mapped) -> None:
+    _, poses, index = mapped
+    grid = CornerGrid.build(index.map_corners(poses), 0.3)
+    seen = grid.landmark[grid.views]
+    assert set(seen.tolist()) == set(grid.landmark.tolist())  # every corner compared
+    assert np.bincount(seen).max() <= VIEWS_PER_CORNER < np.bincount(grid.landmark).max()

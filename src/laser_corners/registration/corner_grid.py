@@ -124,6 +124,25 @@ class CornerGrid:
     order: NDArray[np.int64]
     landmark: NDArray[np.int64]
     n_landmarks: int
+    views: NDArray[np.int64]
+    """The observations the descriptor pass compares (at most :data:`VIEWS_PER_CORNER` of
+    each physical corner, spread over the keyframes that saw it)."""
+
+    def nearest(self, query: Corners, max_open: float, max_distance: float, k: int):
+        """:func:`nearest` of ``query`` against :attr:`views`: (Q, k) rows of the corners."""
+        m = self.corners
+        found = nearest(
+            np.ascontiguousarray(query.descriptor),
+            np.ascontiguousarray(query.opening),
+            np.ascontiguousarray(m.descriptor[self.views]),
+            np.ascontiguousarray(m.opening[self.views]),
+            np.ascontiguousarray(self.landmark[self.views]),
+            self.n_landmarks,
+            max_open,
+            max_distance,
+            k,
+        )
+        return np.where(found >= 0, self.views[np.maximum(found, 0)], -1)
 
     @classmethod
     def build(cls, corners: Corners, radius: float) -> CornerGrid:
@@ -138,7 +157,27 @@ class CornerGrid:
         xy = np.ascontiguousarray(corners.xy)
         ori = np.ascontiguousarray(corners.orientation)
         landmark, count = _landmarks(xy, ori, lo, cell, ny, nx, start, order, radius, 0.35)
-        return cls(corners, lo, cell, (ny, nx), start, order, landmark, count)
+        views = _spread_views(landmark, VIEWS_PER_CORNER)
+        return cls(corners, lo, cell, (ny, nx), start, order, landmark, count, views)
+
+
+VIEWS_PER_CORNER = 4
+"""Observations of one physical corner the descriptor pass compares at most: a corner seen
+from a hundred keyframes costs as much as one seen from four (they look alike)."""
+
+
+def _spread_views(landmark: NDArray[np.int64], most: int) -> NDArray[np.int64]:
+    """Indices of at most ``most`` observations per landmark, spread over its observations
+    (in their order: the keyframes'), sorted."""
+    order = np.argsort(landmark, kind="stable")
+    grouped = landmark[order]
+    first = np.searchsorted(grouped, grouped, side="left")
+    size = np.searchsorted(grouped, grouped, side="right") - first
+    rank = np.arange(len(order)) - first
+    bin_now = rank * most // size
+    bin_before = (rank - 1) * most // size
+    keep = (rank == 0) | (bin_now != bin_before)
+    return np.sort(order[keep])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -42,7 +42,7 @@ from pydantic import Field
 
 from laser_corners.options import Options
 from laser_corners.pose import between_many, compose_many, poses_apart, wrap_angle
-from laser_corners.registration.corner_grid import CornerGrid, count_votes, nearest
+from laser_corners.registration.corner_grid import CornerGrid, count_votes
 from laser_corners.registration.corners import (
     Corners,
     corner_detector,
@@ -219,17 +219,7 @@ class PlaceIndex:
         if grid is None or len(query) < opt.min_votes:
             return []
         mapped = grid.corners
-        found = nearest(
-            np.ascontiguousarray(query.descriptor),
-            np.ascontiguousarray(query.opening),
-            np.ascontiguousarray(mapped.descriptor),
-            np.ascontiguousarray(mapped.opening),
-            grid.landmark,
-            grid.n_landmarks,
-            opt.max_opening_diff,
-            opt.max_descriptor_distance,
-            opt.matches,
-        )
+        found = grid.nearest(query, opt.max_opening_diff, opt.max_descriptor_distance, opt.matches)
         q_idx, rank = np.nonzero(found >= 0)
         if q_idx.size == 0:
             return []
