@@ -25,7 +25,8 @@ search runs only after ``places.fallback_travel`` without a fix; ``correlative``
   attempt, hypotheses' ICP), mean / p95 / max over every start.
 
 Writes the table (with the command, the date and the machine) to ``--output`` (``--append``:
-adds to it) and, with ``--json FILE``, every run's numbers. Times are this machine's, with whatever else runs.
+adds to it) and, with ``--json FILE``, every run's numbers. Times are this machine's, with
+whatever else runs.
 """
 
 from __future__ import annotations
