@@ -1,0 +1,88 @@
+"""The localiser's global search by corners (``localise.places``) on a real log: fr079.bag's
+first 1,500 scans mapped, then localised with no initial pose from scans in the middle, and
+across a 20 m odometry jump."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gtsam")
+
+from conftest import real_file
+from laser_corners.localise import Localiser
+from laser_corners.pipeline.recording import open_recording
+from laser_corners.pose import between_many, compose_many
+from laser_corners.slam import run_slam
+from laser_corners.slam.mapfile import load_map
+from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+
+MAPPED = 1500
+
+
+@pytest.fixture(scope="module")
+def fr079(tmp_path_factory):
+    """The map of fr079.bag's first scans, and every mapped scan with its odometry and the
+    SLAM's pose (the reference)."""
+    path = real_file("fr079.bag")
+    result = run_slam(path, stop_scan=MAPPED)
+    folder = tmp_path_factory.mktemp("fr079")
+    write_slam_outputs(result, folder, SlamRunInfo(str(path), 1.0, 0.0))
+    scans = []
+    with open_recording(path, None) as rec:
+        for scan in rec.scans():
+            if len(scans) == len(result.stamps):
+                break
+            if scan.pose is not None:  # the scans the SLAM took (those with odometry)
+                scans.append(scan)
+    assert np.allclose([s.stamp for s in scans], result.stamps)
+    return load_map(folder), scans, result.odometry, result.poses
+
+
+def _drive(loc: Localiser, scans, odo, ref, order) -> tuple[list, float]:
+    """Feed ``order``; every (index, estimate error m, deg) and the travel at the first fix."""
+    travel, first, errors = 0.0, None, []
+    for n, i in enumerate(order):
+        if n:
+            d = between_many(odo[order[n - 1]], odo[i])
+            travel += math.hypot(d[0], d[1])
+        e = loc.add(scans[i], odo[i], float(scans[i].stamp))
+        if e is None:
+            continue
+        d = between_many(ref[i], e.pose)
+        errors.append((i, math.hypot(d[0], d[1]), abs(math.degrees(d[2]))))
+        first = travel if first is None else first
+    return errors, first
+
+
+def test_index_is_in_the_map_folder(fr079) -> None:
+    saved, *_ = fr079
+    assert saved.places is not None and len(saved.places) > 5 * len(saved)
+
+
+@pytest.mark.parametrize("start", [300, 800, 1150])
+def test_mid_log_start_without_a_pose_fixes_within_3_m(fr079, start: int) -> None:
+    saved, scans, odo, ref = fr079
+    loc = Localiser(saved)
+    errors, first = _drive(loc, scans, odo, ref, np.arange(start, start + 250))
+    assert first is not None and first <= 3.0
+    assert max(e[1] for e in errors) < 0.5 and max(e[2] for e in errors) < 5.0
+    assert loc.counts["searches"] == 0  # the index alone: no exhaustive search
+    assert np.mean(loc.places.ms) < 100.0  # loose: a shared test machine (benchmark: 20 ms)
+
+
+def test_a_20_m_odometry_jump_is_relocalised_by_corners(fr079) -> None:
+    saved, scans, odo, ref = fr079
+    odo = odo.copy()
+    order = np.arange(200, 700)
+    jump = 250  # from scan 450 on the odometry is 20 m off: a kidnap it reports
+    odo[order[jump:]] = compose_many(np.array([20.0, 0.0, 0.0]), odo[order[jump:]])
+    loc = Localiser(saved)
+    errors, _ = _drive(loc, scans, odo, ref, order)
+    assert loc.counts["lost"] >= 1 and len(loc.fixes) == 2
+    after = [e for e in errors if e[0] >= order[jump]]
+    assert after and max(e[1] for e in errors) < 0.5  # no wrong estimate, before or after
+    back = between_many(odo[order[jump]], odo[after[0][0]])
+    assert math.hypot(back[0], back[1]) <= 3.0
