@@ -19,15 +19,18 @@ import types
 import typing
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import tomllib
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from laser_corners.errors import InvalidParamsError
 
-__all__ = ["Options", "unknown_keys"]
+__all__ = ["MountValue", "Options", "unknown_keys"]
+
+MountValue = Annotated[float, Field(allow_inf_nan=False, ge=-1000.0, le=1000.0)]
+"""One number of a base -> laser mount ``(x, y, yaw)``: finite, within a kilometre (radian)."""
 
 
 class Options(BaseModel):

@@ -57,13 +57,19 @@ _Mount = Annotated[
 
 
 def parse_pose(text: str, option: str) -> tuple[float, float, float]:
-    """``"x,y,yaw"`` as three floats, or a one-line failure naming ``option``."""
+    """``"x,y,yaw"`` as three finite floats (x, y within
+    :data:`~laser_corners.pose.MAX_COORDINATE`), or a one-line failure naming ``option``."""
+    from laser_corners.pose import pose_problem
+
     try:
         values = tuple(float(v) for v in text.strip("[]() ").split(","))
     except ValueError:
         raise fail(f"{option}: expected x,y,yaw numbers, got {text!r}") from None
     if len(values) != 3:
         raise fail(f"{option}: expected x,y,yaw (3 numbers), got {len(values)}")
+    problem = pose_problem(values)
+    if problem is not None:
+        raise fail(f"{option}: {problem}")
     return values  # type: ignore[return-value]
 
 
@@ -139,6 +145,8 @@ def localise_command(
             progress=progress,
         )
     summary = localise_summary(run, str(input_path), str(map_folder), time.perf_counter() - start)
+    for warning in summary["warnings"]:
+        typer.echo(f"laser-corners: warning: {warning}", err=True)
     write_localise_outputs(run, folder, saved.grid, summary, header)
     _report(Console(), summary, folder)
     if run.interrupted:

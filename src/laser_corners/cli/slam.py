@@ -173,6 +173,7 @@ def slam_command(
     from rich.console import Console
 
     from laser_corners.eval.relations import closure_consistency, read_relations
+    from laser_corners.io.base import skip_warning
     from laser_corners.viz.slam_report import (
         SlamRunInfo,
         peak_rss_mb,
@@ -189,6 +190,8 @@ def slam_command(
         typer.echo(f"interrupted before the first scan; nothing written to {folder}", err=True)
         raise typer.Exit(130) from None
     info = SlamRunInfo(str(input_path), wall, peak_rss_mb(), resolution=resolution)
+    skipped = skip_warning(input_path, result.skipped)
+    info.warnings += [] if skipped is None else [skipped]
     if table is not None:
         info.relations_file = str(relations)
         info.relations = _relation_metrics(result, table)

@@ -11,7 +11,7 @@ from typing import ClassVar
 
 from pydantic import Field
 
-from laser_corners.options import Options
+from laser_corners.options import MountValue, Options
 
 __all__ = ["LocaliseOptions"]
 
@@ -24,7 +24,7 @@ class LocaliseOptions(Options):
     section: ClassVar[str] = "localise"
     tuple_hints: ClassVar[dict[str, str]] = {"mount": "x,y,yaw"}
 
-    mount: tuple[float, float, float] | None = None
+    mount: tuple[MountValue, MountValue, MountValue] | None = None
     """Base -> laser transform ``(x, y, yaw)``, overriding the recording's and the map's."""
     min_range: float = Field(0.1, ge=0.0, le=10.0)
     """Beams shorter than this (m) are not used."""

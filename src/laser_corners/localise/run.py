@@ -20,6 +20,7 @@ from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.smooth import Smoothed, smooth
 from laser_corners.pipeline.recording import open_recording
+from laser_corners.pose import check_pose
 from laser_corners.slam.mapfile import SavedMap, load_map, map_options
 from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
 from laser_corners.slam.slam import Slam
@@ -51,6 +52,8 @@ class LocaliseRun:
         anchors on the SLAM's chain (:mod:`.smooth`); ``index`` into ``odometry_stamps``.
     slam_ms_per_scan : ndarray
         The SLAM's time per scan (with ``options.smooth``), apart from ``ms_per_scan``.
+    skipped : dict of str to int
+        Records the reader skipped (damaged chunks, broken rows), by reason (``ScanSource``).
     """
 
     estimates: list[LocaliserEstimate]
@@ -63,6 +66,7 @@ class LocaliseRun:
     positions: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     smoothed: Smoothed | None = None
     slam_ms_per_scan: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    skipped: dict[str, int] = field(default_factory=dict)
 
     @property
     def stamps(self) -> NDArray[np.float64]:
@@ -114,6 +118,8 @@ def run_localise(
     ------
     InputError
         The map folder is bad, or the recording has no odometry.
+    ValueError
+        ``initial_pose`` is not 3 finite numbers (x, y within ``pose.MAX_COORDINATE``).
     """
     options = options or LocaliseOptions()
     with open_recording(path, topic, odom_topic=odom_topic) as rec:
@@ -122,9 +128,10 @@ def run_localise(
         saved = map_data if isinstance(map_data, SavedMap) else load_map(map_data)
         loc = Localiser(saved, options, mount=recorded)
         if initial_pose is not None:
-            loc.set_pose(initial_pose)
+            loc.set_pose(check_pose(initial_pose, "initial_pose"))
         slam = smoothing_slam(saved, loc.mount) if options.smooth else None
         run = _loop(loc, slam, rec, (start_scan, stop_scan), on_estimate, progress)
+        run.skipped = dict(rec.source.skipped)
     if loc.counts["scans"] == 0 and not run.interrupted:
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")

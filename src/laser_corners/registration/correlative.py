@@ -17,6 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import distance_transform_edt
 
+from laser_corners.pose import check_pose
+
 __all__ = ["ScoreGrid", "search"]
 
 
@@ -35,6 +37,8 @@ class ScoreGrid:
         """The grid of points ``xy`` (map frame) padded by ``margin`` (m)."""
         lo = xy.min(axis=0) - margin
         hi = xy.max(axis=0) + margin
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            raise ValueError("ScoreGrid: map points must be finite")
         shape = (np.ceil((hi - lo) / resolution).astype(int) + 1)[::-1]
         occupied = np.ones(shape, dtype=bool)
         cells = np.floor((xy - lo) / resolution).astype(int)
@@ -113,8 +117,9 @@ def search(
 ) -> tuple[float, NDArray[np.float64]]:
     """Best pose of ``points`` (base frame) in the window around ``center`` and its mean score."""
     res = grid.resolution
+    center = check_pose(center, "correlative search center")
     if points.shape[0] == 0:
-        return 0.0, np.asarray(center, dtype=np.float64)
+        return 0.0, center
     reach = float(np.max(np.hypot(points[:, 0], points[:, 1])))
     step = min(max(math.acos(max(1.0 - res * res / (2.0 * reach * reach), -1.0)), 0.008), 0.05)
     n_yaw = math.ceil(window_yaw / step)

@@ -83,7 +83,9 @@ def run_slam(
     slam.counts["skipped_no_odometry"] = feed.skipped
     if slam.counts["scans"] == 0 and not feed.interrupted:
         raise InputError(f"{path}: no scan with odometry ({feed.skipped} scans without a pose)")
-    return slam.result(interrupted=feed.interrupted)
+    result = slam.result(interrupted=feed.interrupted)
+    result.skipped = dict(rec.source.skipped)
+    return result
 
 
 def require_odometry(rec: Recording, path: str | Path) -> None:

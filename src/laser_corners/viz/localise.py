@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from laser_corners.io.base import PartialOutput
+from laser_corners.io.base import PartialOutput, skip_warning
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.io.trajectory import write_tum
 from laser_corners.viz.slam import plot_slam_map, save_figure
@@ -37,9 +37,13 @@ def localise_summary(run: Any, source: str, map_folder: str, wall_s: float) -> d
     """The numbers of a localisation run as a JSON-ready mapping."""
     ms = np.asarray(run.ms_per_scan, dtype=np.float64)
     fixes = [_fix_record(f) for f in run.fixes]
+    skipped = dict(getattr(run, "skipped", {}))
+    warning = skip_warning(source, skipped)
     return {
         "input": source,
         "map": map_folder,
+        "warnings": [] if warning is None else [warning],
+        "skipped": skipped,
         "first_fix": fixes[0] if fixes else None,
         "relocalisations": fixes[1:],
         "lost": int(run.counts.get("lost", 0)),

@@ -180,6 +180,7 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
             "landmarks": len(np.asarray(result.landmarks.xy).reshape(-1, 2)),
             **{k: int(v) for k, v in dict(result.counts).items()},
         },
+        "skipped": dict(getattr(result, "skipped", {})),
         "closures": _closure_counts(list(result.closures)),
         "closure_consistency": info.closure_consistency,
         "timings": {

@@ -1,0 +1,150 @@
+"""Hostile inputs to ``slam``, ``localise`` and ``evaluate slam`` (issue 32): what a reader
+skips is counted and said, a broken pose or stamp is a counted skip or one line, never a crash.
+
+The commands that could crash in a numba kernel run in a subprocess: a segfault there would
+end pytest itself.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from itertools import islice
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Reader
+from typer.testing import CliRunner
+
+from conftest import REPO_ROOT, damaged_copy, die_with_parent, real_file
+from laser_corners.cli import app
+from laser_corners.io import open_scans
+from laser_corners.io.arrays import write_scans_npz
+
+pytestmark = pytest.mark.real
+runner = CliRunner()
+N_SCANS = 300
+FLIPPED = 160000  # a byte inside fr079.bag's second bz2 chunk (scans 246 to 492)
+
+
+def _invoke(*args: str | Path):
+    return runner.invoke(app, [str(a) for a in args], terminal_width=200)
+
+
+def _cli(*args: str | Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """``laser-corners ARGS`` in a new Python (this checkout's sources), output captured."""
+    paths = [str(REPO_ROOT / "src"), os.environ.get("PYTHONPATH", "")]
+    environment = {**os.environ, "PYTHONPATH": os.pathsep.join(paths), **(env or {})}
+    return subprocess.run(
+        [sys.executable, "-c", "from laser_corners.cli import main; main()", *map(str, args)],
+        capture_output=True,
+        text=True,
+        env={k: v for k, v in environment.items() if v is not None},
+        timeout=600,
+        preexec_fn=die_with_parent(),
+    )
+
+
+def _one_line(process: subprocess.CompletedProcess, *needles: str) -> str:
+    """The process failed with exit 2 and one ``laser-corners: error:`` line holding
+    ``needles``; that line."""
+    assert process.returncode == 2, (process.returncode, process.stderr)
+    assert "Traceback" not in process.stderr, process.stderr
+    lines = process.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("laser-corners: error: "), process.stderr
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def fr079(tmp_path_factory) -> tuple[Path, Path]:
+    """The first 300 scans of fr079.bag as an NPZ, and the map ``slam`` made of them."""
+    folder = tmp_path_factory.mktemp("fr079")
+    npz = folder / "fr079.npz"
+    write_scans_npz(npz, islice(open_scans(real_file("fr079.bag")), N_SCANS))
+    result = _invoke("slam", npz, "-o", folder / "map")
+    assert result.exit_code == 0, result.output
+    return npz, folder / "map"
+
+
+def _lost_scans(bag: Path, offset: int) -> int:
+    """How many /scan messages the chunk of ``bag`` holding byte ``offset`` has."""
+    with Reader(bag) as reader:
+        pos = next(
+            p for p, c in reader.chunks.items() if c.datapos <= offset < c.datapos + c.datasize
+        )
+        scan = next(c for c in reader.connections if c.topic == "/scan")
+        return sum(1 for entry in reader.indexes[scan.id] if entry.chunk_pos == pos)
+
+
+def _warning_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.startswith("laser-corners: warning:")]
+
+
+def test_slam_and_localise_say_how_many_scans_a_damaged_chunk_lost(
+    fr079: tuple[Path, Path], tmp_path: Path
+) -> None:
+    intact = real_file("fr079.bag")
+    bag = damaged_copy(intact, tmp_path / "fr079.bag", flip=slice(FLIPPED, FLIPPED + 1))
+    lost = _lost_scans(intact, FLIPPED)
+    assert 200 < lost < 300
+    _, map_folder = fr079
+    for command in (["slam", bag], ["localise", map_folder, bag]):
+        out = tmp_path / command[0]
+        result = _invoke(*command, "-o", out, "--stop-scan", N_SCANS)
+        assert result.exit_code == 0, result.output
+        warnings = _warning_lines(result.stderr)
+        assert len(warnings) == 1, result.stderr
+        assert f"{lost} scans in damaged chunks or records" in warnings[0], warnings
+        assert "1 damaged bag chunk" in warnings[0] and str(bag) in warnings[0], warnings
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["skipped"] == {
+            "damaged bag chunk": 1,
+            "scans in damaged chunks or records": lost,
+        }, summary["skipped"]
+        assert any(f"{lost} scans in damaged" in w for w in summary["warnings"]), summary
+
+
+def test_broken_rows_of_an_npz_are_counted_skips_of_slam(
+    fr079: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """A NaN pose, a pose 1e300 m away and a NaN stamp: three counted skips, said on one
+    line and in summary.json; no crash."""
+    npz, _ = fr079
+    data = dict(np.load(npz))
+    data["poses"][100, 0] = np.nan
+    data["poses"][150, 0] = 1e300
+    data["stamps"][200] = np.nan
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **data)
+    out = tmp_path / "out"
+    process = _cli("slam", bad, "-o", out)
+    assert process.returncode == 0, process.stderr
+    assert "Traceback" not in process.stderr, process.stderr
+    warnings = _warning_lines(process.stderr)
+    assert len(warnings) == 1, process.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert sum(summary["skipped"].values()) == 3, summary["skipped"]
+    assert summary["counts"]["scans"] == N_SCANS - 3
+    for reason, count in summary["skipped"].items():
+        assert f"{count} {reason}" in warnings[0], warnings
+
+
+@pytest.mark.parametrize("pose", ["nan,0,0", "0,inf,0", "1e300,0,0", "0,0,-inf"])
+def test_a_non_finite_or_absurd_initial_pose_is_one_line(
+    fr079: tuple[Path, Path], tmp_path: Path, pose: str
+) -> None:
+    npz, map_folder = fr079
+    out = tmp_path / "out"
+    process = _cli("localise", map_folder, npz, "-o", out, f"--initial-pose={pose}")
+    _one_line(process, "--initial-pose")
+    assert not out.exists()
+    process = _cli("localise", map_folder, npz, "-o", out, f"--mount={pose}")
+    _one_line(process, "--mount")
+    if "1e300" not in pose:  # a mount of 1e300 m is out of the option's range, said as such
+        process = _cli("localise", map_folder, npz, "-o", out, "--set", f"mount={pose}")
+        _one_line(process, "mount", "finite")
