@@ -24,7 +24,6 @@ from laser_corners.cli import app
 from laser_corners.io import open_scans
 from laser_corners.io.arrays import write_scans_npz
 
-pytestmark = pytest.mark.real
 runner = CliRunner()
 N_SCANS = 300
 FLIPPED = 160000  # a byte inside fr079.bag's second bz2 chunk (scans 246 to 492)
@@ -85,6 +84,7 @@ def _warning_lines(stderr: str) -> list[str]:
     return [line for line in stderr.splitlines() if line.startswith("laser-corners: warning:")]
 
 
+@pytest.mark.real
 def test_slam_and_localise_say_how_many_scans_a_damaged_chunk_lost(
     fr079: tuple[Path, Path], tmp_path: Path
 ) -> None:
@@ -109,6 +109,7 @@ def test_slam_and_localise_say_how_many_scans_a_damaged_chunk_lost(
         assert any(f"{lost} scans in damaged" in w for w in summary["warnings"]), summary
 
 
+@pytest.mark.real
 def test_broken_rows_of_an_npz_are_counted_skips_of_slam(
     fr079: tuple[Path, Path], tmp_path: Path
 ) -> None:
@@ -134,6 +135,7 @@ def test_broken_rows_of_an_npz_are_counted_skips_of_slam(
         assert f"{count} {reason}" in warnings[0], warnings
 
 
+@pytest.mark.real
 @pytest.mark.parametrize("pose", ["nan,0,0", "0,inf,0", "1e300,0,0", "0,0,-inf"])
 def test_a_non_finite_or_absurd_initial_pose_is_one_line(
     fr079: tuple[Path, Path], tmp_path: Path, pose: str
@@ -148,3 +150,57 @@ def test_a_non_finite_or_absurd_initial_pose_is_one_line(
     if "1e300" not in pose:  # a mount of 1e300 m is out of the option's range, said as such
         process = _cli("localise", map_folder, npz, "-o", out, "--set", f"mount={pose}")
         _one_line(process, "mount", "finite")
+
+
+@pytest.mark.real
+def test_a_start_scan_beyond_the_recording_says_how_many_scans_it_has(
+    fr079: tuple[Path, Path], tmp_path: Path
+) -> None:
+    npz, map_folder = fr079
+    result = _invoke("localise", map_folder, npz, "-o", tmp_path / "o", "--start-scan", 99999)
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    assert f"the recording has {N_SCANS} scans" in lines[0] and "99999" in lines[0], lines
+
+
+def _tum(path: Path, stamps: np.ndarray, quaternion: str = "0 0 0 1") -> Path:
+    path.write_text("".join(f"{t:.3f} {0.5 * t:.4f} 0 0 {quaternion}\n" for t in stamps))
+    return path
+
+
+def _relations(path: Path, start: float, n: int = 9) -> Path:
+    rows = [f"{t:.1f} {t + 1:.1f} 0.5 0 0 0 0 0" for t in start + np.arange(n)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_evaluate_slam_refuses_a_zero_quaternion_naming_file_and_row(tmp_path: Path) -> None:
+    trajectory = _tum(tmp_path / "t.tum", np.arange(10.0))
+    lines = trajectory.read_text().splitlines()
+    lines[3] = "3.000 1.5000 0 0 0 0 0 0"
+    trajectory.write_text("\n".join(lines) + "\n")
+    relations = _relations(tmp_path / "r.relations", 0.0)
+    process = _cli("evaluate", "slam", trajectory, relations)
+    _one_line(process, f"{trajectory}:4", "quaternion")
+
+
+def test_evaluate_slam_with_relations_of_another_recording_fails_saying_so(
+    tmp_path: Path,
+) -> None:
+    trajectory = _tum(tmp_path / "t.tum", np.arange(10.0))
+    relations = _relations(tmp_path / "r.relations", 5000.0)
+    process = _cli("evaluate", "slam", trajectory, relations)
+    line = _one_line(process, "no relation", "covered", str(relations))
+    assert "0.000" in line and "5000.0" in line, line  # the two time spans
+
+
+def test_evaluate_slam_given_a_folder_says_it_is_a_folder(tmp_path: Path) -> None:
+    folder = tmp_path / "map"
+    folder.mkdir()
+    _tum(folder / "trajectory.tum", np.arange(10.0))
+    relations = _relations(tmp_path / "r.relations", 0.0)
+    process = _cli("evaluate", "slam", folder, relations)
+    _one_line(process, f"{folder}: is a folder", str(folder / "trajectory.tum"))
+    process = _cli("evaluate", "slam", folder / "trajectory.tum", tmp_path)
+    _one_line(process, f"{tmp_path}: is a folder")

@@ -117,6 +117,8 @@ def localise_command(
     """
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")
+    if stop_scan is not None and stop_scan <= start_scan:
+        raise fail(f"--stop-scan ({stop_scan}) must be after --start-scan ({start_scan})")
     from rich.console import Console
 
     from laser_corners.io.trajectory import TumWriter

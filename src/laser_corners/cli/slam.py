@@ -172,7 +172,7 @@ def slam_command(
         raise fail(f"{input_path}: no such file or folder")
     from rich.console import Console
 
-    from laser_corners.eval.relations import closure_consistency, read_relations
+    from laser_corners.eval.relations import closure_consistency, no_coverage, read_relations
     from laser_corners.io.base import skip_warning
     from laser_corners.viz.slam_report import (
         SlamRunInfo,
@@ -190,11 +190,13 @@ def slam_command(
         typer.echo(f"interrupted before the first scan; nothing written to {folder}", err=True)
         raise typer.Exit(130) from None
     info = SlamRunInfo(str(input_path), wall, peak_rss_mb(), resolution=resolution)
-    skipped = skip_warning(input_path, result.skipped)
+    skipped = skip_warning(input_path, getattr(result, "skipped", {}))
     info.warnings += [] if skipped is None else [skipped]
     if table is not None:
         info.relations_file = str(relations)
         info.relations = _relation_metrics(result, table)
+        uncovered = no_coverage(result.stamps, table) if len(result.stamps) else None
+        info.warnings += [] if uncovered is None else [f"{relations}: {uncovered}"]
     if any(c.accepted for c in result.closures):
         info.closure_consistency = float(closure_consistency(result))
     write_slam_outputs(result, folder, info)
@@ -236,7 +238,7 @@ def evaluate_slam_command(
     over the relative poses between the stamps of a .relations file."""
     from rich.console import Console
 
-    from laser_corners.eval.relations import read_relations, relation_metrics
+    from laser_corners.eval.relations import no_coverage, read_relations, relation_metrics
     from laser_corners.io.trajectory import read_tum
 
     table = read_relations(relations)
@@ -244,5 +246,8 @@ def evaluate_slam_command(
     for name, path in (("trajectory", trajectory), ("odometry", odometry)):
         if path is not None:
             stamps, poses = read_tum(path)
+            problem = no_coverage(stamps, table)
+            if problem is not None:
+                raise fail(f"{relations}: {problem.replace('the trajectory', str(path))}")
             rows[f"{name} ({path.name})"] = relation_metrics(stamps, poses, table).to_dict()
     Console().print(relations_table(rows, f"relation metric ({relations})"))

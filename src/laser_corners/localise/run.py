@@ -40,7 +40,7 @@ class LocaliseRun:
         The first fix and every relocalisation (``scan_index`` in the recording too).
     counts : dict of str to int
         ``scans, estimates, lost, searches, no_agreement, recoveries, refused_free_space,
-        skipped_no_odometry``.
+        skipped_no_odometry, scans_read`` (the recording's scans read, from index 0 on).
     ms_per_scan : ndarray
     odometry_stamps, odometry : ndarray
         Stamp and base odometry of every scan given.
@@ -133,6 +133,12 @@ def run_localise(
         run = _loop(loc, slam, rec, (start_scan, stop_scan), on_estimate, progress)
         run.skipped = dict(rec.source.skipped)
     if loc.counts["scans"] == 0 and not run.interrupted:
+        seen = run.counts["scans_read"]
+        if start_scan >= seen:
+            raise InputError(
+                f"{path}: no scan from index {start_scan} on; the recording has {seen} scans"
+                + (f" (0 to {seen - 1})" if seen else "")
+            )
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     if slam is not None and slam.counts["scans"]:
@@ -179,7 +185,7 @@ def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
                 progress(i + 1, rec.source.n_scans, float(scan.stamp))
     except KeyboardInterrupt:
         feed.interrupted = True
-    counts = dict(loc.counts, skipped_no_odometry=feed.skipped)
+    counts = dict(loc.counts, skipped_no_odometry=feed.skipped, scans_read=feed.seen)
     return LocaliseRun(
         estimates,
         [replace(f, scan_index=index[f.scan_index]) for f in loc.fixes],

@@ -96,10 +96,12 @@ def require_odometry(rec: Recording, path: str | Path) -> None:
 
 @dataclass
 class OdometryFeed:
-    """What :func:`odometry_scans` counted: scans without a pose, and a stop by Ctrl-C."""
+    """What :func:`odometry_scans` counted: scans without a pose, scans read (from index 0,
+    those before ``start_scan`` too), and a stop by Ctrl-C."""
 
     skipped: int = 0
     interrupted: bool = False
+    seen: int = 0
 
 
 def odometry_scans(
@@ -120,6 +122,7 @@ def odometry_scans(
                 return
             if stop_scan is not None and i >= stop_scan:
                 return
+            feed.seen = i + 1
             if i < start_scan:
                 continue
             if scan.pose is None or scan.stamp is None:
