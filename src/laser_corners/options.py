@@ -227,6 +227,6 @@ def one_line(exc: ValidationError, cls: type[Options]) -> str:
             where = loc[0]
         elif kind not in ("value_error", "missing", "extra_forbidden") and "input" in error:
             message = f"{message[:1].lower()}{message[1:]}, got {error['input']!r}"
-        parts.append(f"{where or 'parameters'}: {message}")
+        parts.append(f"{where}: {message}" if where else message)  # message names the key
     first = [unknown_keys(owner, keys) for owner, keys in unknown.items()]
     return "; ".join(dict.fromkeys([*first, *parts]))

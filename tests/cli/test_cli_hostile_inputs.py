@@ -23,6 +23,7 @@ from conftest import REPO_ROOT, damaged_copy, die_with_parent, real_file
 from laser_corners.cli import app
 from laser_corners.io import open_scans
 from laser_corners.io.arrays import write_scans_npz
+from laser_corners.io.trajectory import read_tum
 
 runner = CliRunner()
 N_SCANS = 300
@@ -204,3 +205,112 @@ def test_evaluate_slam_given_a_folder_says_it_is_a_folder(tmp_path: Path) -> Non
     _one_line(process, f"{folder}: is a folder", str(folder / "trajectory.tum"))
     process = _cli("evaluate", "slam", folder / "trajectory.tum", tmp_path)
     _one_line(process, f"{tmp_path}: is a folder")
+
+
+def _table_row(stdout: str, name: str) -> str:
+    """The value cell of the row ``name`` of a rich table in ``stdout``."""
+    for line in stdout.splitlines():
+        cells = line.split("│")
+        if len(cells) > 2 and cells[1].strip() == name:
+            return cells[2].strip()
+    raise AssertionError(f"no row {name!r} in:\n{stdout}")
+
+
+@pytest.mark.real
+def test_the_initial_pose_is_recorded_and_its_rejection_said(
+    fr079: tuple[Path, Path], tmp_path: Path
+) -> None:
+    npz, map_folder = fr079
+    x, y, yaw = read_tum(map_folder / "trajectory.tum")[1][0]
+    given = f"{x:.3f},{y:.3f},{yaw:.4f}"
+    out = tmp_path / "good"
+    result = _invoke("localise", map_folder, npz, "-o", out, "--initial-pose", given)
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    initial = summary["initial_pose"]
+    assert initial["pose"] == pytest.approx([x, y, yaw], abs=1e-3)
+    assert initial["accepted"] is True and initial["rejected_at_scan"] is None, initial
+    assert "given" in _table_row(result.stdout, "initial pose"), result.stdout
+    assert _table_row(result.stdout, "first fix") != "none", result.stdout
+    assert summary["ms_per_scan_max"] >= summary["ms_per_scan_p95"], summary
+    far = f"{x + 25:.3f},{y - 25:.3f},{yaw + 1.5:.4f}"
+    out = tmp_path / "far"
+    result = _invoke("localise", map_folder, npz, "-o", out, "--initial-pose", far)
+    assert result.exit_code == 0, result.output
+    summary = json.loads((out / "summary.json").read_text())
+    initial = summary["initial_pose"]
+    assert initial["accepted"] is False and initial["rejected_at_scan"] >= 0, initial
+    assert "rejected" in _table_row(result.stdout, "initial pose"), result.stdout
+    assert any("initial pose" in w and "rejected" in w for w in _warning_lines(result.stderr))
+
+
+@pytest.mark.real
+def test_a_recording_of_another_building_stops_saying_it_never_found_itself(
+    fr079: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """aces.bag in a map of fr079: no fix is right; after give_up_travel metres of odometry
+    without one, the run stops: one line, exit 2 (it ran to the end of the recording, minutes,
+    and exited 0 with an empty trajectory)."""
+    _, map_folder = fr079
+    bag = real_file("aces.bag")
+    out = tmp_path / "out"
+    result = _invoke("localise", map_folder, bag, "-o", out, "--set", "give_up_travel=10")
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert "Traceback" not in result.stderr
+    assert lines[-1].startswith("laser-corners: error: ") and "never found itself" in lines[-1]
+    assert "10 m" in lines[-1] and "give_up_travel" in lines[-1], lines
+
+
+def test_parameter_errors_do_not_name_internal_classes(tmp_path: Path) -> None:
+    """``--preset``/``--set`` mistakes name the option's key, not ``ParamsChoice``."""
+    from laser_corners import LaserScan
+
+    npz = tmp_path / "s.npz"
+    write_scans_npz(npz, [LaserScan(np.full(50, 2.0), -1.0, 0.04, stamp=1.0)])
+    for args, needle in (
+        (["--preset", "nonsense"], "preset: unknown preset 'nonsense'"),
+        (["--set", "min_points=-1"], "min_points: must be in"),
+        (["--set", "nosuch=1"], "unknown parameter 'nosuch'"),
+    ):
+        result = _invoke("detect", npz, "-o", tmp_path / "k.csv", *args)
+        assert result.exit_code == 2, result.output
+        line = result.stderr.strip().splitlines()[-1]
+        assert needle in line and "ParamsChoice" not in line, line
+        assert line.startswith(f"laser-corners: error: {needle[:6]}"), line
+
+
+def test_info_keeps_each_stamp_on_one_line(tmp_path: Path) -> None:
+    """Three LaserScan topics with epoch stamps at 80 columns: every first stamp whole on the
+    "first stamp" line (the column folded it over two lines)."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    types = store.types
+    bag = tmp_path / "three.bag"
+    stamp = 1_700_000_000
+    with Writer(bag) as writer:
+        for k in range(3):
+            name = f"/a_rather_long_scan_topic_name_{k}"
+            connection = writer.add_connection(name, "sensor_msgs/msg/LaserScan", typestore=store)
+            time = types["builtin_interfaces/msg/Time"](sec=stamp + k, nanosec=123456000)
+            msg = types["sensor_msgs/msg/LaserScan"](
+                header=types["std_msgs/msg/Header"](seq=0, stamp=time, frame_id="laser"),
+                angle_min=-1.5,
+                angle_max=1.5,
+                angle_increment=0.01,
+                time_increment=0.0,
+                scan_time=0.0,
+                range_min=0.1,
+                range_max=30.0,
+                ranges=np.full(301, 2.0, np.float32),
+                intensities=np.zeros(0, np.float32),
+            )
+            raw = store.serialize_ros1(msg, connection.msgtype)
+            writer.write(connection, (stamp + k) * 10**9, raw)
+    result = runner.invoke(app, ["info", str(bag)], terminal_width=80)
+    assert result.exit_code == 0, result.output
+    row = next(line for line in result.stdout.splitlines() if "first stamp" in line)
+    for k in range(3):
+        assert f"{stamp + k}.123456" in row, result.stdout

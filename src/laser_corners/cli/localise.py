@@ -159,14 +159,17 @@ def localise_command(
 def _report(console, summary: dict, folder: Path) -> None:
     from rich.table import Table
 
+    from laser_corners.viz.localise import initial_text
+    from laser_corners.viz.slam_report import ms_text
+
     table = Table(title=summary["input"], show_header=False)
-    fix = summary["first_fix"]
-    table.add_row(
-        "first fix",
-        "none"
-        if fix is None
-        else f"scan {fix['scan_index']}, t = {fix['stamp']:.3f} s, after {fix['travel_m']:.2f} m",
-    )
+    fix, initial = summary["first_fix"], summary["initial_pose"]
+    table.add_row("initial pose", initial_text(initial))
+    if fix is not None:
+        text = f"scan {fix['scan_index']}, t = {fix['stamp']:.3f} s, after {fix['travel_m']:.2f} m"
+    else:
+        text = "the initial pose" if initial and initial["accepted"] else "none"
+    table.add_row("first fix", text)
     table.add_row(
         "relocalisations / lost", f"{len(summary['relocalisations'])} / {summary['lost']}"
     )
@@ -176,9 +179,6 @@ def _report(console, summary: dict, folder: Path) -> None:
         f"{counts['scans']} / {counts['estimates']} ({counts.get('local', 0)})",
     )
     if summary["ms_per_scan_mean"] is not None:
-        table.add_row(
-            "ms per scan",
-            f"{summary['ms_per_scan_mean']:.2f} mean, {summary['ms_per_scan_p95']:.2f} p95",
-        )
+        table.add_row("ms per scan mean / p95 / max", ms_text(summary))
     table.add_row("output", str(folder))
     console.print(table)

@@ -120,6 +120,8 @@ def relations_table(rows: dict[str, dict[str, float]], title: str) -> Any:
 def _summary_table(summary: dict[str, Any], folder: Path) -> Any:
     from rich.table import Table
 
+    from laser_corners.viz.slam_report import ms_text
+
     counts, timings, closures = summary["counts"], summary["timings"], summary["closures"]
     table = Table(title=summary["input"], show_header=False)
     table.add_row("scans / keyframes", f"{counts['scans']} / {counts['keyframes']}")
@@ -138,10 +140,7 @@ def _summary_table(summary: dict[str, Any], folder: Path) -> Any:
         + ("" if rtf is None else f" ({rtf:.1f}x real time)"),
     )
     if timings["ms_per_scan_mean"] is not None:
-        table.add_row(
-            "ms per scan",
-            f"{timings['ms_per_scan_mean']:.2f} mean, {timings['ms_per_scan_p95']:.2f} p95",
-        )
+        table.add_row("ms per scan mean / p95 / max", ms_text(timings))
     table.add_row("peak memory", f"{timings['peak_rss_mb']:.0f} MB")
     table.add_row("output", str(folder))
     return table
