@@ -314,3 +314,22 @@ def test_info_keeps_each_stamp_on_one_line(tmp_path: Path) -> None:
     row = next(line for line in result.stdout.splitlines() if "first stamp" in line)
     for k in range(3):
         assert f"{stamp + k}.123456" in row, result.stdout
+
+
+@pytest.mark.real
+def test_slam_takes_mount_as_localise_does(fr079: tuple[Path, Path], tmp_path: Path) -> None:
+    """``slam --mount X,Y,YAW``: the same option, the same help as ``localise``'s, recorded in
+    summary.json; a non-finite one is one line naming it."""
+    npz, _ = fr079
+    helps = {}
+    for command in ("slam", "localise"):
+        result = runner.invoke(app, [command, "--help"], terminal_width=200)
+        line = next(line for line in result.stdout.splitlines() if "--mount" in line)
+        helps[command] = " ".join(line.replace("│", " ").split())
+    assert helps["slam"] == helps["localise"], helps
+    out = tmp_path / "out"
+    result = _invoke("slam", npz, "-o", out, "--stop-scan", 40, "--mount", "0.1,0,0.05")
+    assert result.exit_code == 0, result.output
+    assert json.loads((out / "summary.json").read_text())["mount"] == [0.1, 0.0, 0.05]
+    _one_line(_cli("slam", npz, "-o", tmp_path / "o2", "--mount", "nan,0,0"), "--mount")
+    assert not (tmp_path / "o2").exists()

@@ -19,17 +19,19 @@ import typer
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import (
     InputArg,
+    MountOption,
     OdomTopicOption,
     RecordingProgress,
     TopicOption,
     new_folder,
+    parse_pose,
 )
 from laser_corners.cli.kernels import SlamKernelCommand
 
 if TYPE_CHECKING:
     from laser_corners.localise import LocaliseOptions
 
-__all__ = ["localise_command", "localise_options", "parse_pose"]
+__all__ = ["localise_command", "localise_options"]
 
 _MapArg = Annotated[
     Path,
@@ -50,27 +52,6 @@ _Pose = Annotated[
         "--initial-pose", help="Base pose x,y,θ (m, m, rad) in the map at the first scan."
     ),
 ]
-_Mount = Annotated[
-    str | None,
-    typer.Option("--mount", help="Base -> laser transform x,y,yaw (overrides the recording's)."),
-]
-
-
-def parse_pose(text: str, option: str) -> tuple[float, float, float]:
-    """``"x,y,yaw"`` as three finite floats (x, y within
-    :data:`~laser_corners.pose.MAX_COORDINATE`), or a one-line failure naming ``option``."""
-    from laser_corners.pose import pose_problem
-
-    try:
-        values = tuple(float(v) for v in text.strip("[]() ").split(","))
-    except ValueError:
-        raise fail(f"{option}: expected x,y,yaw numbers, got {text!r}") from None
-    if len(values) != 3:
-        raise fail(f"{option}: expected x,y,yaw (3 numbers), got {len(values)}")
-    problem = pose_problem(values)
-    if problem is not None:
-        raise fail(f"{option}: {problem}")
-    return values  # type: ignore[return-value]
 
 
 def localise_options(
@@ -105,7 +86,7 @@ def localise_command(
     config: _Config = None,
     topic: TopicOption = None,
     odom_topic: OdomTopicOption = None,
-    mount: _Mount = None,
+    mount: MountOption = None,
 ) -> None:
     """Localise a recording with odometry in a map: global localisation with no initial pose,
     tracking, relocalisation when lost.

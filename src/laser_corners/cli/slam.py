@@ -17,11 +17,13 @@ import typer
 from laser_corners.cli.app import app, evaluate_app, fail
 from laser_corners.cli.common import (
     InputArg,
+    MountOption,
     OdomTopicOption,
     RecordingProgress,
     TopicOption,
     check_number,
     new_folder,
+    parse_pose,
 )
 from laser_corners.cli.kernels import SlamKernelCommand
 
@@ -53,8 +55,11 @@ _Resolution = Annotated[
 ]
 
 
-def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOptions:
-    """``SlamOptions`` from a YAML/TOML file (or the defaults), then ``key=value`` overrides.
+def slam_options(
+    config: Path | None, overrides: list[str] | None, mount: str | None = None
+) -> SlamOptions:
+    """``SlamOptions`` from a YAML/TOML file (or the defaults), then ``key=value`` overrides,
+    then ``--mount`` (as ``localise``'s).
 
     Raises
     ------
@@ -64,7 +69,10 @@ def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOption
     from laser_corners.slam import SlamOptions
 
     options = SlamOptions() if config is None else SlamOptions.from_file(config)
-    return options.with_overrides(overrides) if overrides else options
+    options = options.with_overrides(overrides) if overrides else options
+    if mount is not None:
+        options = options.with_overrides({"mount": parse_pose(mount, "--mount")})
+    return options
 
 
 def _run(
@@ -159,6 +167,7 @@ def slam_command(
     config: _Config = None,
     stop_scan: _StopScan = None,
     resolution: _Resolution = 0.05,
+    mount: MountOption = None,
 ) -> None:
     """Map a recording with odometry: trajectory, pose graph, corner landmarks, occupancy grid.
 
@@ -180,7 +189,7 @@ def slam_command(
         write_slam_outputs,
     )
 
-    options = slam_options(config, set_)
+    options = slam_options(config, set_, mount)
     table = read_relations(relations) if relations is not None else None
     folder = new_folder(output)
     try:
