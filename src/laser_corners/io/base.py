@@ -33,7 +33,10 @@ from laser_corners.pose import pose_problem
 from laser_corners.scan import LaserScan
 
 __all__ = [
+    "BAD_POSE",
+    "BAD_STAMP",
     "KINDS",
+    "MAX_STAMP",
     "KeypointWriter",
     "PartialOutput",
     "ScanSource",
