@@ -82,11 +82,12 @@ def scan_problem(scan: LaserScan) -> tuple[str, str] | None:
 
 def skip_warning(path: str | Path, skipped: dict[str, int]) -> str | None:
     """One line saying what reading ``path`` skipped (``"fr079.bag: skipped while reading: 1
-    damaged bag chunk, 246 scans in damaged chunks or records; ..."``), None when nothing."""
+    damaged bag chunk, 246 scans in damaged chunks or records (not in the output)"``), None
+    when nothing."""
     if not skipped:
         return None
     what = ", ".join(f"{count} {reason}" for reason, count in sorted(skipped.items()))
-    return f"{path}: skipped while reading: {what}; their scans are not in the output"
+    return f"{path}: skipped while reading: {what} (not in the output)"
 
 
 class TopicChoiceError(InputError):
