@@ -333,3 +333,21 @@ def test_slam_takes_mount_as_localise_does(fr079: tuple[Path, Path], tmp_path: P
     assert json.loads((out / "summary.json").read_text())["mount"] == [0.1, 0.0, 0.05]
     _one_line(_cli("slam", npz, "-o", tmp_path / "o2", "--mount", "nan,0,0"), "--mount")
     assert not (tmp_path / "o2").exists()
+
+
+@pytest.mark.real
+def test_slam_with_relations_of_another_recording_warns(
+    fr079: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """``slam --relations`` of another log: the map is written (exit 0) and one warning line
+    says that no relation is covered (it printed 0 / N and nothing else)."""
+    npz, _ = fr079
+    relations = _relations(tmp_path / "r.relations", 5000.0)
+    out = tmp_path / "out"
+    result = _invoke("slam", npz, "-o", out, "--stop-scan", 40, "--relations", relations)
+    assert result.exit_code == 0, result.output
+    warnings = _warning_lines(result.stderr)
+    assert len(warnings) == 1 and "no relation covered" in warnings[0], result.stderr
+    assert str(relations) in warnings[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert any("no relation covered" in w for w in summary["warnings"]), summary["warnings"]
