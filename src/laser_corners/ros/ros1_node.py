@@ -313,8 +313,9 @@ def release_stray_threads(timeout: float = 5.0) -> int:
     while the node shuts down (roscore's rosout node to ``/rosout``, often, on a loaded
     machine) leaves a connection nobody closes, and Python's exit waits for its thread for
     ever (the node "still running" after SIGTERM). Their connections are closed here; any
-    other non-daemon thread still alive after ``timeout`` s makes the process leave at once
-    (``os._exit``, after flushing), as rospy's own shutdown gives up joining its threads.
+    other non-daemon thread of rospy's still alive after ``timeout`` s makes the process leave
+    at once (``os._exit``, after flushing), as rospy's own shutdown gives up joining its
+    threads. Threads that are not rospy's are left alone.
     """
     released = 0
     for thread in threading.enumerate():
@@ -328,7 +329,7 @@ def release_stray_threads(timeout: float = 5.0) -> int:
             released += 1
     deadline = time.monotonic() + timeout
     for thread in threading.enumerate():
-        if thread is threading.current_thread() or thread.daemon:
+        if thread is threading.current_thread() or thread.daemon or not _rospy_thread(thread):
             continue
         thread.join(max(deadline - time.monotonic(), 0.0))
         if thread.is_alive():
@@ -337,6 +338,14 @@ def release_stray_threads(timeout: float = 5.0) -> int:
             sys.stderr.flush()
             os._exit(0)
     return released
+
+
+def _rospy_thread(thread: threading.Thread) -> bool:
+    """Whether ``thread`` runs rospy's (or rosgraph's) code."""
+    target = getattr(thread, "_target", None)
+    owner = getattr(target, "__self__", target)
+    module = getattr(owner, "__module__", None) or type(owner).__module__
+    return module.split(".")[0] in ("rospy", "rosgraph")
 
 
 def _read_config(rospy: ModuleType) -> NodeConfig:
