@@ -22,7 +22,6 @@ $(VENV)/.base: pyproject.toml
 # tests/ros/test_ros2_node.py runs the node over real DDS in CI (no system ROS 2, no sourcing).
 $(VENV)/.test: $(VENV)/.base
 	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[test]'
-	$(VENV)/bin/laser-corners warmup   # now with gtsam: the SLAM kernels too
 	touch $@
 
 # tf2_msgs (/tf, /tf_static) is not among ROS 2's PyPI wheels: build it from

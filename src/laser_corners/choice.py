@@ -55,7 +55,7 @@ class ParamsChoice(Options):
     - min_points=6
     """
 
-    title: ClassVar[str] = "ParamsChoice"
+    title: ClassVar[str] = ""  # messages name the key the user gave, not this class
 
     preset: str = "paper"
     base: DetectorParams | None = None

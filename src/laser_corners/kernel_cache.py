@@ -11,7 +11,10 @@ docstring or a help text does not count): any edit to a kernel gives a fresh
 folder, so no kernel can be loaded with another file's old code. numba's own index still
 checks numba's version. ``<base>`` is ``NUMBA_CACHE_DIR`` when set (so an empty folder there
 still means a cold cache), else the package's ``__pycache__`` when writable, else the user's
-cache folder (``$XDG_CACHE_HOME`` or ``~/.cache``, then ``laser-corners``).
+cache folder (``$XDG_CACHE_HOME`` or ``~/.cache``, then ``laser-corners``). A folder that
+cannot be written is replaced by one in the system's temporary folder
+(``laser-corners-numba-<uid>``), with one warning line: numba would otherwise refuse to
+import any cached kernel.
 
 Reading the kernel sources on every import would cost ~10-20 ms; the key is memoised in
 ``<base>/laser-corners-keys/`` under a hash of the names, sizes and modification times of
@@ -85,7 +88,27 @@ def _base() -> Path:
     pycache = PACKAGE / "__pycache__"
     if os.access(pycache if pycache.is_dir() else PACKAGE, os.W_OK):
         return pycache
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "laser-corners"
+    home = os.path.expanduser("~")  # "~" itself when HOME is unset and no passwd entry
+    user = os.environ.get("XDG_CACHE_HOME") or os.path.join(home, ".cache")
+    return Path(user) / "laser-corners" if os.path.isabs(user) else _temporary_base()
+
+
+def _temporary_base() -> Path:
+    """The fallback base in the system's temporary folder, one per user."""
+    import tempfile  # only when the usual folders cannot be written
+
+    user = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+    return Path(tempfile.gettempdir()) / f"laser-corners-numba-{user}"
+
+
+def _writable(folder: Path) -> str | None:
+    """Create ``folder`` and check it can be written (as numba does before caching there):
+    the reason it cannot be, or None when it can."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return exc.strerror or type(exc).__name__
+    return None if os.access(folder, os.W_OK) else "not writable"
 
 
 def _memoised_key(base: Path, package: Path) -> str:
@@ -110,9 +133,25 @@ def _memoised_key(base: Path, package: Path) -> str:
 
 
 def use_keyed_cache() -> Path:
-    """Point numba's cache at the folder keyed by the kernel sources; returns it."""
+    """Point numba's cache at the folder keyed by the kernel sources; returns it.
+
+    A folder that cannot be written (a package installed by another user, HOME unset, a
+    NUMBA_CACHE_DIR that is not a folder) would make numba refuse to import any cached kernel
+    ("cannot cache function ... no locator available"): the folder then lives in the system's
+    temporary folder instead, said in one warning line on stderr.
+    """
     base = _base()
-    folder = base / f"{PREFIX}{_memoised_key(base, PACKAGE)}"
+    key = _memoised_key(base, PACKAGE)
+    folder = base / f"{PREFIX}{key}"
+    problem = _writable(folder)
+    if problem is not None:
+        fallback = _temporary_base() / f"{PREFIX}{key}"
+        if _writable(fallback) is None:
+            sys.stderr.write(
+                f"laser-corners: warning: cannot cache the numba kernels in {folder} "
+                f"({problem}); caching them in {fallback}\n"
+            )
+            folder = fallback
     os.environ["NUMBA_CACHE_DIR"] = str(folder)
     config = sys.modules.get("numba.core.config")
     if config is not None:  # numba already imported: it read the environment then

@@ -19,15 +19,18 @@ import types
 import typing
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Annotated, Any, ClassVar
 
 import tomllib
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from laser_corners.errors import InvalidParamsError
 
-__all__ = ["Options", "unknown_keys"]
+__all__ = ["MountValue", "Options", "unknown_keys"]
+
+MountValue = Annotated[float, Field(allow_inf_nan=False, ge=-1000.0, le=1000.0)]
+"""One number of a base -> laser mount ``(x, y, yaw)``: finite, within a kilometre (radian)."""
 
 
 class Options(BaseModel):
@@ -224,6 +227,6 @@ def one_line(exc: ValidationError, cls: type[Options]) -> str:
             where = loc[0]
         elif kind not in ("value_error", "missing", "extra_forbidden") and "input" in error:
             message = f"{message[:1].lower()}{message[1:]}, got {error['input']!r}"
-        parts.append(f"{where or 'parameters'}: {message}")
+        parts.append(f"{where}: {message}" if where else message)  # message names the key
     first = [unknown_keys(owner, keys) for owner, keys in unknown.items()]
     return "; ".join(dict.fromkeys([*first, *parts]))

@@ -15,13 +15,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "MAX_COORDINATE",
     "Pose2D",
     "between_many",
+    "check_pose",
     "compose",
     "compose_many",
     "invert",
     "invert_many",
     "pose_error",
+    "pose_problem",
     "poses_apart",
     "relative_pose",
     "rotate_covariance",
@@ -34,6 +37,33 @@ Pose2D = tuple[float, float, float]
 """A planar pose ``(x, y, theta)`` in metres and radians."""
 
 TAU = 2.0 * math.pi
+
+MAX_COORDINATE = 1e7
+"""Largest plausible |x| or |y| of a pose, metres (10 000 km): beyond it a pose is a broken
+record, and the grids and kernels would turn it into cell indices far outside any array."""
+
+
+def pose_problem(pose: ArrayLike) -> str | None:
+    """What is wrong with ``pose`` as a planar pose (not 3 numbers, not finite, |x| or |y|
+    beyond :data:`MAX_COORDINATE`), or None when it is usable. Cheap: three numbers."""
+    values = np.asarray(pose, dtype=np.float64).reshape(-1)
+    if values.size != 3:
+        return f"pose must be 3 numbers x, y, theta, got {values.size}"
+    if not np.isfinite(values).all():
+        return f"pose must be finite, got {tuple(float(v) for v in values)}"
+    if max(abs(values[0]), abs(values[1])) > MAX_COORDINATE:
+        return f"pose x, y must be within {MAX_COORDINATE:g} m, got {values[0]:g}, {values[1]:g}"
+    return None
+
+
+def check_pose(pose: ArrayLike, what: str = "pose") -> NDArray[np.float64]:
+    """``pose`` as a float array of 3, or a ``ValueError`` naming ``what`` (see
+    :func:`pose_problem`): the check at the door of the numba kernels, which would crash on a
+    NaN or absurd pose instead of raising."""
+    problem = pose_problem(pose)
+    if problem is not None:
+        raise ValueError(f"{what}: {problem}")
+    return np.asarray(pose, dtype=np.float64).reshape(3)
 
 
 @nb.njit(cache=True, nogil=True)

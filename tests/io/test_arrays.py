@@ -101,3 +101,36 @@ def test_scan_array_writers_write_whole_files_and_name_output_problems(tmp_path:
     with pytest.raises(OutputError, match=r"the folder .*absent does not exist"):
         write_scans_csv(tmp_path / "absent" / "s.csv", scans)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain.npz", "s.csv"]
+
+
+def test_rows_with_a_broken_stamp_or_pose_are_counted_skips(tmp_path: Path) -> None:
+    """A NaN or infinite stamp, a NaN pose or a pose 1e300 m away is a counted skip of that
+    row (the SLAM's grids and kernels would crash on it), in NPZ and CSV alike."""
+    n = 8
+    angles = np.linspace(-1.5, 1.5, 50)
+    scans = [
+        LaserScan(2.0 + 0.1 * np.cos(angles + i), -1.5, 3.0 / 49, stamp=10.0 + i, pose=(i, 0, 0))
+        for i in range(n)
+    ]
+    write_scans_npz(tmp_path / "s.npz", scans)
+    data = dict(np.load(tmp_path / "s.npz"))
+    data["stamps"][1] = np.nan
+    data["stamps"][2] = np.inf
+    data["poses"][4, 1] = np.nan
+    data["poses"][5, 0] = 1e300
+    np.savez(tmp_path / "bad.npz", **data)
+    source = open_scans(tmp_path / "bad.npz")
+    kept = list(source)
+    assert [s.stamp for s in kept] == [10.0, 13.0, 16.0, 17.0]
+    assert sum(source.skipped.values()) == 4, source.skipped
+    assert any("stamp" in e for e in source.skip_examples), source.skip_examples
+    assert any("1e+300" in e for e in source.skip_examples), source.skip_examples
+    write_scans_csv(tmp_path / "s.csv", scans)
+    lines = (tmp_path / "s.csv").read_text().splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("10.0,"))
+    lines[first + 1] = "nan" + lines[first + 1][len("11.0") :]
+    lines[first + 3] = lines[first + 3].replace("13.0,3.0,", "13.0,1e300,", 1)
+    (tmp_path / "bad.csv").write_text("\n".join(lines) + "\n")
+    source = open_scans(tmp_path / "bad.csv")
+    assert [s.stamp for s in source] == [10.0, 12.0, 14.0, 15.0, 16.0, 17.0]
+    assert sum(source.skipped.values()) == 2, source.skipped

@@ -307,3 +307,29 @@ def test_bag_read_through_the_rosbags_fallback_gives_the_same_scans(monkeypatch)
             b.angle_min,
             b.angle_increment,
         )
+
+
+def test_odometry_thousands_of_km_away_is_a_counted_skip(tmp_path: Path) -> None:
+    """A bag whose odometry jumps to x = 1e300 for one sample: the scans posed from it are
+    counted skips ("scan with an absurd pose"), the others read, and the bag's stamp lists
+    keep to the scans read."""
+    from dataclasses import replace
+
+    from laser_corners.io.base import BAD_POSE
+    from laser_corners.sim import UST_10LX, rectangular_room, trajectory
+    from laser_corners.sim.export import simulate_sequence, write_bag
+
+    rng = np.random.default_rng(3)
+    world = rectangular_room()
+    truth = trajectory(world, 40, rng, rate_hz=UST_10LX.rate_hz, speed=0.5)
+    sequence = simulate_sequence(world, UST_10LX, truth, 0.005, rng, start_time=100.0)
+    poses = truth.copy()
+    poses[20, 0] = 1e300
+    bag = tmp_path / "far.bag"
+    write_bag(replace(sequence, poses=poses), bag)
+    source = open_scans(bag)
+    scans = list(source)
+    assert source.skipped.get(BAD_POSE, 0) >= 1, source.skipped
+    assert len(scans) + sum(source.skipped.values()) == 40, source.skipped
+    assert len(source.stamps_ns) == len(scans)
+    assert all(abs(s.pose[0]) < 1e3 for s in scans)

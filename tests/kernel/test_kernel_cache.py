@@ -84,3 +84,39 @@ def test_the_key_follows_kernel_sources_only(tmp_path: Path) -> None:
     walk = package / "kernel" / "neighbourhood.py"
     walk.write_text(walk.read_text() + "\n# a comment\n")
     assert kernel_key(package) != key
+
+
+def test_an_unwritable_cache_falls_back_to_a_temporary_folder(tmp_path: Path) -> None:
+    """The package's folder and the user's cache not writable (installed by another user,
+    HOME unset) and NUMBA_CACHE_DIR under a regular file (root ignores permissions, not
+    that): numba would stop every import of a kernel with "cannot cache function ... no
+    locator available". numba is told to use NUMBA_CACHE_DIR only (its other locators, the
+    package's __pycache__ and the user's cache, are what is unwritable); the command works,
+    with at most one warning line and the kernels cached in the temporary folder."""
+    trajectory = tmp_path / "t.tum"
+    trajectory.write_text("".join(f"{t}.0 {0.5 * t} 0 0 0 0 0 1\n" for t in range(10)))
+    relations = tmp_path / "r.relations"
+    relations.write_text("".join(f"{t}.0 {t + 1}.0 0.5 0 0 0 0 0\n" for t in range(9)))
+    src = Path(laser_corners.__file__).resolve().parents[1]
+    env = {k: v for k, v in os.environ.items() if k not in ("HOME", "XDG_CACHE_HOME")}
+    env |= {
+        "PYTHONPATH": str(src),
+        "NUMBA_CACHE_DIR": "/etc/passwd/numba",
+        "NUMBA_CACHE_LOCATOR_CLASSES": "UserProvidedCacheLocator",
+        "TMPDIR": str(tmp_path / "tmp"),
+    }
+    (tmp_path / "tmp").mkdir()
+    code = "from laser_corners.cli import main; main()"
+    run = subprocess.run(
+        [sys.executable, "-c", code, "evaluate", "slam", str(trajectory), str(relations)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr and "9 / 9" in run.stdout, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("laser-corners: warning:"), run.stderr
+    assert "/etc/passwd/numba" in lines[0] and str(tmp_path / "tmp") in lines[0], lines
+    assert list((tmp_path / "tmp").rglob("*.nbi")), "nothing was cached in the fallback"

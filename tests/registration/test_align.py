@@ -4,8 +4,9 @@ position along it unobservable) the scan's own beam pattern must not move the es
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from laser_corners.registration.align import PointMap, icp
+from laser_corners.registration.align import PointMap, icp, match_share
 from laser_corners.registration.points import rotate, scan_points, transform
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam.options import SlamOptions
@@ -55,3 +56,29 @@ def test_a_corridor_scan_does_not_snap_to_the_keyframes_beam_pattern() -> None:
     rms_line = float(np.sqrt(np.mean(line**2)))
     assert rms_surface < 0.6 * rms_line
     assert rms_surface < 0.005
+
+
+def test_the_kernel_wrappers_refuse_non_finite_poses() -> None:
+    """A NaN, infinite or absurd pose is a ValueError before any kernel runs (a kernel turns
+    it into a cell index far outside its grid: a crash, not an exception)."""
+    from laser_corners.registration.correlative import ScoreGrid, search
+
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-5, 5, (200, 2))
+    normals = np.tile([1.0, 0.0], (200, 1))
+    pointmap = PointMap.build(xy, normals)
+    grid = ScoreGrid.build(xy, 0.05, 0.05, 1.0)
+    info = np.eye(3)
+    for bad in ([np.nan, 0, 0], [0, np.inf, 0], [1e300, 0, 0], [0, 0, np.nan]):
+        pose = np.array(bad, dtype=float)
+        with pytest.raises(ValueError, match="pose"):
+            match_share(xy, pointmap, pose, 0.1)
+        with pytest.raises(ValueError, match="pose"):
+            icp(xy, pointmap, pose, info, max_distance=0.5, inlier_distance=0.1, iterations=5)
+        with pytest.raises(ValueError, match="pose"):
+            search(grid, xy, pose, 0.5, 0.1)
+    bad_points = xy.copy()
+    bad_points[3] = [np.nan, 1.0]
+    with pytest.raises(ValueError, match="finite"):
+        PointMap.build(bad_points, normals)
+    assert match_share(xy, pointmap, np.zeros(3), 0.1) == 1.0

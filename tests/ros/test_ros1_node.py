@@ -479,3 +479,63 @@ def test_ros1_refuses_when_ros2_messages_are_loaded(
     with pytest.raises(LaserCornersError, match="ROS 1 and ROS 2 messages cannot share"):
         _install_message_finder(root)
     assert not [f for f in sys.meta_path if isinstance(f, Ros1MessageFinder) and f.root == root]
+
+
+STRAY_CONNECTION = """
+import sys
+from laser_corners.ros.ros1_node import import_rospy, release_stray_threads
+import_rospy()
+from rospy.topics import _PublisherImpl
+from std_msgs.msg import String
+
+
+class Transport:  # what a subscriber's TCPROS connection to our publisher offers
+    endpoint_id = "/late_subscriber"
+    done = False
+    def set_cleanup_callback(self, callback):
+        self.callback = callback
+    def close(self):
+        self.done = True
+        self.callback(self)
+    def write_data(self, data):
+        pass
+
+
+publisher = _PublisherImpl("/corners", String)
+publisher.queue_size = 10
+publisher.close()  # what rospy's shutdown did a moment before
+try:
+    publisher.add_connection(Transport())  # a subscriber's connection arriving after it
+except TypeError:  # rospy: the closed publisher's listeners are None
+    pass
+print("released", release_stray_threads(5.0), flush=True)
+"""
+
+
+def test_a_connection_arriving_during_shutdown_does_not_keep_the_node_alive(
+    tmp_path: Path,
+) -> None:
+    """The flaky SIGTERM test's cause: rospy wraps a subscriber's connection to a queued
+    publisher in a QueuedConnection, whose non-daemon thread waits for data, *before* it
+    finds the publisher closed; nobody closes that connection, and Python's exit waits for the
+    thread forever. Under load a subscriber (roscore's rosout node, to /rosout) often connects
+    while the node shuts down. ``release_stray_threads`` (run by ``main`` after shutdown)
+    closes such connections: the process exits."""
+    _ros1()
+    env = {**os.environ, "PYTHONPATH": str(REPO_ROOT / "src")}
+    process = subprocess.Popen(
+        [sys.executable, "-c", STRAY_CONNECTION],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=die_with_parent(),
+    )
+    try:
+        out, err = process.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, err = process.communicate()
+        pytest.fail(f"the process kept running after its last line: {out} {err}")
+    assert process.returncode == 0, err
+    assert "released 1" in out, (out, err)

@@ -272,3 +272,25 @@ def test_a_partial_result_says_why(tmp_path: Path) -> None:
     write_slam_outputs(fake_result(n_scans=30), tmp_path / "m", _info())
     summary = json.loads((tmp_path / "m" / "summary.json").read_text())
     assert summary["partial"] is False and summary["partial_reason"] is None
+
+
+def test_closure_numbers_and_ms_per_scan_come_from_one_place() -> None:
+    """The closure numbers of summary.json's counts, its closures section and report.md are
+    one set, from the closures themselves (the front end's counters disagreed with them);
+    ms per scan is mean, p95 and max everywhere (one slow scan puts the mean above p95)."""
+    from laser_corners.viz.slam_report import slam_markdown, slam_summary
+
+    result = fake_result()
+    result.counts.update(closures_proposed=6, closures_accepted=3, closures_rejected=3)
+    result.ms_per_scan[0] = 500.0
+    summary = slam_summary(result, SlamRunInfo("in.bag", 1.0, 100.0))
+    closures, counts, timings = summary["closures"], summary["counts"], summary["timings"]
+    assert (closures["proposed"], closures["accepted"], closures["rejected"]) == (4, 2, 2)
+    assert (counts["closures_proposed"], counts["closures_accepted"]) == (4, 2)
+    assert counts["closures_rejected"] == 2
+    assert timings["ms_per_scan_max"] == 500.0
+    assert timings["ms_per_scan_mean"] > timings["ms_per_scan_p95"]
+    report = slam_markdown(summary)
+    assert "| loop closures proposed / accepted / rejected | 4 / 2 / 2 |" in report
+    mean, p95 = timings["ms_per_scan_mean"], timings["ms_per_scan_p95"]
+    assert f"| ms per scan mean / p95 / max | {mean:.2f} / {p95:.2f} / 500.00 |" in report

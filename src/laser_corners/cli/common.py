@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "InputArg",
+    "MountOption",
     "OdomTopicOption",
     "ParamsOption",
     "PresetOption",
@@ -35,6 +36,7 @@ __all__ = [
     "image_file",
     "new_folder",
     "params_choice",
+    "parse_pose",
     "refuse_overlap",
     "stop_exit_code",
     "with_params_choice",
@@ -59,6 +61,10 @@ OdomTopicOption = Annotated[
         help="Odometry of a bag's scan poses: a nav_msgs/Odometry topic, or tf for /tf "
         "(default: the only Odometry topic, /tf when there is none).",
     ),
+]
+MountOption = Annotated[
+    str | None,
+    typer.Option("--mount", help="Base -> laser transform x,y,yaw (overrides the recording's)."),
 ]
 PresetOption = Annotated[
     str | None,
@@ -86,6 +92,23 @@ def params_choice(
     if preset is not None and params_file is not None:
         raise fail("give --preset or --params, not both")
     return ParamsChoice.from_options(preset, params_file, set_)
+
+
+def parse_pose(text: str, option: str) -> tuple[float, float, float]:
+    """``"x,y,yaw"`` as three finite floats (x, y within
+    :data:`~laser_corners.pose.MAX_COORDINATE`), or a one-line failure naming ``option``."""
+    from laser_corners.pose import pose_problem
+
+    try:
+        values = tuple(float(v) for v in text.strip("[]() ").split(","))
+    except ValueError:
+        raise fail(f"{option}: expected x,y,yaw numbers, got {text!r}") from None
+    if len(values) != 3:
+        raise fail(f"{option}: expected x,y,yaw (3 numbers), got {len(values)}")
+    problem = pose_problem(values)
+    if problem is not None:
+        raise fail(f"{option}: {problem}")
+    return values  # type: ignore[return-value]
 
 
 def check_number(option: str, value: float | None, minimum: float | None = None) -> None:

@@ -219,6 +219,9 @@ def _scans_table(sources: list[Any], description: dict[str, Any]) -> Any:
         for key, value in zip(rows, values, strict=True):
             rows[key].append(value)
     table = new_table("scans (geometry of the first scan)", "", *labels)
+    stamp_width = max(map(len, rows["first stamp (s)"]))
+    for column in table.columns[1:]:  # a stamp is never folded over two lines
+        column.min_width = stamp_width
     for key, values in rows.items():
         table.add_row(key, *values)
     return table

@@ -24,10 +24,12 @@ import typer
 from laser_corners.cli.app import app, fail
 from laser_corners.cli.common import (
     InputArg,
+    MountOption,
     OdomTopicOption,
     RecordingProgress,
     TopicOption,
     new_folder,
+    parse_pose,
     refuse_overlap,
     stop_exit_code,
 )
@@ -36,7 +38,7 @@ from laser_corners.cli.kernels import SlamKernelCommand
 if TYPE_CHECKING:
     from laser_corners.localise import LocaliseOptions
 
-__all__ = ["localise_command", "localise_options", "parse_pose"]
+__all__ = ["localise_command", "localise_options"]
 
 _MapArg = Annotated[
     Path,
@@ -61,21 +63,6 @@ _Pose = Annotated[
         "--initial-pose", help="Base pose x,y,θ (m, m, rad) in the map at the first scan."
     ),
 ]
-_Mount = Annotated[
-    str | None,
-    typer.Option("--mount", help="Base -> laser transform x,y,yaw (overrides the recording's)."),
-]
-
-
-def parse_pose(text: str, option: str) -> tuple[float, float, float]:
-    """``"x,y,yaw"`` as three floats, or a one-line failure naming ``option``."""
-    try:
-        values = tuple(float(v) for v in text.strip("[]() ").split(","))
-    except ValueError:
-        raise fail(f"{option}: expected x,y,yaw numbers, got {text!r}") from None
-    if len(values) != 3:
-        raise fail(f"{option}: expected x,y,yaw (3 numbers), got {len(values)}")
-    return values  # type: ignore[return-value]
 
 
 def localise_options(
@@ -110,7 +97,7 @@ def localise_command(
     config: _Config = None,
     topic: TopicOption = None,
     odom_topic: OdomTopicOption = None,
-    mount: _Mount = None,
+    mount: MountOption = None,
 ) -> None:
     """Localise a recording with odometry in a map: global localisation with no initial pose,
     tracking, relocalisation when lost.
@@ -123,6 +110,8 @@ def localise_command(
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")
     refuse_overlap(output, [map_folder, input_path], whole=False)
+    if stop_scan is not None and stop_scan <= start_scan:
+        raise fail(f"--stop-scan ({stop_scan}) must be after --start-scan ({start_scan})")
     from rich.console import Console
 
     from laser_corners.io.trajectory import TumWriter
@@ -158,6 +147,8 @@ def localise_command(
         )
     summary = localise_summary(run, str(input_path), str(map_folder), time.perf_counter() - start)
     summary["map_partial_reason"] = saved.partial_reason
+    for warning in summary["warnings"]:
+        typer.echo(f"laser-corners: warning: {warning}", err=True)
     write_localise_outputs(run, folder, saved.grid, summary, header)
     _report(Console(), summary, folder)
     if run.interrupted:
@@ -176,14 +167,17 @@ def localise_command(
 def _report(console, summary: dict, folder: Path) -> None:
     from rich.table import Table
 
+    from laser_corners.viz.localise import initial_text
+    from laser_corners.viz.slam_report import ms_text
+
     table = Table(title=summary["input"], show_header=False)
-    fix = summary["first_fix"]
-    table.add_row(
-        "first fix",
-        "none"
-        if fix is None
-        else f"scan {fix['scan_index']}, t = {fix['stamp']:.3f} s, after {fix['travel_m']:.2f} m",
-    )
+    fix, initial = summary["first_fix"], summary["initial_pose"]
+    table.add_row("initial pose", initial_text(initial))
+    if fix is not None:
+        text = f"scan {fix['scan_index']}, t = {fix['stamp']:.3f} s, after {fix['travel_m']:.2f} m"
+    else:
+        text = "the initial pose" if initial and initial["accepted"] else "none"
+    table.add_row("first fix", text)
     table.add_row(
         "relocalisations / lost", f"{len(summary['relocalisations'])} / {summary['lost']}"
     )
@@ -193,9 +187,6 @@ def _report(console, summary: dict, folder: Path) -> None:
         f"{counts['scans']} / {counts['estimates']} ({counts.get('local', 0)})",
     )
     if summary["ms_per_scan_mean"] is not None:
-        table.add_row(
-            "ms per scan",
-            f"{summary['ms_per_scan_mean']:.2f} mean, {summary['ms_per_scan_p95']:.2f} p95",
-        )
+        table.add_row("ms per scan mean / p95 / max", ms_text(summary))
     table.add_row("output", str(folder))
     console.print(table)

@@ -21,11 +21,13 @@ import typer
 from laser_corners.cli.app import app, evaluate_app, fail
 from laser_corners.cli.common import (
     InputArg,
+    MountOption,
     OdomTopicOption,
     RecordingProgress,
     TopicOption,
     check_number,
     new_folder,
+    parse_pose,
     refuse_overlap,
     stop_exit_code,
 )
@@ -59,8 +61,11 @@ _Resolution = Annotated[
 ]
 
 
-def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOptions:
-    """``SlamOptions`` from a YAML/TOML file (or the defaults), then ``key=value`` overrides.
+def slam_options(
+    config: Path | None, overrides: list[str] | None, mount: str | None = None
+) -> SlamOptions:
+    """``SlamOptions`` from a YAML/TOML file (or the defaults), then ``key=value`` overrides,
+    then ``--mount`` (as ``localise``'s).
 
     Raises
     ------
@@ -70,7 +75,10 @@ def slam_options(config: Path | None, overrides: list[str] | None) -> SlamOption
     from laser_corners.slam import SlamOptions
 
     options = SlamOptions() if config is None else SlamOptions.from_file(config)
-    return options.with_overrides(overrides) if overrides else options
+    options = options.with_overrides(overrides) if overrides else options
+    if mount is not None:
+        options = options.with_overrides({"mount": parse_pose(mount, "--mount")})
+    return options
 
 
 def _run(
@@ -126,6 +134,8 @@ def relations_table(rows: dict[str, dict[str, float]], title: str) -> Any:
 def _summary_table(summary: dict[str, Any], folder: Path) -> Any:
     from rich.table import Table
 
+    from laser_corners.viz.slam_report import ms_text
+
     counts, timings, closures = summary["counts"], summary["timings"], summary["closures"]
     table = Table(title=summary["input"], show_header=False)
     table.add_row("scans / keyframes", f"{counts['scans']} / {counts['keyframes']}")
@@ -144,10 +154,7 @@ def _summary_table(summary: dict[str, Any], folder: Path) -> Any:
         + ("" if rtf is None else f" ({rtf:.1f}x real time)"),
     )
     if timings["ms_per_scan_mean"] is not None:
-        table.add_row(
-            "ms per scan",
-            f"{timings['ms_per_scan_mean']:.2f} mean, {timings['ms_per_scan_p95']:.2f} p95",
-        )
+        table.add_row("ms per scan mean / p95 / max", ms_text(timings))
     table.add_row("peak memory", f"{timings['peak_rss_mb']:.0f} MB")
     table.add_row("output", str(folder))
     return table
@@ -166,6 +173,7 @@ def slam_command(
     config: _Config = None,
     stop_scan: _StopScan = None,
     resolution: _Resolution = 0.05,
+    mount: MountOption = None,
 ) -> None:
     """Map a recording with odometry: trajectory, pose graph, corner landmarks, occupancy grid.
 
@@ -181,7 +189,8 @@ def slam_command(
     from rich.console import Console
 
     from laser_corners.errors import InvalidParamsError
-    from laser_corners.eval.relations import closure_consistency, read_relations
+    from laser_corners.eval.relations import closure_consistency, no_coverage, read_relations
+    from laser_corners.io.base import skip_warning
     from laser_corners.slam.grid import check_grid_size
     from laser_corners.viz.slam_report import (
         SlamRunInfo,
@@ -191,7 +200,7 @@ def slam_command(
         write_slam_outputs,
     )
 
-    options = slam_options(config, set_)
+    options = slam_options(config, set_, mount)
     table = read_relations(relations) if relations is not None else None
     check_slam_folder(output)
     try:
@@ -205,9 +214,13 @@ def slam_command(
         typer.echo(f"interrupted before the first scan; nothing written to {folder}", err=True)
         raise typer.Exit(130) from None
     info = SlamRunInfo(str(input_path), wall, peak_rss_mb(), resolution=resolution)
+    skipped = skip_warning(input_path, getattr(result, "skipped", {}))
+    info.warnings += [] if skipped is None else [skipped]
     if table is not None:
         info.relations_file = str(relations)
         info.relations = _relation_metrics(result, table)
+        uncovered = no_coverage(result.stamps, table) if len(result.stamps) else None
+        info.warnings += [] if uncovered is None else [f"{relations}: {uncovered}"]
     if any(c.accepted for c in result.closures):
         info.closure_consistency = float(closure_consistency(result))
     write_slam_outputs(result, folder, info)
@@ -256,7 +269,7 @@ def evaluate_slam_command(
     over the relative poses between the stamps of a .relations file."""
     from rich.console import Console
 
-    from laser_corners.eval.relations import read_relations, relation_metrics
+    from laser_corners.eval.relations import no_coverage, read_relations, relation_metrics
     from laser_corners.io.trajectory import read_tum
 
     table = read_relations(relations)
@@ -264,5 +277,8 @@ def evaluate_slam_command(
     for name, path in (("trajectory", trajectory), ("odometry", odometry)):
         if path is not None:
             stamps, poses = read_tum(path)
+            problem = no_coverage(stamps, table)
+            if problem is not None:
+                raise fail(f"{relations}: {problem.replace('the trajectory', str(path))}")
             rows[f"{name} ({path.name})"] = relation_metrics(stamps, poses, table).to_dict()
     Console().print(relations_table(rows, f"relation metric ({relations})"))

@@ -20,7 +20,13 @@ from laser_corners.io.trajectory import read_numeric_table
 from laser_corners.pose import between_many, compose_many, invert_many, wrap_angle
 from laser_corners.slam.result import SlamResult
 
-__all__ = ["RelationMetrics", "closure_consistency", "read_relations", "relation_metrics"]
+__all__ = [
+    "RelationMetrics",
+    "closure_consistency",
+    "no_coverage",
+    "read_relations",
+    "relation_metrics",
+]
 
 
 def read_relations(path: str | Path) -> NDArray[np.float64]:
@@ -34,6 +40,20 @@ def read_relations(path: str | Path) -> NDArray[np.float64]:
     """
     table = read_numeric_table(path, "t1 t2 x y z roll pitch yaw", "relations")
     return table[:, [0, 1, 2, 3, 7]].copy()
+
+
+def no_coverage(stamps: ArrayLike, relations: ArrayLike) -> str | None:
+    """When a trajectory covers no relation at all (relations of another recording, another
+    clock): a phrase giving both time spans; None when it covers one."""
+    stamps = np.asarray(stamps, dtype=np.float64).reshape(-1)
+    rel = np.asarray(relations, dtype=np.float64).reshape(-1, 5)
+    if relation_metrics(stamps, np.zeros((stamps.size, 3)), rel).n_covered or not rel.size:
+        return None
+    span = f"{stamps.min():.3f} to {stamps.max():.3f} s" if stamps.size else "no stamps"
+    return (
+        f"no relation covered by the trajectory (its stamps {span}; the relations' "
+        f"{rel[:, :2].min():.3f} to {rel[:, :2].max():.3f} s): relations of another recording?"
+    )
 
 
 @dataclass

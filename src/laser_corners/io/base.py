@@ -18,6 +18,7 @@ and its storage plugins are laid out the same way).
 from __future__ import annotations
 
 import gzip
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -28,10 +29,14 @@ from typing import Literal
 from laser_corners.errors import InputError
 from laser_corners.io.partial import ClosesOnExit, PartialOutput, file_mode, refuse_input
 from laser_corners.keypoints import Keypoints
+from laser_corners.pose import pose_problem
 from laser_corners.scan import LaserScan
 
 __all__ = [
+    "BAD_POSE",
+    "BAD_STAMP",
     "KINDS",
+    "MAX_STAMP",
     "KeypointWriter",
     "PartialOutput",
     "ScanSource",
@@ -42,6 +47,8 @@ __all__ = [
     "open_text",
     "read_head",
     "refuse_input",
+    "scan_problem",
+    "skip_warning",
 ]
 
 SourceKind = Literal["ros1", "ros2", "mcap", "carmen", "npz", "csv"]
@@ -52,6 +59,35 @@ BAG_KINDS: frozenset[str] = frozenset({"ros1", "ros2", "mcap"})
 
 MAX_SKIP_EXAMPLES = 5
 """How many skipped records a source remembers the position of."""
+MAX_STAMP = 1e11
+"""Largest plausible |stamp|, seconds (year 5138 after 1970): beyond it, a broken record."""
+BAD_STAMP = "scan with a non-finite or absurd stamp"
+"""Skip reason: a scan whose stamp is NaN, infinite or beyond :data:`MAX_STAMP`."""
+BAD_POSE = "scan with an absurd pose"
+"""Skip reason: a scan whose pose is beyond :data:`~laser_corners.pose.MAX_COORDINATE`."""
+
+
+def scan_problem(scan: LaserScan) -> tuple[str, str] | None:
+    """``(skip reason, detail)`` when the stamp or the pose of ``scan`` is unusable (NaN,
+    infinite, absurd), else None: a few float checks per scan."""
+    stamp = scan.stamp
+    if stamp is not None and not (math.isfinite(stamp) and abs(stamp) <= MAX_STAMP):
+        return BAD_STAMP, f"stamp {stamp}"
+    if scan.pose is not None:
+        problem = pose_problem(scan.pose)
+        if problem is not None:
+            return BAD_POSE, problem
+    return None
+
+
+def skip_warning(path: str | Path, skipped: dict[str, int]) -> str | None:
+    """One line saying what reading ``path`` skipped (``"fr079.bag: skipped while reading: 1
+    damaged bag chunk, 246 scans in damaged chunks or records (not in the output)"``), None
+    when nothing."""
+    if not skipped:
+        return None
+    what = ", ".join(f"{count} {reason}" for reason, count in sorted(skipped.items()))
+    return f"{path}: skipped while reading: {what} (not in the output)"
 
 
 class TopicChoiceError(InputError):
@@ -149,7 +185,22 @@ class ScanSource(ABC):
         self.skipped = {}
         self.skip_examples = []
         self.position = "start"
-        return self._scans()
+        return self._usable(self._scans())
+
+    def _usable(self, scans: Iterator[LaserScan]) -> Iterator[LaserScan]:
+        """The scans of ``scans`` whose stamp and pose are usable; the others are counted
+        skips (:func:`scan_problem`). Closing this closes ``scans``."""
+        try:
+            for scan in scans:
+                problem = scan_problem(scan)
+                if problem is None:
+                    yield scan
+                else:
+                    self._skip(problem[0], self.position, problem[1])
+        finally:
+            close = getattr(scans, "close", None)
+            if close is not None:
+                close()
 
     def _skip(self, reason: str, where: str, detail: str = "") -> None:
         """Count a skipped record of kind ``reason`` found at ``where``."""

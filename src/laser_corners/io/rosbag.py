@@ -45,7 +45,7 @@ from laser_corners.io.bagfile import (
     open_bag_reader,
     read_from_chunks,
 )
-from laser_corners.io.base import ScanSource, SourceKind, TopicChoiceError
+from laser_corners.io.base import BAD_POSE, ScanSource, SourceKind, TopicChoiceError
 from laser_corners.io.poses import (
     OdomSample,
     PoseTrack,
@@ -77,6 +77,7 @@ from laser_corners.io.ros1.runs import (
     kind_of,
     lean_readable,
 )
+from laser_corners.pose import pose_problem
 from laser_corners.scan import LaserScan, Pose2D
 
 __all__ = ["TF_ODOMETRY", "TF_ODOMETRY_CHOICE", "BagSource", "tf_odometry"]
@@ -544,6 +545,10 @@ class BagSource(ScanSource):
             self.mounts[item.frame_id] = track.mount_of(item.frame_id)
         geometry = (item.angle_min, item.angle_increment, item.range_min, item.range_max)
         fields = (*geometry, stamp, item.frame_id, pose)
+        problem = None if pose is None else pose_problem(pose)
+        if problem is not None and finite_pose(pose):  # odometry thousands of km away
+            self._skip(BAD_POSE, item.where, problem)  # here: stamps_ns keeps to the scans
+            return
         if item.checked and finite_pose(pose):  # the lean path checked the geometry
             self.stamps_ns.append(item.stamp_ns)
             self.log_times_ns.append(item.log_time_ns)

@@ -15,6 +15,7 @@ run as it was, and no header-only file.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from types import TracebackType
 from typing import TextIO
@@ -139,7 +140,12 @@ def write_tum(
         writer.write_many(stamps, poses)
 
 
-def read_numeric_table(path: str | Path, fields: str, what: str) -> NDArray[np.float64]:
+def read_numeric_table(
+    path: str | Path,
+    fields: str,
+    what: str,
+    check: Callable[[list[float]], str | None] | None = None,
+) -> NDArray[np.float64]:
     """Rows of whitespace- (or comma-) separated numbers, one per line: TUM trajectories,
     Freiburg ``.relations``; blank lines and ``#`` comments skipped.
 
@@ -152,15 +158,21 @@ def read_numeric_table(path: str | Path, fields: str, what: str) -> NDArray[np.f
         number is the number of columns, and messages name them.
     what : str
         What a line is, for messages (``"TUM"``, ``"relations"``).
+    check : callable, optional
+        Called with each row's numbers: what is wrong with them, or None.
 
     Raises
     ------
     InputError
-        Missing or unreadable file; ``FILE:LINE`` for a line without that many finite
-        numbers; a file without lines.
+        Missing or unreadable file, a folder; ``FILE:LINE`` for a line without that many
+        finite numbers or one ``check`` refuses; a file without lines.
     """
     path = Path(path)
     n_columns = len(fields.split())
+    if path.is_dir():
+        inside = [p.name for p in sorted(path.glob("*.tum" if what == "TUM" else f"*.{what}"))]
+        hint = f"; pass a file such as {path / inside[0]}" if inside else ""
+        raise InputError(f"{path}: is a folder, not a {what} file{hint}")
     if not path.is_file():
         raise InputError(f"{path}: no such file")
     rows: list[list[float]] = []
@@ -182,12 +194,23 @@ def read_numeric_table(path: str | Path, fields: str, what: str) -> NDArray[np.f
                     raise InputError(f"{path}:{line_no}: not a number in {text[:60]!r}") from None
                 if not all(map(math.isfinite, values)):
                     raise InputError(f"{path}:{line_no}: non-finite value")
+                problem = None if check is None else check(values)
+                if problem is not None:
+                    raise InputError(f"{path}:{line_no}: {problem}")
                 rows.append(values)
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror})") from None
     if not rows:
         raise InputError(f"{path}: no {what} lines ({fields})")
     return np.asarray(rows, dtype=np.float64)
+
+
+def _quaternion_problem(row: list[float]) -> str | None:
+    """A TUM row whose quaternion ``qx qy qz qw`` is (near) zero: no rotation at all."""
+    norm = math.sqrt(sum(v * v for v in row[4:8]))
+    return (
+        None if norm > 1e-6 else f"zero quaternion (qx qy qz qw = {' '.join(map(str, row[4:8]))})"
+    )
 
 
 def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -203,10 +226,10 @@ def read_tum(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.float64]
     Raises
     ------
     InputError
-        Missing file, or ``FILE:LINE`` for a line without 8 finite numbers; a file without
-        poses.
+        Missing file, or ``FILE:LINE`` for a line without 8 finite numbers or with a zero
+        quaternion; a file without poses.
     """
-    table = read_numeric_table(path, "stamp x y z qx qy qz qw", "TUM")
+    table = read_numeric_table(path, "stamp x y z qx qy qz qw", "TUM", _quaternion_problem)
     qx, qy, qz, qw = table[:, 4], table[:, 5], table[:, 6], table[:, 7]
     yaw = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
     return table[:, 0].copy(), np.column_stack([table[:, 1], table[:, 2], yaw])

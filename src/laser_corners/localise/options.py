@@ -11,7 +11,7 @@ from typing import ClassVar
 
 from pydantic import Field
 
-from laser_corners.options import Options
+from laser_corners.options import MountValue, Options
 from laser_corners.registration.place_index import PlaceOptions
 
 __all__ = ["LocaliseOptions"]
@@ -25,7 +25,7 @@ class LocaliseOptions(Options):
     section: ClassVar[str] = "localise"
     tuple_hints: ClassVar[dict[str, str]] = {"mount": "x,y,yaw"}
 
-    mount: tuple[float, float, float] | None = None
+    mount: tuple[MountValue, MountValue, MountValue] | None = None
     """Base -> laser transform ``(x, y, yaw)``, overriding the recording's and the map's."""
     min_range: float = Field(0.1, ge=0.0, le=10.0)
     """Beams shorter than this (m) are not used."""
@@ -143,6 +143,10 @@ class LocaliseOptions(Options):
     trusted and the scan is searched for around the last pose with a wide prior."""
     time_jump: float = Field(5.0, ge=0.1, le=1e6)
     """A gap (s) between scan stamps larger than this is treated like an odometry jump."""
+    give_up_travel: float = Field(50.0, ge=0.0, le=1e6)
+    """Odometry travel (m) without any estimate (no fix, no accepted initial pose) after which
+    :func:`~laser_corners.localise.run_localise` stops with "never found itself in this map"
+    (a recording of another place); 0: never give up."""
     smooth: bool = True
     """:func:`~laser_corners.localise.run_localise` also runs the SLAM front end over the
     scans and places every scan (before the first fix too) in one pose graph: the localiser's

@@ -25,11 +25,41 @@ from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.smooth import Smoothed, smooth
 from laser_corners.pipeline.interrupt import STOP_REASONS
 from laser_corners.pipeline.recording import open_recording
+from laser_corners.pose import check_pose
 from laser_corners.slam.mapfile import SavedMap, load_map, map_options
 from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
 from laser_corners.slam.slam import Slam
 
-__all__ = ["LocaliseRun", "run_localise"]
+__all__ = ["InitialPose", "LocaliseRun", "run_localise"]
+
+
+@dataclass
+class InitialPose:
+    """The pose given for the first scan (``initial_pose``) and what became of it.
+
+    Attributes
+    ----------
+    pose : tuple of float
+        Base pose ``(x, y, yaw)`` in the map, as given.
+    accepted : bool or None
+        True: the localiser tracked from it (an estimate came before any loss); False: it
+        lost the track before any estimate (then searched globally); None: neither happened.
+    rejected_at_scan : int or None
+        The recording's scan index at which the track from it was lost.
+    """
+
+    pose: tuple[float, float, float]
+    accepted: bool | None = None
+    rejected_at_scan: int | None = None
+
+    def follow(self, index: int, estimate: LocaliserEstimate | None, lost: int) -> None:
+        """Note the outcome of scan ``index`` (``lost``: the localiser's lost count)."""
+        if self.accepted is not None:
+            return
+        if estimate is not None:
+            self.accepted = True
+        elif lost:
+            self.accepted, self.rejected_at_scan = False, index
 
 
 @dataclass
@@ -44,7 +74,7 @@ class LocaliseRun:
         The first fix and every relocalisation (``scan_index`` in the recording too).
     counts : dict of str to int
         ``scans, estimates, lost, searches, no_agreement, recoveries, refused_free_space,
-        skipped_no_odometry``.
+        skipped_no_odometry, scans_read`` (the recording's scans read, from index 0 on).
     ms_per_scan : ndarray
     odometry_stamps, odometry : ndarray
         Stamp and base odometry of every scan given.
@@ -59,6 +89,10 @@ class LocaliseRun:
         anchors on the SLAM's chain (:mod:`.smooth`); ``index`` into ``odometry_stamps``.
     slam_ms_per_scan : ndarray
         The SLAM's time per scan (with ``options.smooth``), apart from ``ms_per_scan``.
+    skipped : dict of str to int
+        Records the reader skipped (damaged chunks, broken rows), by reason (``ScanSource``).
+    initial : InitialPose or None
+        The given initial pose and whether the localiser kept it.
     """
 
     estimates: list[LocaliserEstimate]
@@ -72,6 +106,8 @@ class LocaliseRun:
     smoothed: Smoothed | None = None
     slam_ms_per_scan: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     partial_reason: str | None = None
+    skipped: dict[str, int] = field(default_factory=dict)
+    initial: InitialPose | None = None
 
     @property
     def stamps(self) -> NDArray[np.float64]:
@@ -122,7 +158,10 @@ def run_localise(
     Raises
     ------
     InputError
-        The map folder is bad, or the recording has no odometry.
+        The map folder is bad, or the recording has no odometry, or it never found itself in
+        the map (no estimate within ``options.give_up_travel`` metres of travel).
+    ValueError
+        ``initial_pose`` is not 3 finite numbers (x, y within ``pose.MAX_COORDINATE``).
     """
     options = options or LocaliseOptions()
     with open_recording(path, topic, odom_topic=odom_topic) as rec:
@@ -130,11 +169,22 @@ def run_localise(
         recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id)
         saved = map_data if isinstance(map_data, SavedMap) else load_map(map_data)
         loc = Localiser(saved, options, mount=recorded)
+        initial = None
         if initial_pose is not None:
-            loc.set_pose(initial_pose)
+            initial = InitialPose(tuple(map(float, check_pose(initial_pose, "initial_pose"))))
+            loc.set_pose(initial.pose)
         slam = smoothing_slam(saved, loc.mount) if options.smooth else None
-        run = _loop(loc, slam, rec, (start_scan, stop_scan), on_estimate, progress)
+        watch = _Watch(initial, options.give_up_travel, path, saved.folder)
+        run = _loop(loc, slam, rec, (start_scan, stop_scan), (on_estimate, progress), watch)
+        run.skipped = dict(rec.source.skipped)
+        run.initial = initial
     if loc.counts["scans"] == 0 and not run.interrupted:
+        seen = run.counts["scans_read"]
+        if start_scan >= seen:
+            raise InputError(
+                f"{path}: no scan from index {start_scan} on; the recording has {seen} scans"
+                + (f" (0 to {seen - 1})" if seen else "")
+            )
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     broken = run.partial_reason not in (None, *STOP_REASONS.values())
@@ -156,9 +206,38 @@ def smoothing_slam(saved: SavedMap, mount: NDArray[np.float64]) -> Slam:
     return Slam(options, mount)
 
 
-def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
+@dataclass
+class _Watch:
+    """What the loop watches besides the scans: the initial pose's fate, and the travel
+    without any estimate (a recording of another place: give up after ``give_up`` m)."""
+
+    initial: InitialPose | None
+    give_up: float
+    path: str | Path
+    map_folder: Path
+    travel: float = 0.0
+    last: NDArray[np.float64] | None = None
+
+    def scan(self, index: int, estimate, base: NDArray, lost: int, found: bool) -> None:
+        """Note scan ``index``; :class:`InputError` when the run should give up."""
+        if self.initial is not None:
+            self.initial.follow(index, estimate, lost)
+        if self.last is not None:
+            self.travel += float(np.hypot(*(base[:2] - self.last[:2])))
+        self.last = base
+        if not found and 0 < self.give_up < self.travel:
+            raise InputError(
+                f"{self.path}: never found itself in the map {self.map_folder}: no fix after "
+                f"{self.travel:.0f} m of travel (give_up_travel = {self.give_up:g} m); a "
+                "recording of another place?"
+            )
+
+
+def _loop(loc, slam, rec, span, callbacks, watch: _Watch) -> LocaliseRun:
     """Feed the scans (``span``: start and stop scan) to the localiser and the SLAM (when
-    smoothing); Ctrl-C stops between two scans."""
+    smoothing); Ctrl-C stops between two scans. ``callbacks``: ``on_estimate`` and
+    ``progress`` (or None)."""
+    on_estimate, progress = callbacks
     estimates: list[LocaliserEstimate] = []
     stamps: list[float] = []
     index: list[int] = []
@@ -180,6 +259,7 @@ def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
                 estimates.append(estimate)
                 if on_estimate is not None:
                     on_estimate(estimate)
+            watch.scan(i, estimate, base, loc.counts["lost"], bool(estimates))
             if progress is not None:
                 progress(i + 1, rec.source.n_scans, float(scan.stamp))
     except KeyboardInterrupt:
@@ -188,7 +268,7 @@ def _loop(loc, slam, rec, span, on_estimate, progress) -> LocaliseRun:
         if not stamps:  # nothing done yet: the error is the run's
             raise
         feed.stopped(f"{type(exc).__name__} at scan {feed.at}: {first_line(exc)}")
-    counts = dict(loc.counts, skipped_no_odometry=feed.skipped)
+    counts = dict(loc.counts, skipped_no_odometry=feed.skipped, scans_read=feed.seen)
     return LocaliseRun(
         estimates,
         [

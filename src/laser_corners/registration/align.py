@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.pose import relative_pose, wrap_angle
+from laser_corners.pose import check_pose, relative_pose, wrap_angle
 
 __all__ = ["Alignment", "PointMap", "icp", "match_share"]
 
@@ -77,7 +77,10 @@ class PointMap:
         if xy.shape[0] == 0:
             origin, nx, ny = np.zeros(2), 1, 1
         else:
-            origin = xy.min(axis=0) - CELL
+            low, high = xy.min(axis=0), xy.max(axis=0)
+            if not (np.isfinite(low).all() and np.isfinite(high).all()):
+                raise ValueError("PointMap: map points must be finite")
+            origin = low - CELL
             nx, ny = (np.floor((xy.max(axis=0) - origin) / CELL).astype(int) + 2).tolist()
         start, order = _bucket(xy, origin, CELL, nx, ny)
         return cls(xy, normals, origin, (nx, ny), start, order)
@@ -302,9 +305,9 @@ def match_share(
     points: NDArray[np.float64], pointmap: PointMap, pose: NDArray[np.float64], distance: float
 ) -> float:
     """Share of ``points`` (moved by ``pose``) within ``distance`` of a map point."""
+    pose = check_pose(pose, "match_share")
     if len(pointmap) == 0 or points.shape[0] == 0:
         return 0.0
-    pose = np.asarray(pose, dtype=np.float64)
     return float(_share(np.ascontiguousarray(points), pointmap.buckets(), pose, distance))
 
 
@@ -332,7 +335,7 @@ def icp(
     the nearest point's line rewards wherever its normal is tilted by noise or the surface
     curves.
     """
-    guess = np.asarray(guess, dtype=np.float64)
+    guess = check_pose(guess, "icp guess")
     src = np.ascontiguousarray(points, dtype=np.float64)
     if src.shape[0] == 0 or len(pointmap) == 0:
         return Alignment(guess.copy(), 0.0, src.shape[0], np.zeros((3, 3)))

@@ -17,6 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import distance_transform_edt
 
+from laser_corners.pose import check_pose
+
 __all__ = ["ScoreGrid", "search"]
 
 
@@ -35,6 +37,8 @@ class ScoreGrid:
         """The grid of points ``xy`` (map frame) padded by ``margin`` (m)."""
         lo = xy.min(axis=0) - margin
         hi = xy.max(axis=0) + margin
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            raise ValueError("ScoreGrid: map points must be finite")
         shape = (np.ceil((hi - lo) / resolution).astype(int) + 1)[::-1]
         occupied = np.ones(shape, dtype=bool)
         cells = np.floor((xy - lo) / resolution).astype(int)
@@ -116,8 +120,9 @@ def search(
     the heading step moves the farthest point by about a cell (0.008-0.05 rad) unless
     ``yaw_step`` is given."""
     res = grid.resolution
+    center = check_pose(center, "correlative search center")
     if points.shape[0] == 0:
-        return 0.0, np.asarray(center, dtype=np.float64)
+        return 0.0, center
     reach = float(np.max(np.hypot(points[:, 0], points[:, 1])))
     step = min(max(math.acos(max(1.0 - res * res / (2.0 * reach * reach), -1.0)), 0.008), 0.05)
     step = yaw_step or step

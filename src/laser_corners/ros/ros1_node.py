@@ -30,7 +30,10 @@ from __future__ import annotations
 import importlib.abc
 import importlib.machinery
 import importlib.util
+import os
 import sys
+import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -41,7 +44,14 @@ from laser_corners.io.messages import keypoints_to_marker_fields
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array
 from laser_corners.ros.node_core import CornerNodeCore, NodeConfig
 
-__all__ = ["DEBIAN_DIST_PACKAGES", "CornerNode", "Ros1MessageFinder", "import_rospy", "main"]
+__all__ = [
+    "DEBIAN_DIST_PACKAGES",
+    "CornerNode",
+    "Ros1MessageFinder",
+    "import_rospy",
+    "main",
+    "release_stray_threads",
+]
 
 DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
 """Where Debian's ``python3-rospy`` and the message packages install."""
@@ -288,9 +298,54 @@ def main(
             f"{rosgraph.get_master_uri()} not reached)",
             file=sys.stderr,
         )
-        return 0
-    rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
+    else:
+        rospy.loginfo("laser_corners: %d scans processed, %d skipped", node.n_scans, node.n_skipped)
+    release_stray_threads()  # else Python's exit may wait for ever (see there)
     return 0
+
+
+def release_stray_threads(timeout: float = 5.0) -> int:
+    """End the threads rospy leaves behind after its shutdown; returns how many it released.
+
+    rospy wraps a subscriber's connection to a publisher with a queue in a
+    ``QueuedConnection``, whose thread (not a daemon) waits for data until the connection
+    closes, *before* it checks that the publisher is still open: a subscriber that connects
+    while the node shuts down (roscore's rosout node to ``/rosout``, often, on a loaded
+    machine) leaves a connection nobody closes, and Python's exit waits for its thread for
+    ever (the node "still running" after SIGTERM). Their connections are closed here; any
+    other non-daemon thread of rospy's still alive after ``timeout`` s makes the process leave
+    at once (``os._exit``, after flushing), as rospy's own shutdown gives up joining its
+    threads. Threads that are not rospy's are left alone.
+    """
+    released = 0
+    for thread in threading.enumerate():
+        target = getattr(thread, "_target", None)  # CPython keeps it while the thread runs
+        queued = getattr(target, "__self__", None)
+        if type(queued).__name__ == "QueuedConnection" and thread.is_alive():
+            try:
+                queued._connection.close()
+            except Exception:  # a half-open transport: the exit below covers it
+                continue
+            released += 1
+    deadline = time.monotonic() + timeout
+    for thread in threading.enumerate():
+        if thread is threading.current_thread() or thread.daemon or not _rospy_thread(thread):
+            continue
+        thread.join(max(deadline - time.monotonic(), 0.0))
+        if thread.is_alive():
+            print(f"laser_corners: thread {thread.name} did not stop; exiting", file=sys.stderr)
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(0)
+    return released
+
+
+def _rospy_thread(thread: threading.Thread) -> bool:
+    """Whether ``thread`` runs rospy's (or rosgraph's) code."""
+    target = getattr(thread, "_target", None)
+    owner = getattr(target, "__self__", target)
+    module = getattr(owner, "__module__", None) or type(owner).__module__
+    return module.split(".")[0] in ("rospy", "rosgraph")
 
 
 def _read_config(rospy: ModuleType) -> NodeConfig:

@@ -14,7 +14,7 @@ from typing import ClassVar, Literal
 
 from pydantic import Field
 
-from laser_corners.options import Options
+from laser_corners.options import MountValue, Options
 from laser_corners.registration.place_index import PlaceOptions
 
 __all__ = ["SlamOptions"]
@@ -98,7 +98,7 @@ class SlamOptions(Options):
     refine_min_travel: float = Field(0.0, ge=0.0, le=1000.0)
     """Travel (m) between a keyframe and a submap's anchor below which the refinement pass
     does not link them (a submap never holds the keyframe itself)."""
-    mount: tuple[float, float, float] | None = None
+    mount: tuple[MountValue, MountValue, MountValue] | None = None
     """Base -> laser transform ``(x, y, yaw)``, overriding the recording's (``/tf_static``)."""
     detector_preset: Literal["paper", "auto", "robust"] = "paper"
     """Corner detector preset for keypoints (landmarks, corner front end); ``auto`` and

@@ -135,6 +135,8 @@ class SlamResult:
         Indices (into ``stamps``) of the scans that start a new segment of the graph: a gap
         the alignment did not bridge, or a scan that fit nothing (the step from the scan
         before is not measured).
+    skipped : dict of str to int
+        Records the reader skipped (damaged chunks, broken rows), by reason (``ScanSource``).
     """
 
     stamps: NDArray[np.float64]
@@ -156,6 +158,7 @@ class SlamResult:
     values: object = None
     cuts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     places: PlaceIndex | None = None
+    skipped: dict[str, int] = field(default_factory=dict)
 
     @property
     def laser_poses(self) -> NDArray[np.float64]:

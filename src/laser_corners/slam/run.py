@@ -103,6 +103,7 @@ def run_slam(
     warnings = run_warnings(slam, feed)
     result = slam.result(interrupted=feed.interrupted, partial_reason=feed.reason)
     result.warnings.extend(warnings)
+    result.skipped = dict(rec.source.skipped)
     return result
 
 
@@ -142,12 +143,14 @@ def require_odometry(rec: Recording, path: str | Path) -> None:
 
 @dataclass
 class OdometryFeed:
-    """What :func:`odometry_scans` counted: scans without a pose, and a stop by Ctrl-C or
-    SIGTERM (``reason``, ``signum``); ``at``: the index of the scan being processed;
-    ``blank``: scans without any valid return."""
+    """What :func:`odometry_scans` counted: scans without a pose, scans read (``seen``, from
+    index 0, those before ``start_scan`` too), and a stop by Ctrl-C or SIGTERM (``reason``,
+    ``signum``); ``at``: the index of the scan being processed; ``blank``: scans without any
+    valid return."""
 
     skipped: int = 0
     interrupted: bool = False
+    seen: int = 0
     reason: str | None = None
     signum: int | None = None
     at: int = -1
@@ -179,6 +182,7 @@ def odometry_scans(
                 return
             if stop_scan is not None and i >= stop_scan:
                 return
+            feed.seen = i + 1
             if i < start_scan:
                 continue
             if scan.pose is None or scan.stamp is None:

@@ -16,12 +16,13 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from laser_corners.io.base import PartialOutput
+from laser_corners.io.base import PartialOutput, skip_warning
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.io.trajectory import write_tum
 from laser_corners.viz.slam import plot_slam_map, save_figure
+from laser_corners.viz.slam_report import ms_statistics
 
-__all__ = ["localise_summary", "save_localise_map", "write_localise_outputs"]
+__all__ = ["initial_text", "localise_summary", "save_localise_map", "write_localise_outputs"]
 
 
 def _fix_record(fix: Any) -> dict[str, Any]:
@@ -37,15 +38,20 @@ def localise_summary(run: Any, source: str, map_folder: str, wall_s: float) -> d
     """The numbers of a localisation run as a JSON-ready mapping."""
     ms = np.asarray(run.ms_per_scan, dtype=np.float64)
     fixes = [_fix_record(f) for f in run.fixes]
+    skipped = dict(getattr(run, "skipped", {}))
+    initial = _initial_record(getattr(run, "initial", None))
+    warnings = [skip_warning(source, skipped), _rejected(initial)]
     return {
         "input": source,
         "map": map_folder,
+        "warnings": [w for w in warnings if w is not None],
+        "skipped": skipped,
+        "initial_pose": initial,
         "first_fix": fixes[0] if fixes else None,
         "relocalisations": fixes[1:],
         "lost": int(run.counts.get("lost", 0)),
         "counts": {k: int(v) for k, v in run.counts.items()},
-        "ms_per_scan_mean": float(ms.mean()) if ms.size else None,
-        "ms_per_scan_p95": float(np.percentile(ms, 95)) if ms.size else None,
+        **ms_statistics(ms),
         "wall_s": round(float(wall_s), 3),
         "interrupted": bool(run.interrupted),
         "partial": bool(run.interrupted),
@@ -53,6 +59,37 @@ def localise_summary(run: Any, source: str, map_folder: str, wall_s: float) -> d
         or ("interrupted" if run.interrupted else None),
         "smoothed": _smoothed_record(run),
     }
+
+
+def _initial_record(initial: Any) -> dict[str, Any] | None:
+    """The given initial pose and its fate (``localise.run.InitialPose``), or None."""
+    if initial is None:
+        return None
+    return {
+        "pose": [round(float(v), 4) for v in initial.pose],
+        "accepted": initial.accepted,
+        "rejected_at_scan": initial.rejected_at_scan,
+    }
+
+
+def _rejected(initial: dict[str, Any] | None) -> str | None:
+    """The warning for an initial pose the localiser did not keep, or None."""
+    if initial is None or initial["accepted"] is not False:
+        return None
+    pose = ", ".join(f"{v:g}" for v in initial["pose"])
+    return (
+        f"the initial pose ({pose}) was rejected: the scans did not fit the map there (track "
+        f"lost at scan {initial['rejected_at_scan']}); searched the whole map instead"
+    )
+
+
+def initial_text(initial: dict[str, Any] | None) -> str:
+    """The ``initial pose`` row of the summary table: the pose given and what became of it."""
+    if initial is None:
+        return "none given (global search)"
+    pose = ", ".join(f"{v:g}" for v in initial["pose"])
+    fate = {True: "followed", False: f"rejected at scan {initial['rejected_at_scan']}"}
+    return f"given ({pose}), {fate.get(initial['accepted'], 'never confirmed')}"
 
 
 def _smoothed_record(run: Any) -> dict[str, Any] | None:
@@ -66,7 +103,7 @@ def _smoothed_record(run: Any) -> dict[str, Any] | None:
         "anchors": sm.anchors,
         "closures": sm.closures,
         "segments_dropped": sm.segments_dropped,
-        "slam_ms_per_scan_mean": float(slam_ms.mean()) if slam_ms.size else None,
+        **ms_statistics(slam_ms, "slam_ms_per_scan"),
     }
 
 

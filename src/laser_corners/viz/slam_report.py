@@ -59,6 +59,8 @@ __all__ = [
     "SLAM_FILES",
     "SlamRunInfo",
     "check_slam_folder",
+    "ms_statistics",
+    "ms_text",
     "peak_rss_mb",
     "relation_cells",
     "slam_markdown",
@@ -197,6 +199,7 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
     reason = getattr(result, "partial_reason", None)
     if reason is None and result.interrupted:
         reason = "interrupted"
+    closures = _closure_counts(list(result.closures))
     return {
         "input": info.source,
         "interrupted": bool(result.interrupted),
@@ -208,15 +211,16 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
             "keyframes": len(result.keyframes),
             "landmarks": len(np.asarray(result.landmarks.xy).reshape(-1, 2)),
             **{k: int(v) for k, v in dict(result.counts).items()},
+            **{f"closures_{k}": closures[k] for k in ("proposed", "accepted", "rejected")},
         },
-        "closures": _closure_counts(list(result.closures)),
+        "skipped": dict(getattr(result, "skipped", {})),
+        "closures": closures,
         "closure_consistency": info.closure_consistency,
         "timings": {
             "total_s": info.wall_s,
             "data_s": duration,
             "real_time_factor": duration / info.wall_s if info.wall_s > 0 else None,
-            "ms_per_scan_mean": float(ms.mean()) if len(ms) else None,
-            "ms_per_scan_p95": float(np.percentile(ms, 95)) if len(ms) else None,
+            **ms_statistics(ms),
             "peak_rss_mb": info.peak_rss_mb,
         },
         "relations": {"file": info.relations_file, **info.relations} if info.relations else None,
@@ -275,7 +279,7 @@ def slam_markdown(summary: dict[str, Any]) -> str:
             ],
             ["data (s) / wall (s)", f"{timings['data_s']:.1f} / {timings['total_s']:.1f}"],
             ["real-time factor", "-" if rtf is None else f"{rtf:.1f}x"],
-            ["ms per scan mean / p95", _ms(timings)],
+            ["ms per scan mean / p95 / max", _ms(timings)],
             ["peak memory (MB)", f"{timings['peak_rss_mb']:.0f}"],
             ["base -> laser mount (x, y, yaw)", ", ".join(f"{v:g}" for v in summary["mount"])],
         ],
@@ -319,9 +323,26 @@ def slam_markdown(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def ms_statistics(ms: Any, prefix: str = "ms_per_scan") -> dict[str, float | None]:
+    """Mean, 95th percentile and maximum of the times per scan (ms), keyed
+    ``{prefix}_mean / _p95 / _max`` (None without scans). A few slow scans (the first
+    search, a compilation) put the mean above the p95: the max shows them."""
+    ms = np.asarray(ms, dtype=np.float64).reshape(-1)
+    values = (ms.mean(), np.percentile(ms, 95), ms.max()) if ms.size else (None,) * 3
+    return {
+        f"{prefix}_{name}": None if v is None else float(v)
+        for name, v in zip(("mean", "p95", "max"), values, strict=True)
+    }
+
+
+def ms_text(values: dict[str, Any], prefix: str = "ms_per_scan", sep: str = " / ") -> str:
+    """``mean / p95 / max`` of :func:`ms_statistics` as text (``-`` without scans)."""
+    mean, p95, most = (values.get(f"{prefix}_{k}") for k in ("mean", "p95", "max"))
+    return "-" if mean is None else sep.join(f"{v:.2f}" for v in (mean, p95, most))
+
+
 def _ms(timings: dict[str, Any]) -> str:
-    mean, p95 = timings["ms_per_scan_mean"], timings["ms_per_scan_p95"]
-    return "-" if mean is None else f"{mean:.2f} / {p95:.2f}"
+    return ms_text(timings)
 
 
 def _json_safe(value: Any) -> Any:
