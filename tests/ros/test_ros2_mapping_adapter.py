@@ -132,6 +132,7 @@ def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None
         node.subs["/tf"](FakeTF([_transform("odom", "base_link", t + 0.05, odom[i])]))
         node.subs["scan"](to_msg(dataclasses.replace(scan, frame_id="laser")))
 
+    adapter.drain()  # the core runs on the adapter's worker thread
     sent = [ts for msg in node.pubs["/tf"].published for ts in msg.transforms]
     poses = node.pubs["pose"].published
     assert len(sent) == len(poses) == len(truth), node.logs
@@ -146,5 +147,6 @@ def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None
             compose_many(np.array(map_to_odom), odom[i])[:2], pose[:2], atol=1e-6
         )
     node.subs["scan"](SimpleNamespace(header=None))  # malformed: logged, counted, no raise
+    adapter.drain()
     assert adapter.core.counts.malformed == 1  # counted with the scans that arrived
     assert any("malformed scan" in line for line in node.logs)

@@ -28,6 +28,7 @@ turns messages into its calls and its results into messages.
 
 from __future__ import annotations
 
+import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -138,6 +139,13 @@ class MappingAdapter:
         self.core = MappingCore(self.config)  # reads and checks the map first
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="grid")
         self.building: Future[OccupancyGrid] | None = None
+        self.worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mapping")
+        """Every step of the core (scans, odometry, initial poses, services) runs here, in
+        arrival order: no callback waits for a global search or an optimisation."""
+        self.pending = 0  # scans submitted to the worker and not yet processed
+        self.lock = threading.Lock()
+        self.busy_drops = 0  # scans dropped because the worker was still busy
+        self.callback_ms = 0.0  # the longest callback
         if m.tf is None and not self.config.odom_topic:
             raise MissingDependencyError(TF_HINT)
         self.started = time.monotonic()
@@ -216,9 +224,10 @@ class MappingAdapter:
 
     # ------------------------------------------------------------------ services
     def _answer(self, response: Any, service: str, step: Any) -> Any:
-        """Fill a Trigger response from ``step() -> (success, message)``; log it."""
+        """Fill a Trigger response from ``step() -> (success, message)``, run on the worker
+        (after the scans before it); log it."""
         try:
-            ok, text = step()
+            ok, text = self._submit(step).result()
         except LaserCornersError as exc:
             ok, text = False, first_line(exc)
         response.success, response.message = bool(ok), text
@@ -268,35 +277,79 @@ class MappingAdapter:
 
     # ------------------------------------------------------------------ inputs
     def on_scan(self, msg: Any) -> None:
-        """Queue the scan; publish what the core released."""
+        """Hand the scan to the worker, unless ``queue_size`` scans still wait there (then it
+        is dropped and counted)."""
+        began = time.perf_counter()
         try:
             scan = scan_from_msg(msg)
         except LaserCornersError as exc:
-            self.core.malformed_scan()
+            self._submit(self.core.malformed_scan)
             self.node.get_logger().warning(
                 f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
             )
             return
-        self._run(lambda: self.core.add_scan(scan))
+        with self.lock:
+            full = self.pending >= self.config.queue_size
+            self.pending += not full
+            self.busy_drops += full
+        if full:
+            self.node.get_logger().warning(
+                "scans dropped: the worker is busy (a global search or an optimisation)",
+                throttle_duration_sec=5.0,
+            )
+        else:
+            self._submit(lambda: self._scan_step(scan))
+        self._timed(began)
+
+    def _scan_step(self, scan: Any) -> None:
+        try:
+            self._run(lambda: self.core.add_scan(scan))
+        finally:
+            with self.lock:
+                self.pending -= 1
+
+    def drain(self) -> None:
+        """Wait until the worker has run every step submitted so far."""
+        self._submit(lambda: None).result()
+
+    def _submit(self, step: Any) -> Future[Any]:
+        """Run ``step`` on the worker (in arrival order)."""
+        return self.worker.submit(step)
+
+    def _timed(self, began: float) -> None:
+        self.callback_ms = max(self.callback_ms, (time.perf_counter() - began) * 1e3)
 
     def on_odometry(self, msg: Any) -> None:
-        """A ``nav_msgs/Odometry`` sample."""
+        """A ``nav_msgs/Odometry`` sample (booked and released on the worker)."""
+        began = time.perf_counter()
         try:
-            self.core.book.add_odometry(*odometry_of(msg))
+            sample = odometry_of(msg)
         except LaserCornersError as exc:
             self._skip(f"skipped an odometry message: {exc}")
             return
-        self._run(self.core.release)
+
+        def step() -> None:
+            self.core.book.add_odometry(*sample)
+            self._run(self.core.release)
+
+        self._submit(step)
+        self._timed(began)
 
     def on_tf(self, msg: Any, static: bool = False) -> None:
-        """A ``tf2_msgs/TFMessage`` on ``/tf`` (or ``/tf_static``)."""
+        """A ``tf2_msgs/TFMessage`` on ``/tf`` (or ``/tf_static``), booked on the worker."""
+        began = time.perf_counter()
         try:
             transforms = [transform_of(ts) for ts in msg.transforms]
         except LaserCornersError as exc:
             self._skip(f"skipped a tf message: {exc}")
             return
-        self.core.book.add_transforms(transforms, static)
-        self._run(self.core.release)
+
+        def step() -> None:
+            self.core.book.add_transforms(transforms, static)
+            self._run(self.core.release)
+
+        self._submit(step)
+        self._timed(began)
 
     def on_tf_static(self, msg: Any) -> None:
         """A ``/tf_static`` message."""
@@ -312,11 +365,15 @@ class MappingAdapter:
         if frame.lstrip("/") != self.config.map_frame:
             self._skip(f"skipped an initial pose in frame {frame!r}, not {self.config.map_frame}")
             return
-        applied = self.core.set_pose(pose, cov)
-        self.node.get_logger().info(
-            f"initial pose {pose.round(3).tolist()} "
-            + ("applied" if applied else "ignored (mode slam)")
-        )
+
+        def step() -> None:
+            applied = self.core.set_pose(pose, cov)
+            self.node.get_logger().info(
+                f"initial pose {pose.round(3).tolist()} "
+                + ("applied" if applied else "ignored (mode slam)")
+            )
+
+        self._submit(step)
 
     def _skip(self, text: str) -> None:
         self.n_skipped += 1
@@ -379,8 +436,11 @@ class MappingAdapter:
             self.marker_pub.publish(out)
 
     def on_timer(self) -> None:
-        """Drop the scans that waited too long for odometry; publish a grid the worker
-        finished; start the next one when due."""
+        """On the worker: drop the scans that waited too long for odometry; publish a grid
+        the grid thread finished; start the next one when due."""
+        self._submit(self._timer_step)
+
+    def _timer_step(self) -> None:
         self._run(self.core.release)
         if self.building is not None and self.building.done():
             future, self.building = self.building, None
@@ -403,10 +463,15 @@ class MappingAdapter:
 
     def summary(self) -> str:
         """The counts for the log line at shutdown."""
-        return f"{self.core.summary()}, {self.n_skipped} messages skipped"
+        return (
+            f"{self.core.summary()}, {self.busy_drops} scans dropped while the worker was "
+            f"busy, {self.n_skipped} messages skipped, longest callback {self.callback_ms:.1f} ms"
+        )
 
     def shutdown(self) -> str | None:
-        """slam with ``output``: write the map folder; a line saying where (or None)."""
+        """Finish the worker's queue; slam with ``output``: write the map folder; a line
+        saying where (or None)."""
+        self.worker.shutdown(wait=True)
         self.pool.shutdown(wait=False, cancel_futures=True)
         if not self.config.output:
             return None
