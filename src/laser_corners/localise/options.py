@@ -163,7 +163,11 @@ class LocaliseOptions(Options):
     smooth_drift: float = Field(0.01, ge=0.0, le=1.0)
     """Growth of the chain's step noise per metre travelled (m/m; rad per metre and per
     radian turned: half of it): scan matching drifts about 1 % of the distance."""
-    places: PlaceOptions = PlaceOptions()
+    places: PlaceOptions = PlaceOptions(min_votes=1)
     """The place index: corner keypoints and descriptors of the map's keyframes, which propose
     global (re)localisation candidates in milliseconds (``places.enabled=false``: the
-    exhaustive correlative search alone; see ``registration/place_index.py``)."""
+    exhaustive correlative search alone; see ``registration/place_index.py``). One corner
+    may propose here (``min_votes`` 1, the SLAM's 2): every candidate is followed as a
+    hypothesis for ``fix_travel`` and must beat every other one by ``fix_margin``, so a weak
+    proposal costs an ICP per scan, never a wrong fix; on the shared logs it fixes sooner where
+    corners are few (docs/benchmarks/relocalise.md)."""

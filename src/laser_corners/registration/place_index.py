@@ -88,7 +88,9 @@ class PlaceOptions(Options):
     consensus_yaw : float
         ... whose bisector is within this angle (rad) of its own.
     min_votes : int
-        Votes a candidate needs (distinct query corners, the proposing one included).
+        Votes a candidate needs (distinct query corners, the proposing one included): 2 by
+        default, 1 for the localiser (``LocaliseOptions.places``), whose hypotheses dispose of
+        weak proposals.
     candidates : int
         Distinct candidates returned at most, most votes first.
     query_travel : float
