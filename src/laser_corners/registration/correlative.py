@@ -10,7 +10,7 @@ one is returned. The yaw step is chosen so the farthest point moves by about one
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numba
 import numpy as np
@@ -29,6 +29,8 @@ class ScoreGrid:
     score: NDArray[np.float32]
     origin: NDArray[np.float64]
     resolution: float
+    pooled: NDArray[np.float32] | None = field(default=None, repr=False)
+    """2 x 2 maxima of ``score`` for the search's bounds (made at the first search)."""
 
     @classmethod
     def build(
@@ -59,8 +61,26 @@ class ScoreGrid:
 
 
 @numba.njit(cache=True)
+def _pooled(score: NDArray[np.float32]) -> NDArray[np.float32]:
+    """``out[i + 1, j + 1]``: the largest score of the cells ``i..i + 1`` x ``j..j + 1`` (those
+    on the grid; 0 where none is), for ``i`` in ``-1..ny - 1``: an upper bound of a 2 x 2
+    block of the search lattice."""
+    ny, nx = score.shape
+    out = np.zeros((ny + 1, nx + 1), dtype=np.float32)
+    for i in range(-1, ny):
+        for j in range(-1, nx):
+            top = np.float32(0.0)
+            for r in range(max(i, 0), min(i + 2, ny)):
+                for q in range(max(j, 0), min(j + 2, nx)):
+                    top = max(top, score[r, q])
+            out[i + 1, j + 1] = top
+    return out
+
+
+@numba.njit(cache=True)
 def _best(
     score: NDArray[np.float32],
+    pooled: NDArray[np.float32],
     origin: NDArray[np.float64],
     res: float,
     pts: NDArray[np.float64],
@@ -68,7 +88,11 @@ def _best(
     n_xy: int,
     yaws: NDArray[np.float64],
 ) -> tuple[float, float, float, float]:
-    """Best (score, x, y, yaw) of the lattice ``center + (i, j) * res``, ``|i|, |j| <= n_xy``."""
+    """Best (score, x, y, yaw) of the lattice ``center + (i, j) * res``, ``|i|, |j| <= n_xy``,
+    by branch and bound: per heading, every 2 x 2 block of lattice offsets is bounded from
+    above on ``pooled`` (:func:`_pooled`), and the blocks are scored exactly in decreasing
+    bound until the bound falls below the best score found. The same answer as scoring every
+    pose, for a fraction of the cost where the best pose stands out."""
     ny, nx = score.shape
     best = -1.0
     bx = center[0]
@@ -78,7 +102,8 @@ def _best(
     cx = np.empty(n, dtype=np.int64)
     cy = np.empty(n, dtype=np.int64)
     side = 2 * n_xy + 1
-    acc = np.zeros((side, side))
+    nb = (side + 1) // 2
+    bound = np.zeros((nb, nb))
     for yaw in yaws:
         c = math.cos(yaw)
         s = math.sin(yaw)
@@ -87,24 +112,36 @@ def _best(
             y = s * pts[k, 0] + c * pts[k, 1] + center[1] - origin[1]
             cx[k] = math.floor(x / res + 0.5)
             cy[k] = math.floor(y / res + 0.5)
-        acc[:, :] = 0.0
+        bound[:, :] = 0.0
         for k in range(n):
-            for a in range(side):
-                iy = cy[k] + a - n_xy
-                if iy < 0 or iy >= ny:
+            for a in range(nb):
+                iy = cy[k] + 2 * a - n_xy + 1  # pooled row of fine rows iy - 1, iy
+                if iy < 0 or iy > ny:
                     continue
-                row = score[iy]
-                for b in range(side):
-                    ix = cx[k] + b - n_xy
-                    if 0 <= ix < nx:
-                        acc[a, b] += row[ix]
-        for a in range(side):
-            for b in range(side):
-                if acc[a, b] > best:
-                    best = acc[a, b]
-                    bx = center[0] + (b - n_xy) * res
-                    by = center[1] + (a - n_xy) * res
-                    byaw = yaw
+                row = pooled[iy]
+                for b in range(nb):
+                    ix = cx[k] + 2 * b - n_xy + 1
+                    if 0 <= ix <= nx:
+                        bound[a, b] += row[ix]
+        order = np.argsort(-bound.ravel())
+        for o in order:
+            ba = o // nb
+            bb = o % nb
+            if bound[ba, bb] <= best:
+                break
+            for a in range(2 * ba, min(2 * ba + 2, side)):
+                for b in range(2 * bb, min(2 * bb + 2, side)):
+                    acc = 0.0
+                    for k in range(n):
+                        iy = cy[k] + a - n_xy
+                        ix = cx[k] + b - n_xy
+                        if 0 <= iy < ny and 0 <= ix < nx:
+                            acc += score[iy, ix]
+                    if acc > best:
+                        best = acc
+                        bx = center[0] + (b - n_xy) * res
+                        by = center[1] + (a - n_xy) * res
+                        byaw = yaw
     return best / max(n, 1), bx, by, byaw
 
 
@@ -129,8 +166,11 @@ def search(
     n_yaw = math.ceil(window_yaw / step)
     yaws = center[2] + step * np.arange(-n_yaw, n_yaw + 1)
     n_xy = math.ceil(window_xy / res)
+    if grid.pooled is None:
+        grid.pooled = _pooled(grid.score)
     value, x, y, yaw = _best(
         grid.score,
+        grid.pooled,
         grid.origin,
         res,
         np.ascontiguousarray(points),

@@ -1,0 +1,54 @@
+"""The correlative search: its branch and bound finds what scoring every pose finds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from laser_corners.registration.correlative import ScoreGrid, search
+
+
+def _exhaustive(grid: ScoreGrid, pts: np.ndarray, center: np.ndarray, n_xy: int, yaws):
+    """Every pose of the lattice scored with numpy: (mean score, pose) of the best."""
+    res, ny, nx = grid.resolution, *grid.score.shape
+    best, pose = -1.0, None
+    off = np.arange(-n_xy, n_xy + 1)
+    for yaw in yaws:
+        c, s = math.cos(yaw), math.sin(yaw)
+        x = c * pts[:, 0] - s * pts[:, 1] + center[0] - grid.origin[0]
+        y = s * pts[:, 0] + c * pts[:, 1] + center[1] - grid.origin[1]
+        cx, cy = np.floor(x / res + 0.5).astype(int), np.floor(y / res + 0.5).astype(int)
+        iy = cy[None, None, :] + off[:, None, None]
+        ix = cx[None, None, :] + off[None, :, None]
+        inside = (iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)
+        values = np.where(inside, grid.score[np.clip(iy, 0, ny - 1), np.clip(ix, 0, nx - 1)], 0)
+        total = values.sum(axis=2)
+        a, b = np.unravel_index(np.argmax(total), total.shape)
+        if total[a, b] > best:
+            best = total[a, b]
+            pose = np.array([center[0] + off[b] * res, center[1] + off[a] * res, yaw])
+    return best / len(pts), pose
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_branch_and_bound_finds_the_best_pose_of_the_lattice(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    walls = [np.column_stack([np.linspace(0, 8, 160), np.full(160, y)]) for y in (0.0, 5.0)]
+    walls += [np.column_stack([np.full(100, x), np.linspace(0, 5, 100)]) for x in (0.0, 8.0)]
+    walls.append(rng.uniform([1, 1], [7, 4], (40, 2)))  # clutter
+    xy = np.concatenate(walls)
+    xy = xy + rng.normal(0, 0.01, xy.shape)
+    grid = ScoreGrid.build(xy, 0.05, 0.05, 1.0)
+    truth = np.array([rng.uniform(2, 6), rng.uniform(1.5, 3.5), rng.uniform(-3, 3)])
+    c, s = math.cos(truth[2]), math.sin(truth[2])
+    pts = (xy[rng.choice(len(xy), 80, replace=False)] - truth[:2]) @ np.array([[c, -s], [s, c]])
+    guess = truth + rng.uniform([-0.3, -0.3, -0.1], [0.3, 0.3, 0.1])
+    score, pose = search(grid, pts, guess, 0.4, 0.12, yaw_step=0.02)
+    n_yaw = math.ceil(0.12 / 0.02)
+    yaws = guess[2] + 0.02 * np.arange(-n_yaw, n_yaw + 1)
+    want_score, want_pose = _exhaustive(grid, pts, guess, math.ceil(0.4 / 0.05), yaws)
+    assert score == pytest.approx(want_score, abs=1e-6)
+    np.testing.assert_allclose(pose, want_pose, atol=1e-9)
+    assert np.hypot(*(pose[:2] - truth[:2])) < 0.08  # and the lattice's best is the truth
