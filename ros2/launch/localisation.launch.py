@@ -1,0 +1,39 @@
+"""laser-corners localisation in place of nav2's AMCL (docs/ros.md, "nav2").
+
+ros2 launch laser_corners_ros localisation.launch.py map:=/maps/office/map.yaml
+ros2 launch laser_corners_ros localisation.launch.py map:=/maps/office scan:=/front/scan
+"""
+
+from pathlib import Path
+
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+PARAMS = Path(__file__).resolve().parent.parent / "config" / "localise.yaml"
+
+
+def generate_launch_description() -> LaunchDescription:
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument("map", description="map.yaml (any package's) or a map folder"),
+            DeclareLaunchArgument("scan", default_value="scan", description="LaserScan topic"),
+            DeclareLaunchArgument("params", default_value=str(PARAMS)),
+            DeclareLaunchArgument("use_sim_time", default_value="false"),
+            Node(
+                package="laser_corners_ros",
+                executable="laser_corners_node",
+                name="laser_corners",
+                output="screen",
+                remappings=[("scan", LaunchConfiguration("scan"))],
+                parameters=[
+                    LaunchConfiguration("params"),
+                    {
+                        "map": LaunchConfiguration("map"),
+                        "use_sim_time": LaunchConfiguration("use_sim_time"),
+                    },
+                ],
+            ),
+        ]
+    )
