@@ -176,6 +176,15 @@ def same_log(saved, scans, odo, stamps, ref, starts, n_scans, options) -> list[d
     return out
 
 
+def carried(odo: np.ndarray, last: int, after: np.ndarray) -> np.ndarray:
+    """The odometry of a robot carried from scan ``last`` to scan ``after[0]``: continuous
+    (the scans ``after`` keep their motion, not their place; the odometry does not see it)."""
+    shift = compose_many(odo[last], invert_many(odo[after[0]]))
+    out = odo.copy()
+    out[after] = compose_many(shift, odo[after])
+    return out
+
+
 def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
     """300 scans, then a jump of ``skip`` scans the odometry does not see, then 600 scans."""
     out = []
@@ -184,10 +193,7 @@ def kidnap(saved, scans, odo, stamps, ref, starts, skip, options) -> list[dict]:
         after = np.arange(s + 300 + skip, s + 900 + skip)
         if after[-1] >= len(scans):
             continue
-        # continuous odometry: the scans after the jump keep their motion, not their place
-        shift = compose_many(odo[before[-1]], invert_many(odo[after[0]]))
-        odo2 = odo.copy()
-        odo2[after] = compose_many(shift, odo[after])
+        odo2 = carried(odo, before[-1], after)
         loc = Localiser(saved, options)
         driven = drive(loc, saved, scans, odo2, stamps, np.r_[before, after], ref)
         rows = driven["rows"]

@@ -43,11 +43,11 @@ import numpy as np
 
 from laser_corners.io.trajectory import read_tum
 from laser_corners.localise import LocaliseOptions, Localiser
-from laser_corners.pose import between_many, compose_many, invert_many
+from laser_corners.pose import between_many
 from laser_corners.slam.mapfile import load_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_localise import REAL, cached_map, read_log
+from bench_localise import REAL, cached_map, carried, read_log
 from report import write_table
 
 LOGS = ["fr079.bag", "aces.bag", "intel.bag", "edmonton.clf.gz"]
@@ -123,9 +123,7 @@ def kidnap_runs(saved, log, starts, options, args) -> list[dict]:
         after = np.arange(s + 300 + args.kidnap, s + 300 + args.kidnap + args.max_scans)
         if after[-1] >= len(scans):
             continue
-        shift = compose_many(odo[before[-1]], invert_many(odo[after[0]]))
-        odo2 = odo.copy()
-        odo2[after] = compose_many(shift, odo[after])
+        odo2 = carried(odo, before[-1], after)
         loc = Localiser(saved, options)
         _drive(loc, scans, odo2, stamps, ref, before, None)
         tracked = loc.status == "tracking"
