@@ -144,6 +144,27 @@ class CornerGrid:
         )
         return np.where(found >= 0, self.views[np.maximum(found, 0)], -1)
 
+    def votes(
+        self, poses: NDArray[np.float64], query: Corners, radius: float, yaw: float
+    ) -> NDArray[np.int64]:
+        """:func:`count_votes` of ``poses`` (H, 3) for the ``query`` corners."""
+        m = self.corners
+        return count_votes(
+            np.ascontiguousarray(poses),
+            np.ascontiguousarray(query.xy),
+            np.ascontiguousarray(query.orientation),
+            np.ascontiguousarray(m.xy),
+            np.ascontiguousarray(m.orientation),
+            self.origin,
+            self.cell,
+            self.shape[0],
+            self.shape[1],
+            self.start,
+            self.order,
+            radius,
+            yaw,
+        )
+
     @classmethod
     def build(cls, corners: Corners, radius: float) -> CornerGrid:
         lo = corners.xy.min(axis=0) - radius

@@ -42,7 +42,7 @@ from pydantic import Field
 
 from laser_corners.options import Options
 from laser_corners.pose import between_many, compose_many, poses_apart, wrap_angle
-from laser_corners.registration.corner_grid import CornerGrid, count_votes
+from laser_corners.registration.corner_grid import CornerGrid
 from laser_corners.registration.corners import (
     Corners,
     corner_detector,
@@ -148,8 +148,8 @@ class PlaceIndex:
     options: PlaceOptions = field(default_factory=PlaceOptions)
     keyframe: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
     corners: Corners = field(default_factory=Corners.empty)
-    _parts: list[tuple[int, Corners]] = field(default_factory=list)
-    _cache: tuple[bytes, CornerGrid | None] | None = None
+    _parts: list[tuple[int, Corners]] = field(default_factory=list, init=False, repr=False)
+    _cache: tuple[bytes, CornerGrid | None] | None = field(default=None, init=False, repr=False)
 
     def __len__(self) -> int:
         self._flush()
@@ -232,28 +232,8 @@ class PlaceIndex:
         poses_h = np.column_stack(
             [mapped.xy[m_idx, 0] - (c * qx - s * qy), mapped.xy[m_idx, 1] - (s * qx + c * qy), yaw]
         )
-        votes = _votes(poses_h, query, grid, opt)
+        votes = grid.votes(poses_h, query, opt.consensus_radius, opt.consensus_yaw)
         return _distinct(poses_h, votes, opt)
-
-
-def _votes(poses: NDArray[np.float64], query: Corners, grid: CornerGrid, opt: PlaceOptions):
-    """:func:`_count_votes` of ``poses`` for ``query`` against ``grid``."""
-    m = grid.corners
-    return count_votes(
-        np.ascontiguousarray(poses),
-        np.ascontiguousarray(query.xy),
-        np.ascontiguousarray(query.orientation),
-        np.ascontiguousarray(m.xy),
-        np.ascontiguousarray(m.orientation),
-        grid.origin,
-        grid.cell,
-        grid.shape[0],
-        grid.shape[1],
-        grid.start,
-        grid.order,
-        opt.consensus_radius,
-        opt.consensus_yaw,
-    )
 
 
 def _distinct(poses: NDArray, votes: NDArray, opt: PlaceOptions) -> list[Candidate]:
