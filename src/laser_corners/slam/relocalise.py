@@ -37,7 +37,6 @@ are those of the loop closure alone.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -217,8 +216,6 @@ class Relocaliser:
     counts: dict[str, int] = field(
         default_factory=lambda: {"attempted": 0, "accepted": 0, "exhaustive": 0}
     )
-    ms: list[float] = field(default_factory=list)
-    """Milliseconds of every attempt (search and verification)."""
 
     @property
     def lost(self) -> bool:
@@ -245,16 +242,6 @@ class Relocaliser:
             return []
         self.attempts += 1
         self.counts["attempted"] += 1
-        began = time.perf_counter()
-        try:
-            return self._attempt(k, points, estimate)
-        finally:
-            self.ms.append((time.perf_counter() - began) * 1e3)
-
-    def _attempt(
-        self, k: int, points: list[ScanPoints], estimate: NDArray[np.float64]
-    ) -> list[LoopClosure]:
-        assert self.start is not None
         if self.old is None:
             self.old = OldMap.build(points, estimate, self.start)
         query = query_points(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
