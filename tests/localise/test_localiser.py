@@ -237,6 +237,19 @@ def test_map_folder_problems_are_one_line(tmp_path, building_map) -> None:
     (tmp_path / "bad" / "keyframes.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="unreadable"):
         load_map(tmp_path / "bad")
+    (tmp_path / "places").mkdir()  # the place index's arrays damaged
+    np.savez(
+        tmp_path / "places" / "keyframes.npz",
+        **{**arrays, "places_keyframe": arrays["places_keyframe"] + len(arrays["poses"])},
+    )
+    with pytest.raises(InputError, match=r"keyframes.npz: places_\* arrays inconsistent"):
+        load_map(tmp_path / "places")
+    (tmp_path / "before").mkdir()  # a map made before the index: no index, still a map
+    np.savez(
+        tmp_path / "before" / "keyframes.npz",
+        **{k: v for k, v in arrays.items() if not k.startswith("places_")},
+    )
+    assert load_map(tmp_path / "before").places is None
 
 
 def test_keyframe_file_round_trips(building_map) -> None:

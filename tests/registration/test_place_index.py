@@ -174,3 +174,13 @@ def test_every_physical_corner_keeps_a_few_views(mapped) -> None:
     seen = grid.landmark[grid.views]
     assert set(seen.tolist()) == set(grid.landmark.tolist())  # every corner compared
     assert np.bincount(seen).max() <= VIEWS_PER_CORNER < np.bincount(grid.landmark).max()
+
+
+def test_damaged_index_arrays_are_refused(mapped) -> None:
+    index = mapped[2]
+    arrays = index_arrays(index)
+    short = dict(arrays, places_opening=arrays["places_opening"][:-1])
+    with pytest.raises(ValueError, match="inconsistent"):
+        index_from_arrays(short, PlaceOptions())
+    with pytest.raises(ValueError, match="inconsistent"):
+        index_from_arrays(arrays, PlaceOptions(), n_keyframes=3)  # keyframes beyond the map's

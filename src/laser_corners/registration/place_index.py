@@ -291,15 +291,31 @@ def index_arrays(index: PlaceIndex) -> dict[str, NDArray]:
     }
 
 
-def index_from_arrays(arrays: dict[str, NDArray], options: PlaceOptions) -> PlaceIndex | None:
+def index_from_arrays(
+    arrays: dict[str, NDArray], options: PlaceOptions, n_keyframes: int | None = None
+) -> PlaceIndex | None:
     """The index stored by :func:`index_arrays`; None when absent or of another version
-    (a map made before the index, or by another version)."""
+    (a map made before the index, or by another version).
+
+    Raises
+    ------
+    ValueError
+        The arrays disagree in length, or name a keyframe outside ``0 .. n_keyframes - 1``.
+    """
     if int(arrays.get("places_version", -1)) != PLACES_VERSION:
         return None
+    keyframe = np.asarray(arrays["places_keyframe"]).astype(np.int64).reshape(-1)
+    m = len(keyframe)
     corners = Corners(
         arrays["places_xy"].astype(np.float64).reshape(-1, 2),
-        arrays["places_orientation"].astype(np.float64),
-        arrays["places_opening"].astype(np.float64),
+        arrays["places_orientation"].astype(np.float64).reshape(-1),
+        arrays["places_opening"].astype(np.float64).reshape(-1),
         np.ascontiguousarray(arrays["places_descriptor"], dtype=np.float32),
     )
-    return PlaceIndex(options, arrays["places_keyframe"].astype(np.int64), corners)
+    sizes = {len(corners.xy), len(corners.orientation), len(corners.opening)}
+    outside = (
+        n_keyframes is not None and m and (keyframe.min() < 0 or keyframe.max() >= n_keyframes)
+    )
+    if sizes != {m} or corners.descriptor.shape[0] != m or corners.descriptor.ndim != 2 or outside:
+        raise ValueError("places_* arrays inconsistent")
+    return PlaceIndex(options, keyframe, corners)

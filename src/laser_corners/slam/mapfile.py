@@ -243,6 +243,14 @@ def _read_npz(folder: Path) -> dict[str, NDArray]:
     return arrays
 
 
+def _places_of(path: Path, a: dict[str, NDArray]) -> PlaceIndex | None:
+    """The place index stored in ``keyframes.npz`` (None for a map made before it)."""
+    try:
+        return index_from_arrays(a, PlaceOptions(), len(a["poses"]))
+    except (KeyError, ValueError) as exc:
+        raise InputError(f"{path}: {str(exc).strip(chr(39))} (a damaged file?)") from None
+
+
 def _check(path: Path, a: dict[str, NDArray]) -> None:
     k = a["poses"].shape[0] if a["poses"].ndim == 2 else -1
     m = int(a["offsets"][-1]) if a["offsets"].size else -1
@@ -308,7 +316,7 @@ def load_map(folder: str | Path) -> SavedMap:
         mount=a["mount"].astype(np.float64),
         grid=grid,
         landmarks=_landmarks(folder),
-        places=index_from_arrays(a, PlaceOptions()),
+        places=_places_of(folder / KEYFRAMES_FILE, a),
         partial_reason=partial,
     )
 
