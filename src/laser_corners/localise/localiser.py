@@ -3,12 +3,14 @@
 Three states (:attr:`Localiser.status`):
 
 ``global``
-    No fix yet. Every ``global_every`` scans a global search over the whole map
-    (:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) proposes poses; each
-    becomes a hypothesis, refined by ICP against the map's points. Every scan, every
-    hypothesis is moved by the odometry step, aligned again (point-to-line ICP,
-    :func:`~laser_corners.registration.align.icp`) and scored by its *agreement*: the share of the
-    scan's points within ``inlier_distance`` of a map point. Hypotheses whose recent agreement
+    No fix yet. On every scan the map's place index (corner keypoints of the last metres,
+    :mod:`.places`) proposes poses; where it has none for ``places.fallback_travel`` (or the
+    map has no index), every ``global_every`` scans the exhaustive search over the whole map
+    (:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) does. Each pose becomes
+    a hypothesis, refined by ICP against the map's points. Every scan, every hypothesis is
+    moved by the odometry step, aligned again (point-to-line ICP,
+    :func:`~laser_corners.registration.align.icp`) and scored by its *agreement*: the share of
+    the scan's points within ``inlier_distance`` of a map point. Hypotheses whose recent agreement
     falls below ``hypothesis_agreement`` are dropped; two that meet are merged. The fix is
     declared only when one hypothesis has survived ``fix_travel`` metres and ``fix_scans``
     scans, agrees at least ``fix_agreement`` and every other surviving hypothesis agrees less
