@@ -324,7 +324,11 @@ def test_slam_takes_mount_as_localise_does(fr079: tuple[Path, Path], tmp_path: P
     helps = {}
     for command in ("slam", "localise"):
         result = runner.invoke(app, [command, "--help"], terminal_width=200)
-        line = next(line for line in result.stdout.splitlines() if "--mount" in line)
+        line = next(
+            line
+            for line in result.stdout.splitlines()
+            if line.replace("│", " ").split()[:1] == ["--mount"]  # the option, not a mention
+        )
         helps[command] = " ".join(line.replace("│", " ").split())
     assert helps["slam"] == helps["localise"], helps
     out = tmp_path / "out"

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from laser_corners.errors import InputError, first_line
+from laser_corners.errors import InputError, LaserCornersError, first_line
 from laser_corners.localise.localiser import Fix, Localiser, LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.smooth import Smoothed, smooth
@@ -265,8 +265,8 @@ def _loop(loc, slam, rec, span, callbacks, watch: _Watch) -> LocaliseRun:
     except KeyboardInterrupt:
         feed.stopped(STOP_REASONS[signal.SIGINT], signal.SIGINT)
     except Exception as exc:
-        if not stamps:  # nothing done yet: the error is the run's
-            raise
+        if not stamps or (not estimates and isinstance(exc, LaserCornersError)):
+            raise  # nothing done (or found) yet: the error is the run's, one line
         feed.stopped(f"{type(exc).__name__} at scan {feed.at}: {first_line(exc)}")
     counts = dict(loc.counts, skipped_no_odometry=feed.skipped, scans_read=feed.seen)
     return LocaliseRun(

@@ -287,7 +287,9 @@ def index_arrays(index: PlaceIndex) -> dict[str, NDArray]:
         "places_xy": c.xy.reshape(-1, 2),
         "places_orientation": c.orientation,
         "places_opening": c.opening,
-        "places_descriptor": c.descriptor.reshape(len(c), -1).astype(np.float32),
+        "places_descriptor": np.asarray(c.descriptor, dtype=np.float32).reshape(len(c), -1)
+        if len(c)
+        else np.zeros((0, 0), np.float32),
     }
 
 
