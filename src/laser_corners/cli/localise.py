@@ -152,16 +152,20 @@ def localise_command(
     write_localise_outputs(run, folder, saved.grid, summary, header)
     _report(Console(), summary, folder)
     if run.interrupted:
-        code = stop_exit_code(run.partial_reason) or 130
-        if code == 1:
-            raise fail(
-                f"localisation stopped by {run.partial_reason}; {folder} holds the "
-                "poses up to there (partial)",
-                code=1,
-            )
-        verb = "terminated" if code == 143 else "interrupted"
-        typer.echo(f"{verb}; {folder} holds the poses up to there", err=True)
-        raise typer.Exit(code)
+        _stopped(run.partial_reason, folder)
+
+
+def _stopped(reason: str | None, folder: Path) -> None:
+    """End a run that stopped early (Ctrl-C, SIGTERM, an error): one line, its exit code."""
+    code = stop_exit_code(reason) or 130
+    if code == 1:
+        raise fail(
+            f"localisation stopped by {reason}; {folder} holds the poses up to there (partial)",
+            code=1,
+        )
+    verb = "terminated" if code == 143 else "interrupted"
+    typer.echo(f"{verb}; {folder} holds the poses up to there", err=True)
+    raise typer.Exit(code)
 
 
 def _report(console, summary: dict, folder: Path) -> None:

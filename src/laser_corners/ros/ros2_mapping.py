@@ -462,7 +462,9 @@ class MappingAdapter:
         return True, ""
 
     def summary(self) -> str:
-        """The counts for the log line at shutdown."""
+        """The counts for the log line at shutdown, after the worker's queue and a last
+        release (the scans whose ``tf_wait`` ran out count as dropped, not as waiting)."""
+        self._submit(lambda: self._run(self.core.release)).result()
         return (
             f"{self.core.summary()}, {self.busy_drops} scans dropped while the worker was "
             f"busy, {self.n_skipped} messages skipped, longest callback {self.callback_ms:.1f} ms"
