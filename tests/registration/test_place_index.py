@@ -170,7 +170,8 @@ def _map_points(world: World, poses: np.ndarray) -> np.ndarray:
 
 def test_every_physical_corner_keeps_a_few_views(mapped) -> None:
     _, poses, index = mapped
-    grid = CornerGrid.build(index.map_corners(poses), 0.3)
+    opt = index.options
+    grid = CornerGrid.build(index.map_corners(poses), opt.consensus_radius, opt.consensus_yaw)
     seen = grid.landmark[grid.views]
     assert set(seen.tolist()) == set(grid.landmark.tolist())  # every corner compared
     assert np.bincount(seen).max() <= VIEWS_PER_CORNER < np.bincount(grid.landmark).max()

@@ -114,7 +114,7 @@ def _landmarks(
 class CornerGrid:
     """Map corners bucketed in square cells (CSR: ``start[c]:start[c + 1]`` of ``order``),
     for the consensus lookups, and grouped into physical corners (``landmark``: the corners
-    within ``radius`` and 0.35 rad of a first one, :func:`_landmarks`)."""
+    within ``radius`` and ``yaw`` of a first one, :func:`_landmarks`)."""
 
     corners: Corners
     origin: NDArray[np.float64]
@@ -166,7 +166,9 @@ class CornerGrid:
         )
 
     @classmethod
-    def build(cls, corners: Corners, radius: float) -> CornerGrid:
+    def build(cls, corners: Corners, radius: float, yaw: float) -> CornerGrid:
+        """The grid of ``corners``; observations within ``radius`` and ``yaw`` of a first
+        one are one physical corner."""
         lo = corners.xy.min(axis=0) - radius
         span = corners.xy.max(axis=0) + radius - lo
         cell = max(radius, float(span.max()) / 4096.0)  # at most 4096 cells a side
@@ -177,7 +179,7 @@ class CornerGrid:
         start = np.searchsorted(key[order], np.arange(nx * ny + 1)).astype(np.int64)
         xy = np.ascontiguousarray(corners.xy)
         ori = np.ascontiguousarray(corners.orientation)
-        landmark, count = _landmarks(xy, ori, lo, cell, ny, nx, start, order, radius, 0.35)
+        landmark, count = _landmarks(xy, ori, lo, cell, ny, nx, start, order, radius, yaw)
         views = _spread_views(landmark, VIEWS_PER_CORNER)
         return cls(corners, lo, cell, (ny, nx), start, order, landmark, count, views)
 

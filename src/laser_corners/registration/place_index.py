@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from laser_corners.options import Options
-from laser_corners.pose import between_many, compose_many, poses_apart, wrap_angle
+from laser_corners.pose import between_many, compose_many, invert_many, poses_apart
 from laser_corners.registration.corner_grid import CornerGrid
 from laser_corners.registration.corners import (
     Corners,
@@ -204,7 +204,12 @@ class PlaceIndex:
         )
         if self._cache is None or self._cache[0] != key:
             mapped = self.map_corners(poses, upto)
-            grid = CornerGrid.build(mapped, self.options.consensus_radius) if len(mapped) else None
+            opt = self.options
+            grid = (
+                CornerGrid.build(mapped, opt.consensus_radius, opt.consensus_yaw)
+                if len(mapped)
+                else None
+            )
             self._cache = (key, grid)
         return self._cache[1]
 
@@ -226,12 +231,9 @@ class PlaceIndex:
         if q_idx.size == 0:
             return []
         m_idx = found[q_idx, rank]
-        yaw = wrap_angle(mapped.orientation[m_idx] - query.orientation[q_idx])
-        c, s = np.cos(yaw), np.sin(yaw)
-        qx, qy = query.xy[q_idx, 0], query.xy[q_idx, 1]
-        poses_h = np.column_stack(
-            [mapped.xy[m_idx, 0] - (c * qx - s * qy), mapped.xy[m_idx, 1] - (s * qx + c * qy), yaw]
-        )
+        at_map = np.column_stack([mapped.xy[m_idx], mapped.orientation[m_idx]])
+        at_query = np.column_stack([query.xy[q_idx], query.orientation[q_idx]])
+        poses_h = compose_many(at_map, invert_many(at_query))  # the bisectors aligned
         votes = grid.votes(poses_h, query, opt.consensus_radius, opt.consensus_yaw)
         return _distinct(poses_h, votes, opt)
 

@@ -26,12 +26,13 @@ from scipy.spatial import cKDTree
 from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import rotation, wrap_angle
+from laser_corners.registration.corners import corner_detector
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import Landmarks
 
-__all__ = ["LandmarkTracker", "base_frame_keypoints", "make_detector"]
+__all__ = ["LandmarkTracker", "base_frame_keypoints"]
 
 MAX_TURN = 0.6
 """Largest difference (rad) between a keypoint's bisector and its track's, map frame."""
@@ -42,14 +43,6 @@ SEARCH_RADIUS = 2.0
 POSE_SIGMA_CAP = (0.3, 0.05)
 """Cap (m, rad) on the pose uncertainty used in the gate: after a long loop the marginal
 grows to metres, and a gate that wide would associate anything."""
-
-
-def make_detector(preset: str, scan: LaserScan) -> CornerDetector:
-    """The corner detector of ``preset`` (``paper`` needs no scan; ``auto``/``robust`` adapt
-    to ``scan``'s sensor)."""
-    if preset == "paper":
-        return CornerDetector("paper")
-    return CornerDetector.from_preset(preset, scan)
 
 
 def base_frame_keypoints(
@@ -151,7 +144,7 @@ class LandmarkTracker:
     def detect(self, scan: LaserScan) -> Keypoints:
         """The corner keypoints of ``scan`` (sensor frame); the detector is made on the first."""
         if self.detector is None:
-            self.detector = make_detector(self.options.detector_preset, scan)
+            self.detector = corner_detector(self.options.detector_preset, scan)
         return self.detector.detect(scan)
 
     def observe(

@@ -27,7 +27,7 @@ from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.corners import CornerRegistrar
 from laser_corners.slam.keyframes import KeyframeStore
-from laser_corners.slam.landmarks import LandmarkTracker, make_detector
+from laser_corners.slam.landmarks import LandmarkTracker
 from laser_corners.slam.loops import (
     MAX_WINDOW_XY,
     MAX_WINDOW_YAW,
@@ -210,7 +210,7 @@ class Slam:
     def _keypoints(self, scan: LaserScan) -> Keypoints:
         """Corner keypoints of ``scan`` (sensor frame), detector made on the first scan."""
         if self._detector is None:
-            self._detector = make_detector(self.options.detector_preset, scan)
+            self._detector = corner_detector(self.options.detector_preset, scan)
         return self._detector.detect(scan)
 
     def _corner_guess(self, scan: LaserScan, kp: Keypoints | None, pred: NDArray) -> NDArray | None:
