@@ -534,8 +534,11 @@ class Localiser:
         the search has travelled ``places.fallback_travel`` with no hypothesis alive (too few
         corners where the robot is)."""
         opt = self.options
-        coarse = scan_points(scan, self.mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
         keypoints = self.window is None and self.places.usable
+        due = self._since_search % opt.global_every == 0
+        if not (keypoints or due):
+            return
+        coarse = scan_points(scan, self.mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
         if keypoints:
             found = self.places.propose(coarse.xy)
             self.counts["place_attempts"] += 1
@@ -543,7 +546,7 @@ class Localiser:
         fallback = not keypoints or (
             self._search_travel >= opt.places.fallback_travel and not self.hypotheses
         )
-        if fallback and self._since_search % opt.global_every == 0:
+        if fallback and due:
             self.counts["searches"] += 1
             start = time.perf_counter()
             if self.window is None:

@@ -130,9 +130,11 @@ class QueryBuffer:
     """
 
     travel: float
-    _items: list[tuple[NDArray[np.float64], float, Corners]] = field(default_factory=list)
-    _travelled: float = 0.0
-    _last: NDArray[np.float64] | None = None
+    _items: list[tuple[NDArray[np.float64], float, Corners]] = field(
+        default_factory=list, init=False, repr=False
+    )
+    _travelled: float = field(default=0.0, init=False, repr=False)
+    _last: NDArray[np.float64] | None = field(default=None, init=False, repr=False)
 
     def add(self, odometry: NDArray[np.float64], corners: Corners) -> None:
         odometry = np.asarray(odometry, dtype=np.float64)
