@@ -150,3 +150,38 @@ def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None
     adapter.drain()
     assert adapter.core.counts.malformed == 1  # counted with the scans that arrived
     assert any("malformed scan" in line for line in node.logs)
+
+
+def test_an_error_on_the_worker_is_logged_not_lost(ros2_messages: None, monkeypatch) -> None:
+    """The callbacks hand their work to the adapter's worker thread: an error there is a
+    skipped message (known errors) or an error line (others), counted, never a silent loss
+    in an unread future, and the worker goes on."""
+    from laser_corners.errors import InputError
+    from laser_corners.ros import ros2_mapping
+
+    real = ros2_mapping.messages
+
+    def with_tf() -> SimpleNamespace:
+        m = real()
+        m.tf = FakeTF
+        return m
+
+    monkeypatch.setattr(ros2_mapping, "messages", with_tf)
+    node = Node()
+    adapter = ros2_mapping.MappingAdapter(node, {"mode": "slam"})
+    calls = []
+
+    def refuse(transforms, static):
+        calls.append(static)
+        if len(calls) == 1:
+            raise InputError("a bad transform")
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr(adapter.core.book, "add_transforms", refuse)
+    node.subs["/tf"](FakeTF([_transform("odom", "base_link", 0.0, (0.0, 0.0, 0.0))]))
+    node.subs["/tf"](FakeTF([_transform("odom", "base_link", 0.1, (0.0, 0.0, 0.0))]))
+    adapter.drain()
+    assert calls == [False, False]  # both ran, the worker went on after the first error
+    assert any(line == "skipped a tf message: a bad transform" for line in node.logs)
+    assert any("a tf message failed: RuntimeError('a bug')" in line for line in node.logs)
+    assert "2 messages skipped" in adapter.summary()

@@ -283,7 +283,7 @@ class MappingAdapter:
         try:
             scan = scan_from_msg(msg)
         except LaserCornersError as exc:
-            self._submit(self.core.malformed_scan)
+            self._post(self.core.malformed_scan, "a malformed scan")
             self.node.get_logger().warning(
                 f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
             )
@@ -298,7 +298,7 @@ class MappingAdapter:
                 throttle_duration_sec=5.0,
             )
         else:
-            self._submit(lambda: self._scan_step(scan))
+            self._post(lambda: self._scan_step(scan), "a scan")
         self._timed(began)
 
     def _scan_step(self, scan: Any) -> None:
@@ -313,8 +313,23 @@ class MappingAdapter:
         self._submit(lambda: None).result()
 
     def _submit(self, step: Any) -> Future[Any]:
-        """Run ``step`` on the worker (in arrival order)."""
+        """Run ``step`` on the worker (in arrival order); the caller reads its result."""
         return self.worker.submit(step)
+
+    def _post(self, step: Any, what: str) -> None:
+        """Run ``step`` on the worker, nobody waiting: a known error skips ``what`` (logged,
+        counted), any other is an error line; none is lost in an unread future."""
+
+        def guarded() -> None:
+            try:
+                step()
+            except LaserCornersError as exc:
+                self._skip(f"skipped {what}: {exc}")
+            except Exception as exc:  # a bug: keep the node alive, show the error
+                self.n_skipped += 1
+                self.node.get_logger().error(f"{what} failed: {exc!r}")
+
+        self._submit(guarded)
 
     def _timed(self, began: float) -> None:
         self.callback_ms = max(self.callback_ms, (time.perf_counter() - began) * 1e3)
@@ -332,7 +347,7 @@ class MappingAdapter:
             self.core.book.add_odometry(*sample)
             self._run(self.core.release)
 
-        self._submit(step)
+        self._post(step, "an odometry message")
         self._timed(began)
 
     def on_tf(self, msg: Any, static: bool = False) -> None:
@@ -348,7 +363,7 @@ class MappingAdapter:
             self.core.book.add_transforms(transforms, static)
             self._run(self.core.release)
 
-        self._submit(step)
+        self._post(step, "a tf message")
         self._timed(began)
 
     def on_tf_static(self, msg: Any) -> None:
@@ -373,7 +388,7 @@ class MappingAdapter:
                 + ("applied" if applied else "ignored (mode slam)")
             )
 
-        self._submit(step)
+        self._post(step, "an initial pose")
 
     def _skip(self, text: str) -> None:
         self.n_skipped += 1
@@ -438,7 +453,7 @@ class MappingAdapter:
     def on_timer(self) -> None:
         """On the worker: drop the scans that waited too long for odometry; publish a grid
         the grid thread finished; start the next one when due."""
-        self._submit(self._timer_step)
+        self._post(self._timer_step, "the timer's step")
 
     def _timer_step(self) -> None:
         self._run(self.core.release)
