@@ -4,6 +4,7 @@ across a 20 m odometry jump."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,9 +13,10 @@ import pytest
 pytest.importorskip("gtsam")
 
 from conftest import real_file
-from laser_corners.localise import Localiser
+from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.slam import run_slam
 from laser_corners.slam.mapfile import load_map
 from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
@@ -86,3 +88,34 @@ def test_a_20_m_odometry_jump_is_relocalised_by_corners(fr079) -> None:
     assert after and max(e[1] for e in errors) < 0.5  # no wrong estimate, before or after
     back = between_many(odo[order[jump]], odo[after[0][0]])
     assert math.hypot(back[0], back[1]) <= 3.0
+
+
+def test_a_late_proposal_is_credited_with_the_scans_before_it(fr079) -> None:
+    """Only the exhaustive search proposes (every 40 scans) and the first scan sees nothing:
+    the right pose is proposed at the second search, 40 scans in. Credited with the scans
+    before it that it explains (``localise.history``), it becomes the fix after
+    ``fix_followed_travel`` more, not after ``fix_travel`` more."""
+    saved, scans, odo, ref = fr079
+    start = 800
+    blank = dataclasses.replace(scans[start], ranges=np.full(scans[start].n_beams, np.inf))
+    options = LocaliseOptions(global_every=40, places=PlaceOptions(enabled=False))
+    loc = Localiser(saved, options)
+    order = np.arange(start, start + 250)
+    feed = [blank] + [scans[i] for i in order[1:]]
+    travel, first, proposed_at = 0.0, None, None
+    for n, i in enumerate(order):
+        if n:
+            d = between_many(odo[order[n - 1]], odo[i])
+            travel += math.hypot(d[0], d[1]) + 0.5 * abs(d[2])  # the localiser's travel
+        if n == 40:
+            proposed_at = travel
+        e = loc.add(feed[n], odo[i], float(scans[i].stamp))
+        if e is not None:
+            first = travel
+            d = between_many(ref[i], e.pose)
+            assert math.hypot(d[0], d[1]) < 0.5 and abs(d[2]) < math.radians(5)
+            break
+    assert proposed_at is not None and proposed_at > 0.5  # the robot did move before
+    assert first is not None
+    assert first < proposed_at + options.fix_travel - 0.25  # sooner than without the credit
+    assert loc.counts["credited"] >= 1

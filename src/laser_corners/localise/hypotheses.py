@@ -31,7 +31,12 @@ class Hypothesis:
     born: int
     recent: deque = field(default_factory=deque)
     travel: float = 0.0
+    """Odometry travel (m, turns 0.5 m per radian) survived, the credited past scans'
+    included (``localise.history``)."""
     scans: int = 0
+    """Scans survived, the credited past scans' included."""
+    followed: float = 0.0
+    """Odometry travel (m, turns 0.5 m per radian) followed since it was proposed."""
     conflict: deque = field(default_factory=deque)
     """Recent shares of beams contradicting the map's free space (``freespace``)."""
     outside: deque = field(default_factory=deque)
@@ -95,6 +100,7 @@ def choose_winner(
     travel *= opt.outside_travel if outside > opt.partly_outside else 1.0
     if (
         best.travel < travel
+        or best.followed < min(travel, opt.fix_followed_travel)
         or float(np.mean(best.conflict)) > opt.max_conflict
         or best.conflict[-1] > opt.max_conflict
         or float(np.mean(best.loose)) > opt.max_loose_conflict

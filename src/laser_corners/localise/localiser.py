@@ -52,6 +52,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.estimate import Fix, LocaliserEstimate
 from laser_corners.localise.freespace import Support
+from laser_corners.localise.history import Replayed, SearchHistory
 from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
 from laser_corners.localise.local import Fit, LocalMap, explained_share, fuse
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
@@ -96,8 +98,6 @@ fr079 (same log) a search moved a track 0.48 m along a corridor onto a pose agre
 (usual 0.99), reported as tracking 0.4-0.7 m off with σ 0.03 m."""
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
-HISTORY_STEP = 0.2
-"""Odometry travel (m, turns 0.5 m per radian) between two scans kept for the history check."""
 LOCAL_SHARE = 0.05
 """The local submap (``localise.local``) takes part in a tracked scan's pose when it explains
 at least this share of the scan's points (else stray clutter would)."""
@@ -148,6 +148,7 @@ class Localiser:
         self.counts["local"] = 0
         self.counts["reacquired"] = 0
         self.counts["place_attempts"] = 0
+        self.counts["credited"] = 0
         self.local = LocalMap(self.map.grid, GLOBAL_SIGMA)
         """Recent scans' points the map does not explain (tracking into unmapped space)."""
         self._recent: deque = deque(maxlen=self.options.recent_scans)
@@ -163,8 +164,8 @@ class Localiser:
         self._last_stamp = -math.inf
         self._since_search = 0
         self._search_travel = 0.0
-        self._history: deque = deque()
-        """Scans of the current search kept for the history check: (travel, points, odometry)."""
+        self._history = SearchHistory(self.options.history_travel)
+        """The current search's past scans (the history check, the credit of new hypotheses)."""
         self.window: Window | None = None
         """The lost track's dead-reckoned pose, searched around while it is narrow enough."""
         self._since_jump = 0
@@ -408,10 +409,10 @@ class Localiser:
         self._move_window(delta, jump)
         step = math.hypot(delta[0], delta[1]) + 0.5 * abs(delta[2])
         self._search_travel += step
-        self._remember(pts.xy, odo)
+        self._history.remember(self._search_travel, index, pts.xy, odo)
         self.places.observe(scan, odo)
         self._follow(pts.xy, delta, step)
-        self._propose(scan, pts.xy, index)
+        self._propose(scan, pts.xy, odo, index)
         self._since_search += 1
         needed = opt.fix_travel if self.window is None else opt.reacquire_travel
         winner = choose_winner(self.hypotheses, opt, needed)
@@ -475,6 +476,7 @@ class Localiser:
                 self._agreement(xy, h.pose, agreement), self._support(h.pose, xy), opt.recent_scans
             )
             h.travel += step
+            h.followed += step
             h.scans += 1
         alive = [
             h
@@ -485,16 +487,6 @@ class Localiser:
             and (self.window is None or self.window.contains(h.pose))
         ]
         self.hypotheses = merged(alive, self.options)
-
-    def _remember(self, xy: NDArray, odo: NDArray) -> None:
-        """Keep this scan for the history check when the robot moved ``HISTORY_STEP`` since
-        the last one kept; forget those more than ``history_travel`` back."""
-        h = self._history
-        if h and self._search_travel - h[-1][0] < HISTORY_STEP:
-            return
-        h.append((self._search_travel, xy, odo))
-        while self._search_travel - h[0][0] > self.options.history_travel:
-            h.popleft()
 
     def _history_fits(self, winner: Hypothesis, odo: NDArray) -> bool:
         """Whether the search's past scans, chained back from ``winner`` by odometry (each
@@ -508,25 +500,59 @@ class Localiser:
         fix of aces' later visit had 2 m of its history at 0.22-0.29 (agreeing 0.84-0.94:
         the building had changed)."""
         opt = self.options
-        pose, last = winner.pose, odo
         conflicts: list[float] = []
-        for _, xy, past in reversed(self._history):
-            delta = between_many(last, past)
-            guess = compose_many(pose, delta)
-            aligned, agreement = self._align(xy, guess, self._prior(delta, False))
-            pose = aligned.pose if agreement >= opt.hypothesis_agreement else guess
-            support = self._support(pose, xy)
-            if support.outside > opt.max_outside:
+        for past in self._replay(winner.pose, odo):
+            if past.support.outside > opt.max_outside:
                 break  # the robot came from outside the map: further back is dead reckoning
-            conflicts.append(support.conflict)
-            last = past
+            conflicts.append(past.support.conflict)
         if not conflicts:
             return True
         n = min(len(conflicts), opt.conflict_scans)  # fewer scans: their mean
         window = np.convolve(conflicts, np.ones(n) / n, "valid")
         return float(window.max()) <= opt.track_conflict
 
-    def _propose(self, scan: LaserScan, xy: NDArray, index: int) -> None:
+    def _replay(self, pose: NDArray, odo: NDArray, before: int | None = None) -> Iterator[Replayed]:
+        """The search's past scans chained back from ``pose`` (``localise.history``)."""
+        return self._history.replay(
+            pose,
+            odo,
+            self._align,
+            lambda delta: self._prior(delta, False),
+            self._support,
+            self.options.hypothesis_agreement,
+            before,
+        )
+
+    def _credit(self, h: Hypothesis, odo: NDArray, index: int) -> None:
+        """Credit a new hypothesis of the global search with the past scans it explains
+        (newest first, up to ``fix_travel`` back, stopping at the first that agrees less
+        than ``hypothesis_agreement`` or that contradicts the map's free space as a
+        hypothesis may not): their agreements and shares join its recent ones, their travel
+        and scans its own (``localise.history``)."""
+        opt = self.options
+        credited = []
+        for past in self._replay(h.pose, odo, before=index):
+            s = past.support
+            if (
+                past.agreement < opt.hypothesis_agreement
+                or s.conflict > opt.max_conflict
+                or s.loose > opt.max_loose_conflict
+                or s.outside > opt.max_outside
+            ):
+                break
+            credited.append(past)
+            if self._search_travel - past.scan.travel >= opt.fix_travel:
+                break
+        if not credited:
+            return
+        for past in reversed(credited):
+            agreement = self._agreement(past.scan.xy, past.pose, past.agreement)
+            h.remember(agreement, past.support, opt.recent_scans)
+        h.travel = self._search_travel - credited[-1].scan.travel
+        h.scans = index - credited[-1].scan.index
+        self.counts["credited"] += 1
+
+    def _propose(self, scan: LaserScan, xy: NDArray, odo: NDArray, index: int) -> None:
         """New hypotheses: on every scan the place index's candidates (corner keypoints,
         ``localise.places``) when the map has an index and no lost track's window is open;
         every ``global_every`` scans the exhaustive correlative search (the whole map, or
@@ -542,7 +568,7 @@ class Localiser:
         if keypoints:
             found = self.places.propose(coarse.xy)
             self.counts["place_attempts"] += 1
-            self._spawn([c.pose for c in found], xy, index)
+            self._spawn([c.pose for c in found], xy, odo, index)
         fallback = not keypoints or (
             self._search_travel >= opt.places.fallback_travel and not self.hypotheses
         )
@@ -563,11 +589,12 @@ class Localiser:
                     (opt.distinct_xy, opt.distinct_yaw),
                 )
             self.search_ms.append((time.perf_counter() - start) * 1e3)
-            self._spawn([guess for guess, _ in found], xy, index)
+            self._spawn([guess for guess, _ in found], xy, odo, index)
 
-    def _spawn(self, guesses: list[NDArray], xy: NDArray, index: int) -> None:
+    def _spawn(self, guesses: list[NDArray], xy: NDArray, odo: NDArray, index: int) -> None:
         """Hypotheses from the guesses that ICP aligns to agree with the map without
-        contradicting its free space; guesses where a hypothesis already is are skipped."""
+        contradicting its free space; guesses where a hypothesis already is are skipped. Those
+        of the global search are credited with the past scans they explain (``_credit``)."""
         opt = self.options
         prior = np.diag(1.0 / np.array([1.0, 1.0, 0.3]) ** 2)
         fresh = []
@@ -578,6 +605,8 @@ class Localiser:
             aligned, agreement = self._align(xy, guess, prior)
             if agreement >= opt.hypothesis_agreement and self._fits(aligned.pose, xy):
                 h = Hypothesis(aligned.pose, index)
+                if self.window is None:
+                    self._credit(h, odo, index)
                 agreement = self._agreement(xy, h.pose, agreement)
                 h.remember(agreement, self._support(h.pose, xy), opt.recent_scans)
                 fresh.append(h)

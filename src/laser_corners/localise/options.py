@@ -114,9 +114,16 @@ class LocaliseOptions(Options):
     outside_travel: float = Field(2.0, ge=1.0, le=20.0)
     """See ``partly_outside``."""
     fix_travel: float = Field(2.0, ge=0.0, le=100.0)
-    """Odometry travel (m, turns counted as 0.5 m per radian) the winner must have survived."""
-    fix_scans: int = Field(20, ge=1, le=10000)
-    """Scans the winner must have survived."""
+    """Odometry travel (m, turns counted as 0.5 m per radian) the winner must have survived,
+    counting the search's past scans it explains (chained back by odometry,
+    ``localise.history``): a pose proposed late is judged on the scans before it too."""
+    fix_followed_travel: float = Field(0.5, ge=0.0, le=100.0)
+    """Of that travel, how much the winner must have been followed since it was proposed
+    (its rivals proposed meanwhile get scored against it)."""
+    fix_scans: int = Field(10, ge=1, le=10000)
+    """Scans the winner must have survived (the credited past scans included). A count of
+    independent looks, whatever the scan rate: with ``fix_travel`` 2 m, 10 is one per
+    0.2 m (aces' robot drove 0.17 m a scan, so 20 meant 3.4 m)."""
     recent_scans: int = Field(20, ge=3, le=1000)
     """Window (scans) of the recent agreement of a hypothesis."""
     distinct_xy: float = Field(0.5, ge=0.0, le=100.0)

@@ -1,0 +1,63 @@
+"""The search's past scans (``localise.history``): kept one per step, forgotten after
+``keep``, replayed newest first by chaining back from a pose by odometry."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from laser_corners.localise.freespace import Support
+from laser_corners.localise.history import SearchHistory
+from laser_corners.pose import compose_many, invert_many
+from laser_corners.registration.align import Alignment
+
+
+def _fill(history: SearchHistory, odometry: np.ndarray, step: float) -> None:
+    for i, odo in enumerate(odometry):
+        history.remember(i * step, i, np.full((2, 2), float(i)), odo)
+
+
+def test_keeps_one_scan_per_step_and_forgets_after_keep() -> None:
+    history = SearchHistory(keep=1.0, step=0.25)
+    _fill(history, np.zeros((40, 3)), 0.125)  # every second is kept
+    kept = [p.scan.index for p in history.replay(np.zeros(3), np.zeros(3), *_exact())]
+    assert kept == [38, 36, 34, 32, 30]  # 4.75 m travelled; the last 1.0 m kept
+    history.clear()
+    assert len(history) == 0
+
+
+def _exact():
+    """ICP that returns the guess with full agreement, no prior, no free-space conflict."""
+
+    def align(xy, guess, prior):
+        return Alignment(guess, 1.0, 2, np.eye(3)), 1.0
+
+    return align, (lambda delta: np.eye(3)), (lambda pose, xy: Support(0.0, 0.0, 0.0)), 0.5
+
+
+def test_replay_chains_back_by_odometry_from_the_given_pose() -> None:
+    rng = np.random.default_rng(3)
+    odometry = np.cumsum(rng.normal(0.0, 0.3, (12, 3)), axis=0)
+    truth_shift = np.array([5.0, -2.0, 0.7])  # map <- odometry frame
+    history = SearchHistory(keep=100.0, step=0.0)
+    _fill(history, odometry, 1.0)
+    pose_now = compose_many(truth_shift, odometry[-1])
+    replayed = list(history.replay(pose_now, odometry[-1], *_exact(), before=11))
+    assert [p.scan.index for p in replayed] == list(range(10, -1, -1))  # the current left out
+    for p in replayed:
+        assert np.allclose(p.pose, compose_many(truth_shift, odometry[p.scan.index]))
+
+
+def test_replay_keeps_the_guess_where_icp_disagrees() -> None:
+    history = SearchHistory(keep=100.0, step=0.0)
+    _fill(history, np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]), 1.0)
+    moved = np.array([9.0, 9.0, 0.0])
+
+    def poor(xy, guess, prior):  # ICP would move it far, but agrees too little to be kept
+        return Alignment(moved, 0.2, 2, np.eye(3)), 0.2
+
+    _, prior, support, _ = _exact()
+    out = list(history.replay(np.zeros(3), np.array([1.0, 0.0, 0.0]), poor, prior, support, 0.5))
+    assert out[1].agreement == pytest.approx(0.2)
+    expected = compose_many(invert_many([1.0, 0.0, 0.0]), np.zeros(3))
+    assert np.allclose(out[1].pose, expected)  # dead reckoning, not the poor alignment
