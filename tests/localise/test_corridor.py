@@ -86,7 +86,9 @@ def test_fuse_weighs_two_alignments_by_their_information() -> None:
     assert fuse(pred, prior, along, None)[0] is along.pose
 
 
-def test_a_recovered_pose_that_fits_worse_than_usual_gives_no_estimate(start_of_corridor) -> None:
+def test_a_recovered_pose_that_fits_worse_than_usual_gives_no_estimate(
+    start_of_corridor, monkeypatch
+) -> None:
     """fr079, same log: a recovery search (agreement down by a passer-by) moved a track 0.45 m
     off the odometry onto a pose agreeing 0.75-0.85 (usual 0.99), reported as tracking with
     σ 0.03 m. A pose off the odometry's is reported only when the scan fits as usual there."""
@@ -97,13 +99,13 @@ def test_a_recovered_pose_that_fits_worse_than_usual_gives_no_estimate(start_of_
     odo = noisy_odometry(drive, seed=7)
     for i in range(10):
         assert loc.add(scans[i], odo[i], i / RATE) is not None
-    usual = float(np.mean(loc._recent))
+    usual = loc.tracker.usual
     assert usual > 0.95
     shift = np.array([0.45, 0.0, 0.0])
 
     def searched(fits: float):
         def recover(xy, pred, current):  # the search's pose: 0.45 m on, agreeing ``fits``
-            fit = loc._fit(xy, pred + shift, current.information, fits, 0.0)
+            fit = loc.tracker.fit(xy, pred + shift, current.information, fits, 0.0)
             return fit
 
         return recover
@@ -113,11 +115,12 @@ def test_a_recovered_pose_that_fits_worse_than_usual_gives_no_estimate(start_of_
         fit.mapped = usual - 0.2
         return fit
 
-    original = loc._fused
-    loc._fused = dropped
-    loc._recover = searched(usual - 0.15)  # better than the prediction, worse than usual
+    original = loc.tracker.fused
+    monkeypatch.setattr(loc.tracker, "fused", dropped)
+    # the recovery search finds a pose better than the prediction, worse than usual
+    monkeypatch.setattr(loc.tracker, "recover", searched(usual - 0.15))
     assert loc.add(scans[10], odo[10], 1.0) is None
     assert abs(loc.pose[0] - drive[10, 0]) < 0.1  # the prediction is kept, not the jump
-    loc._recover = searched(usual)  # a pose where the scan fits as usual is taken
+    monkeypatch.setattr(loc.tracker, "recover", searched(usual))  # fits as usual: taken
     estimate = loc.add(scans[11], odo[11], 1.1)
     assert estimate is not None and estimate.pose[0] - drive[11, 0] > 0.3

@@ -1,0 +1,87 @@
+"""One scan against the saved map: :class:`MapMatcher`.
+
+What both the tracking and the global search of :class:`~laser_corners.localise.Localiser` ask
+of the map: the information of the odometry prediction (the prior of every alignment), ICP of
+a scan's points against the map's points from a guess and the agreement of its result, and the
+scan's free-space support at a pose (``localise.freespace``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.localise.freespace import Support
+from laser_corners.localise.mapmodel import MapModel
+from laser_corners.localise.options import LocaliseOptions
+from laser_corners.registration.align import Alignment, icp
+
+__all__ = ["JUMP_SIGMA", "MapMatcher"]
+
+JUMP_SIGMA = np.array([1.0, 1.0, 0.5])
+"""Standard deviations (m, m, rad) of the odometry prediction across a jump (a weak prior)."""
+
+
+class MapMatcher:
+    """ICP, agreement and free-space support of scans against the saved map.
+
+    Parameters
+    ----------
+    model : MapModel
+        The map's points, lines, grids and free space.
+    options : LocaliseOptions
+    mount : ndarray, shape (3,)
+        Base -> laser transform (the free-space test casts the beams from the laser).
+    """
+
+    def __init__(self, model: MapModel, options: LocaliseOptions, mount: NDArray) -> None:
+        self.model = model
+        self.options = options
+        self.mount = mount
+
+    def prior(self, delta: NDArray, jump: bool) -> NDArray[np.float64]:
+        """Information of the odometry prediction of the step ``delta`` (a weak one across a
+        jump): ``odometry_sigma_xy`` per metre and ``odometry_sigma_yaw`` per metre and per
+        radian, each on 0.1 m more."""
+        opt = self.options
+        if jump:
+            return np.diag(1.0 / JUMP_SIGMA**2)
+        dist = math.hypot(delta[0], delta[1])
+        sxy = opt.odometry_sigma_xy * (dist + 0.1)
+        syaw = opt.odometry_sigma_yaw * (abs(delta[2]) + dist + 0.1)
+        return np.diag(1.0 / np.array([sxy, sxy, syaw]) ** 2)
+
+    def align(self, xy: NDArray, guess: NDArray, prior: NDArray) -> tuple[Alignment, float]:
+        """ICP of ``xy`` (base frame) against the map from ``guess``, and the agreement of its
+        result (the share of the points within ``inlier_distance`` of a map point)."""
+        opt = self.options
+        aligned = icp(
+            xy,
+            self.model.lines,
+            guess,
+            prior,
+            max_distance=opt.icp_max_distance,
+            inlier_distance=opt.inlier_distance,
+            iterations=opt.icp_iterations,
+            sigma=opt.match_sigma,
+            overlap_map=self.model.every,
+        )
+        return aligned, aligned.overlap
+
+    def support(self, pose: NDArray, xy: NDArray) -> Support:
+        """Outside / conflict shares of the scan ``xy`` at ``pose`` (``localise.freespace``)."""
+        return self.model.space.support(pose, xy, self.mount)
+
+    def admissible(self, pose: NDArray, xy: NDArray) -> bool:
+        """Whether the scan at ``pose`` neither contradicts the map's free space
+        (``max_conflict``, ``max_loose_conflict``) nor lies mostly outside the map
+        (``max_outside``): what a hypothesis needs."""
+        s = self.support(pose, xy)
+        opt = self.options
+        return (
+            s.conflict <= opt.max_conflict
+            and s.loose <= opt.max_loose_conflict
+            and s.outside <= opt.max_outside
+        )

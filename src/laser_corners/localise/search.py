@@ -1,0 +1,252 @@
+"""Looking for a fix in the saved map: :class:`GlobalSearch` (the ``global`` and ``lost``
+states of :class:`~laser_corners.localise.Localiser`).
+
+On every scan the map's place index (corner keypoints of the last metres, :mod:`.places`)
+proposes poses; where it has none for ``places.fallback_travel`` (or the map has no index),
+every ``global_every`` scans the exhaustive search over the whole map
+(:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) does. Each pose becomes a
+hypothesis (``localise.hypotheses``), refined by ICP against the map's points and credited with
+the search's past scans it explains (``localise.history``). Every scan, every hypothesis is
+moved by the odometry step, aligned again and scored by its *agreement*; the winner
+(:func:`~laser_corners.localise.hypotheses.choose_winner`) must also not contradict the map's
+free space over the search's past scans chained back from it.
+
+After a lost track (not across an odometry or time jump) the search first looks only inside the
+*window* of the lost track's dead-reckoned pose (:mod:`.window`), with the exhaustive search
+restricted to it; a winner there needs ``reacquire_travel`` and is scored among the points the
+map could explain; once the window is wider than ``reacquire_xy`` / ``reacquire_yaw`` the global
+search over the whole map takes over (a kidnapped robot).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.localise.history import SearchHistory
+from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
+from laser_corners.localise.local import LocalMap, explained_share
+from laser_corners.localise.matcher import MapMatcher
+from laser_corners.localise.places import PlaceProposer
+from laser_corners.localise.window import Window
+from laser_corners.pose import compose_many, poses_apart
+from laser_corners.registration.points import ScanPoints, scan_points, transform
+from laser_corners.scan import LaserScan
+
+__all__ = ["GLOBAL_SPACING", "GlobalSearch"]
+
+GLOBAL_SPACING = 0.2
+"""Spacing (m) of the scan points given to the global search."""
+SPAWN_SIGMA = np.array([1.0, 1.0, 0.3])
+"""Standard deviations (m, m, rad) of the prior of a proposed pose's first ICP."""
+
+
+class GlobalSearch:
+    """Hypotheses followed by odometry until one wins (see the module notes).
+
+    Parameters
+    ----------
+    matcher : MapMatcher
+    places : PlaceProposer
+        The map's place index.
+    local : LocalMap
+        Tells the scan points the map does not explain (the window's agreement).
+    counts : dict
+        The localiser's counters (``searches``, ``place_attempts``, ``credited``,
+        ``refused_free_space``, ``refused_history``), updated here.
+    """
+
+    def __init__(
+        self, matcher: MapMatcher, places: PlaceProposer, local: LocalMap, counts: dict[str, int]
+    ) -> None:
+        self.matcher = matcher
+        self.options = matcher.options
+        self.places = places
+        self.local = local
+        self.counts = counts
+        self.hypotheses: list[Hypothesis] = []
+        self.window: Window | None = None
+        """The lost track's dead-reckoned pose, searched around while it is narrow enough."""
+        self.history = SearchHistory(self.options.history_travel)
+        self.travel = 0.0
+        """Odometry travel (m, turns 0.5 m per radian) of the search so far."""
+        self.scans = 0
+        self.search_ms: list[float] = []
+        """Milliseconds of every exhaustive correlative search (global or window)."""
+
+    def restart(self, pose: NDArray | None, index: int, window: Window | None) -> None:
+        """A new search: from the lost track's predicted ``pose`` as the first hypothesis (a
+        robot that stops agreeing with the map is most often still where the odometry says:
+        a look-alike elsewhere must then beat it by ``fix_margin``), inside ``window`` if
+        given."""
+        self.hypotheses = [] if pose is None else [Hypothesis(np.asarray(pose).copy(), index)]
+        self.window = window
+        self.scans = 0
+        self.travel = 0.0
+        self.history.clear()
+
+    def stop(self) -> None:
+        """The search is over (a fix, or a pose given from outside)."""
+        self.hypotheses = []
+        self.window = None
+
+    def step(
+        self, scan: LaserScan, pts: ScanPoints, delta: NDArray, jump: bool, odo: NDArray, index: int
+    ) -> Hypothesis | None:
+        """Follow the hypotheses by one scan, propose new ones; the winner, if one wins."""
+        opt = self.options
+        if jump:
+            self.hypotheses = []
+            self.scans = 0
+            self.history.clear()
+            self.places.clear()
+        self._move_window(delta, jump)
+        step = math.hypot(delta[0], delta[1]) + 0.5 * abs(delta[2])
+        self.travel += step
+        self.history.remember(self.travel, index, pts.xy, odo)
+        self.places.observe(scan, odo)
+        self._follow(pts.xy, delta, step)
+        self._propose(scan, pts.xy, odo, index)
+        self.scans += 1
+        needed = opt.fix_travel if self.window is None else opt.reacquire_travel
+        winner = choose_winner(self.hypotheses, opt, needed)
+        # inside the window the winner continues the lost track by odometry: the scans since
+        # the loss are those that did not fit the map (a blocked view, a closed door), and
+        # judging it on them would refuse every right fix there
+        if winner is not None and self.window is None:
+            if not self.history.fits(self.matcher, winner.pose, odo):
+                self.hypotheses.remove(winner)
+                self.counts["refused_history"] += 1
+                return None
+        return winner
+
+    def _move_window(self, delta: NDArray, jump: bool) -> None:
+        """Move the lost track's window by the odometry step; close it (global search from
+        now on) across a jump or once it is wider than ``reacquire_xy`` / ``reacquire_yaw``."""
+        if self.window is None:
+            return
+        opt = self.options
+        self.window.move(delta, opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+        if jump or not self.window.open(opt.reacquire_xy, opt.reacquire_yaw):
+            self.window = None
+            for h in self.hypotheses:  # scored from now on as the global search scores
+                h.recent.clear()
+
+    def _agreement(self, xy: NDArray, pose: NDArray, mapped: float) -> float:
+        """A hypothesis's agreement: ``mapped`` (the share of the scan's points near a map
+        point); inside a lost track's window, where the robot often sees space the map does
+        not cover, the share among the points the map could explain when more than
+        ``partly_outside`` of them are far from every map point, as a tracked scan is
+        judged (``Fit.explained``). The global search keeps the plain share: among the
+        explainable points only, a look-alike that puts the scan off the map would gain."""
+        if self.window is None or len(xy) == 0:
+            return mapped
+        unmapped = float(np.mean(self.local.unexplained(transform(xy, pose))))
+        return explained_share(mapped, 0.0, unmapped, self.options.partly_outside)
+
+    def _follow(self, xy: NDArray, delta: NDArray, step: float) -> None:
+        """Move every hypothesis by the odometry step, align it, score it, prune, merge."""
+        opt = self.options
+        prior = self.matcher.prior(delta, False)
+        for h in self.hypotheses:
+            aligned, agreement = self.matcher.align(xy, compose_many(h.pose, delta), prior)
+            h.pose = aligned.pose
+            agreement = self._agreement(xy, h.pose, agreement)
+            h.remember(agreement, self.matcher.support(h.pose, xy), opt.recent_scans)
+            h.travel += step
+            h.followed += step
+            h.scans += 1
+        alive = [
+            h
+            for h in self.hypotheses
+            if h.score() >= opt.hypothesis_agreement
+            and np.mean(h.conflict) <= opt.max_conflict
+            and np.mean(h.loose) <= opt.max_loose_conflict
+            and (self.window is None or self.window.contains(h.pose))
+        ]
+        self.hypotheses = merged(alive, self.options)
+
+    def _propose(self, scan: LaserScan, xy: NDArray, odo: NDArray, index: int) -> None:
+        """New hypotheses: on every scan the place index's candidates (corner keypoints,
+        ``localise.places``) when the map has an index and no lost track's window is open;
+        every ``global_every`` scans the exhaustive correlative search (the whole map, or
+        the window after a lost track) when there is no index, or inside a window, or once
+        the search has travelled ``places.fallback_travel`` with no hypothesis alive (too few
+        corners where the robot is)."""
+        opt = self.options
+        keypoints = self.window is None and self.places.usable
+        due = self.scans % opt.global_every == 0
+        if not (keypoints or due):
+            return
+        mount = self.matcher.mount
+        coarse = scan_points(scan, mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
+        if keypoints:
+            found = self.places.propose(coarse.xy)
+            self.counts["place_attempts"] += 1
+            self._spawn([c.pose for c in found], xy, odo, index)
+        fallback = not keypoints or (
+            self.travel >= opt.places.fallback_travel and not self.hypotheses
+        )
+        if fallback and due:
+            self.counts["searches"] += 1
+            start = time.perf_counter()
+            found = self._exhaustive(coarse.xy)
+            self.search_ms.append((time.perf_counter() - start) * 1e3)
+            self._spawn([guess for guess, _ in found], xy, odo, index)
+
+    def _exhaustive(self, xy: NDArray) -> list[tuple[NDArray[np.float64], float]]:
+        """The exhaustive correlative search: over the whole map, or inside the window."""
+        opt = self.options
+        model = self.matcher.model
+        if self.window is None:
+            return model.global_search(xy, opt.global_yaw_step, opt.global_candidates)
+        return model.window_search(
+            xy,
+            self.window.pose,
+            *self.window.half_widths,
+            opt.global_yaw_step,
+            opt.global_candidates,
+            (opt.distinct_xy, opt.distinct_yaw),
+        )
+
+    def _spawn(self, guesses: list[NDArray], xy: NDArray, odo: NDArray, index: int) -> None:
+        """Hypotheses from the guesses that ICP aligns to agree with the map without
+        contradicting its free space (counted in ``refused_free_space`` when not); guesses
+        where a hypothesis already is are skipped. Those of the global search are credited
+        with the past scans they explain (:meth:`_credit`)."""
+        opt = self.options
+        prior = np.diag(1.0 / SPAWN_SIGMA**2)
+        apart = (opt.distinct_xy, opt.distinct_yaw)
+        fresh = []
+        for guess in guesses:
+            if any(not poses_apart(guess, h.pose, *apart) for h in self.hypotheses):
+                continue
+            aligned, agreement = self.matcher.align(xy, guess, prior)
+            if agreement < opt.hypothesis_agreement:
+                continue
+            if not self.matcher.admissible(aligned.pose, xy):
+                self.counts["refused_free_space"] += 1
+                continue
+            h = Hypothesis(aligned.pose, index)
+            if self.window is None:
+                self._credit(h, odo, index)
+            agreement = self._agreement(xy, h.pose, agreement)
+            h.remember(agreement, self.matcher.support(h.pose, xy), opt.recent_scans)
+            fresh.append(h)
+        self.hypotheses = merged(self.hypotheses + fresh, opt)
+
+    def _credit(self, h: Hypothesis, odo: NDArray, index: int) -> None:
+        """Credit a new hypothesis of the global search with the past scans it explains
+        (``SearchHistory.explained``): their agreements and shares join its recent ones,
+        their travel and scans its own (``localise.history``)."""
+        credited = self.history.explained(self.matcher, h.pose, odo, self.travel, index)
+        if not credited:
+            return
+        for past in reversed(credited):
+            h.remember(past.agreement, past.support, self.options.recent_scans)
+        h.travel = self.travel - credited[-1].scan.travel
+        h.scans = index - credited[-1].scan.index
+        self.counts["credited"] += 1

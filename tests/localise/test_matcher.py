@@ -1,0 +1,52 @@
+"""One scan against the saved map (``localise.matcher``): the odometry prior, ICP's
+agreement and the free-space test, in a simulated building."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_localiser import BUILDING_PATH, building, loop_path, map_folder, scans_along
+
+from laser_corners.localise import LocaliseOptions
+from laser_corners.localise.mapmodel import MapModel
+from laser_corners.localise.matcher import JUMP_SIGMA, MapMatcher
+from laser_corners.registration.points import scan_points
+from laser_corners.slam.mapfile import load_map
+
+
+@pytest.fixture(scope="module")
+def matcher_and_scan(tmp_path_factory):
+    truth = loop_path(BUILDING_PATH)
+    saved = load_map(map_folder(tmp_path_factory.mktemp("map"), building(), truth))
+    options = LocaliseOptions()
+    matcher = MapMatcher(MapModel(saved, options), options, np.zeros(3))
+    scan = scans_along(building(), truth[40:41], seed=3)[0]
+    xy = scan_points(scan, np.zeros(3), 0.1, 30.0, options.point_spacing).xy
+    return matcher, xy, truth[40]
+
+
+def test_the_odometry_prior_weakens_with_the_step_and_across_a_jump(matcher_and_scan) -> None:
+    matcher, *_ = matcher_and_scan
+    still = matcher.prior(np.zeros(3), False)
+    moved = matcher.prior(np.array([1.0, 0.0, 0.5]), False)
+    assert np.all(np.diag(moved) < np.diag(still))
+    opt = matcher.options
+    assert still[0, 0] == pytest.approx(1.0 / (opt.odometry_sigma_xy * 0.1) ** 2)
+    assert np.allclose(matcher.prior(np.zeros(3), True), np.diag(1.0 / JUMP_SIGMA**2))
+
+
+def test_icp_pulls_a_shifted_guess_back_and_the_true_pose_is_admissible(matcher_and_scan) -> None:
+    matcher, xy, truth = matcher_and_scan
+    guess = truth + np.array([0.15, -0.1, 0.04])
+    aligned, agreement = matcher.align(xy, guess, np.zeros((3, 3)))
+    assert np.hypot(*(aligned.pose[:2] - truth[:2])) < 0.03
+    assert agreement > 0.9
+    assert matcher.admissible(truth, xy)
+
+
+def test_a_pose_that_sees_through_walls_is_not_admissible(matcher_and_scan) -> None:
+    matcher, xy, truth = matcher_and_scan
+    turned = truth + np.array([0.0, 0.0, np.pi / 2])  # the beams end in free space / walls
+    support = matcher.support(turned, xy)
+    assert support.conflict > matcher.options.max_conflict
+    assert not matcher.admissible(turned, xy)

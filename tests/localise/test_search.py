@@ -1,0 +1,82 @@
+"""The global search (``localise.search``): a winner only after ``fix_travel``; a restart
+inside a lost track's window keeps its first hypothesis; a jump clears the hypotheses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_localiser import (
+    BUILDING_PATH,
+    building,
+    loop_path,
+    map_folder,
+    noisy_odometry,
+    scans_along,
+)
+
+from laser_corners.localise import LocaliseOptions
+from laser_corners.localise.local import LocalMap
+from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
+from laser_corners.localise.matcher import MapMatcher
+from laser_corners.localise.places import PlaceProposer
+from laser_corners.localise.search import GlobalSearch
+from laser_corners.localise.window import Window
+from laser_corners.pose import between_many
+from laser_corners.registration.points import scan_points
+from laser_corners.slam.mapfile import load_map
+
+
+@pytest.fixture(scope="module")
+def world(tmp_path_factory):
+    truth = loop_path(BUILDING_PATH)
+    saved = load_map(map_folder(tmp_path_factory.mktemp("map"), building(), truth))
+    return saved, truth
+
+
+def _search(saved, options) -> GlobalSearch:
+    model = MapModel(saved, options)
+    matcher = MapMatcher(model, options, np.zeros(3))
+    places = PlaceProposer(saved.places, saved.poses, model.grid, np.zeros(3), options.places)
+    counts = dict.fromkeys(
+        ("searches", "place_attempts", "credited", "refused_free_space", "refused_history"), 0
+    )
+    return GlobalSearch(matcher, places, LocalMap(model.grid, GLOBAL_SIGMA), counts)
+
+
+def _run(search, drive, seed, jump_at=None):
+    scans, odo = scans_along(building(), drive, seed), noisy_odometry(drive, seed)
+    for i, scan in enumerate(scans):
+        pts = scan_points(scan, np.zeros(3), 0.1, 30.0, search.options.point_spacing)
+        delta = np.zeros(3) if i == 0 else between_many(odo[i - 1], odo[i])
+        winner = search.step(scan, pts, delta, i == jump_at, odo[i], i)
+        if winner is not None:
+            return i, winner
+    return None, None
+
+
+def test_the_winner_is_right_and_has_survived_fix_travel(world) -> None:
+    saved, truth = world
+    options = LocaliseOptions()
+    search = _search(saved, options)
+    drive = truth[150:450]
+    at, winner = _run(search, drive, 8)
+    assert winner is not None
+    assert np.hypot(*(winner.pose[:2] - drive[at, :2])) < 0.3
+    assert winner.travel >= options.fix_travel and winner.followed >= options.fix_followed_travel
+    assert search.travel >= options.fix_followed_travel
+    search.stop()
+    assert search.hypotheses == [] and search.window is None
+
+
+def test_a_restart_in_a_window_follows_the_lost_pose_and_a_jump_clears_it(world) -> None:
+    saved, truth = world
+    options = LocaliseOptions()
+    search = _search(saved, options)
+    drive = truth[150:160]
+    window = Window.from_covariance(drive[0], np.diag([0.05, 0.05, 0.02]) ** 2)
+    search.restart(drive[0], 0, window)
+    assert len(search.hypotheses) == 1 and search.window is window and search.travel == 0.0
+    _run(search, drive[:5], 9)
+    assert any(np.hypot(*(h.pose[:2] - drive[4, :2])) < 0.3 for h in search.hypotheses)
+    _run(search, drive[5:7], 10, jump_at=0)
+    assert search.window is None  # a jump closes the window: the global search takes over
