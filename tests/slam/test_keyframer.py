@@ -34,7 +34,17 @@ def _add(keyframer: Keyframer, i: int, cut: bool = False, aligned: bool = True):
     anchor = POSES[max(i - 1, 0)]
     cov = np.eye(3) * 1e-4
     return keyframer.add(
-        scan, pts, POSES[i], float(i), 10 * i, POSES[i], anchor, cut, aligned, None, cov
+        scan,
+        pts,
+        POSES[i],
+        float(i),
+        10 * i,
+        pose=POSES[i],
+        anchor=anchor,
+        cut=cut,
+        aligned=aligned,
+        kp=None,
+        cov=cov,
     )
 
 

@@ -109,6 +109,7 @@ class Keyframer:
         odo: NDArray,
         stamp: float,
         index: int,
+        *,
         pose: NDArray,
         anchor: NDArray,
         cut: bool,

@@ -172,12 +172,12 @@ class Slam:
             odo,
             stamp,
             len(self.log),
-            self.pose,
-            self._anchor,
-            cut,
-            tracking.aligned,
-            kp,
-            self._cov,
+            pose=self.pose,
+            anchor=self._anchor,
+            cut=cut,
+            aligned=tracking.aligned,
+            kp=kp,
+            cov=self._cov,
         )
         if cut:
             self.closing.lost_from(k)
