@@ -330,7 +330,7 @@ def test_an_error_while_mapping_writes_a_partial_map(tmp_path: Path, monkeypatch
     add = Slam.add
 
     def breaks_at_40(self, scan, odometry, stamp):
-        if self.counts["scans"] == 40:
+        if self.counts.scans == 40:
             raise RuntimeError("a bug\nsecond line")
         return add(self, scan, odometry, stamp)
 
@@ -356,7 +356,7 @@ def test_sigterm_mid_run_writes_a_partial_map_and_exits_143(tmp_path: Path) -> N
         "from laser_corners.slam import Slam\n"
         "add = Slam.add\n"
         "def slow(self, *args):\n"
-        "    if self.counts['scans'] == 30:\n"
+        "    if self.counts.scans == 30:\n"
         "        print('mapping', flush=True)\n"
         "    time.sleep(0.05)\n"
         "    return add(self, *args)\n"

@@ -10,7 +10,7 @@ from laser_corners.registration.align import PointMap, icp, match_share
 from laser_corners.registration.points import rotate, scan_points, transform
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam.options import SlamOptions
-from laser_corners.slam.slam import SURFACE_SPACINGS
+from laser_corners.slam.tracking import SURFACE_SPACINGS
 
 
 def _along_errors(surface: float) -> np.ndarray:

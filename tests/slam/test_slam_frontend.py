@@ -109,9 +109,9 @@ def test_pruned_closures_are_the_ones_the_back_end_dropped() -> None:
     good = LoopClosure(k, 0, tuple(between_many(est[0], est[k])), False, "ok")
     wrong_rel = np.array(between_many(est[1], est[k])) + np.array([1.0, 0.0, 0.0])
     wrong = LoopClosure(k, 1, tuple(wrong_rel), False, "pending confirmation")
-    slam.closures += [wrong, good]  # verification order
-    slam._accept(good)  # graph order: the other way round
-    slam._accept(wrong)
+    slam.closing.closures += [wrong, good]  # verification order
+    slam.closing.accept(good)  # graph order: the other way round
+    slam.closing.accept(wrong)
     result = slam.result()
     assert good.accepted and not wrong.accepted
     assert wrong.reason.startswith("dropped") and result.counts["closures_pruned"] == 1

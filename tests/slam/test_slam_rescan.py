@@ -18,7 +18,7 @@ from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam import Slam, SlamOptions
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.rescan import rescan
-from laser_corners.slam.slam import SURFACE_SPACINGS
+from laser_corners.slam.tracking import SURFACE_SPACINGS
 from sim_drives import drive_slam, noisy_odometry, straight, two_rooms
 
 OPTIONS = SlamOptions()

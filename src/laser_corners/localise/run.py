@@ -188,7 +188,7 @@ def run_localise(
         skipped = run.counts["skipped_no_odometry"]
         raise InputError(f"{path}: no scan with odometry ({skipped} scans without a pose)")
     broken = run.partial_reason not in (None, *STOP_REASONS.values())
-    if slam is not None and slam.counts["scans"] and not broken:  # (an error: SLAM half-fed)
+    if slam is not None and slam.counts.scans and not broken:  # (an error: SLAM half-fed)
         try:
             result = slam.result(interrupted=run.interrupted)
             run.slam_ms_per_scan = result.ms_per_scan

@@ -2,8 +2,11 @@
 
 :class:`Slam` is the incremental API (``add(scan, odometry, stamp) -> pose, covariance``),
 :func:`run_slam` runs it over a recording, :class:`SlamResult` is what both give.
-Modules: :mod:`~.options`, :mod:`~.keyframes` (local map), :mod:`~.loops` (loop closure),
-:mod:`~.backend` (gtsam), :mod:`~.slam`, :mod:`~.run`, :mod:`~.result`.
+Modules: :mod:`~.options`, :mod:`~.slam` (the orchestrator) over its parts :mod:`~.tracking`
+(front end), :mod:`~.keyframer` (keyframes), :mod:`~.closing` (loop closure, relocalisation),
+:mod:`~.finish` (final graph and trajectory) and :mod:`~.backend` (gtsam; :mod:`~.factors`,
+:mod:`~.recovery`, :mod:`~.batch`), counting into :mod:`~.counts`; :mod:`~.keyframes` (local
+map), :mod:`~.loops` (closure verification), :mod:`~.run`, :mod:`~.result`.
 """
 
 from laser_corners.slam.options import SlamOptions

@@ -47,6 +47,7 @@ from laser_corners.registration.align import PointMap, match_share
 from laser_corners.registration.correlative import ScoreGrid, search
 from laser_corners.registration.place_index import PlaceIndex, dense_check
 from laser_corners.registration.points import ScanPoints, transform
+from laser_corners.slam.counts import SlamCounts
 from laser_corners.slam.loops import query_points, thin_points, verify
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import LoopClosure
@@ -213,9 +214,8 @@ class Relocaliser:
     old: OldMap | None = None
     pending: LoopClosure | None = None
     pending_shift: NDArray[np.float64] | None = None
-    counts: dict[str, int] = field(
-        default_factory=lambda: {"attempted": 0, "accepted": 0, "exhaustive": 0}
-    )
+    counts: SlamCounts = field(default_factory=SlamCounts)
+    """Counts ``relocalisations_attempted``, ``_accepted`` and ``_exhaustive``."""
 
     @property
     def lost(self) -> bool:
@@ -241,7 +241,7 @@ class Relocaliser:
         if self.start is None:
             return []
         self.attempts += 1
-        self.counts["attempted"] += 1
+        self.counts.relocalisations_attempted += 1
         if self.old is None:
             self.old = OldMap.build(points, estimate, self.start)
         query = query_points(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
@@ -258,7 +258,7 @@ class Relocaliser:
             if math.hypot(d[0], d[1]) <= AGREE_XY and abs(d[2]) <= AGREE_YAW:
                 first = self.pending
                 first.reason = closure.reason.replace("(", "(confirmed by the next keyframe, ", 1)
-                self.counts["accepted"] += 1
+                self.counts.relocalisations_accepted += 1
                 self.end()
                 return [first, closure]
         closure.accepted = False
@@ -281,7 +281,7 @@ class Relocaliser:
                 return [c.pose for c in checked[:CANDIDATES]]
         if self.attempts > FALLBACK_FIRST:
             return []
-        self.counts["exhaustive"] += 1
+        self.counts.relocalisations_exhaustive += 1
         return [pose for _, pose in self.old.search(query)]
 
     def _best(

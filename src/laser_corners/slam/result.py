@@ -12,39 +12,10 @@ from laser_corners.errors import OutputError
 from laser_corners.pose import compose_many
 from laser_corners.registration.place_index import PlaceIndex
 from laser_corners.scan import LaserScan
+from laser_corners.slam.counts import COUNT_KEYS
 from laser_corners.slam.options import SlamOptions
 
 __all__ = ["COUNT_KEYS", "Landmarks", "LoopClosure", "SlamResult"]
-
-
-COUNT_KEYS = (  # the counters of SlamResult.counts, in the order reports list them
-    "scans",
-    "keyframes",
-    "skipped_no_odometry",
-    "time_jumps",
-    "alignment_failures",
-    "second_guesses",
-    "second_guesses_used",
-    "rescues",
-    "rescues_used",
-    "closures_proposed",
-    "closures_accepted",
-    "closures_rejected",
-    "closures_pruned",
-    "refine_tried",
-    "refine_links",
-    "refine_pruned",
-    "rescan_tried",
-    "rescan_kept",
-    "landmarks",
-    "landmark_observations",
-    "corner_registrations",
-    "corner_registrations_used",
-    "lost",
-    "relocalisations_attempted",
-    "relocalisations_accepted",
-    "relocalisations_exhaustive",
-)
 
 
 @dataclass
@@ -114,8 +85,9 @@ class SlamResult:
         Processing time of each scan (ms).
     options : SlamOptions
     counts : dict of str to int
+        The run's counters (:meth:`.counts.SlamCounts.as_dict`, names :data:`COUNT_KEYS`):
         ``scans, keyframes, skipped_no_odometry, time_jumps, closures_proposed,
-        closures_accepted, closures_rejected, alignment_failures, landmarks``.
+        closures_accepted, closures_rejected, alignment_failures, landmarks`` ...
     interrupted : bool
         The run was stopped (Ctrl-C, SIGTERM, an error) before the end of the recording.
     partial_reason : str or None

@@ -94,11 +94,11 @@ def run_slam(
         except KeyboardInterrupt:  # a second Ctrl-C, or one before the first scan
             feed.stopped(STOP_REASONS[signal.SIGINT], signal.SIGINT)
         except Exception as exc:
-            if slam.counts["scans"] == 0:
+            if slam.counts.scans == 0:
                 raise
             feed.stopped(f"{type(exc).__name__} at scan {feed.at}: {first_line(exc)}")
-    slam.counts["skipped_no_odometry"] = feed.skipped
-    if slam.counts["scans"] == 0 and not feed.interrupted:
+    slam.counts.skipped_no_odometry = feed.skipped
+    if slam.counts.scans == 0 and not feed.interrupted:
         raise InputError(f"{path}: no scan with odometry ({feed.skipped} scans without a pose)")
     warnings = run_warnings(slam, feed)
     result = slam.result(interrupted=feed.interrupted, partial_reason=feed.reason)
@@ -112,13 +112,13 @@ def run_warnings(slam: Slam, feed: OdometryFeed) -> list[str]:
     scans without any valid return, and keyframes that see walls of one direction only
     (:data:`ONE_DIRECTION`; more than half of them: a degenerate corridor)."""
     warnings = []
-    slam.counts["scans_without_returns"] = feed.blank
+    slam.counts.scans_without_returns = feed.blank
     if feed.blank:
         warnings.append(
             f"{feed.blank} scans without any valid return: placed by the odometry alone"
         )
     flat = sum(_one_direction(p.normals[p.has_normal]) for p in slam.kf.points)
-    slam.counts["keyframes_one_direction"] = flat
+    slam.counts.keyframes_one_direction = flat
     if flat and 2 * flat > len(slam.kf):
         warnings.append(
             f"{flat} of {len(slam.kf)} keyframes see walls of one direction only (a corridor?): "

@@ -1,0 +1,97 @@
+"""Keyframe making: when a scan becomes a keyframe, its link in the graph, its corners
+(laser_corners.slam.keyframer)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gtsam")
+
+import gtsam
+
+from laser_corners.registration.points import scan_points
+from laser_corners.sim import SICK_LMS_1DEG
+from laser_corners.slam.backend import Backend
+from laser_corners.slam.keyframer import CUT_SIGMAS, Keyframer
+from laser_corners.slam.options import SlamOptions
+from sim_drives import two_rooms
+
+OPTIONS = SlamOptions()
+POSES = np.array([[4.0, 4.0, 0.0], [4.5, 4.0, 0.1], [5.0, 4.1, 0.1]])
+
+
+def _keyframer(options: SlamOptions = OPTIONS) -> tuple[Keyframer, Backend]:
+    backend = Backend()
+    return Keyframer(options, np.zeros(3), backend, backend.counts), backend
+
+
+def _add(keyframer: Keyframer, i: int, cut: bool = False, aligned: bool = True):
+    """Keyframe ``i`` of :data:`POSES` (the one before: the anchor): (k, distance)."""
+    opt = keyframer.options
+    scan = two_rooms().scan(tuple(POSES[i]), SICK_LMS_1DEG, noise_sigma=0.01, stamp=float(i))
+    pts = scan_points(scan, np.zeros(3), opt.min_range, opt.max_range, opt.point_spacing)
+    anchor = POSES[max(i - 1, 0)]
+    cov = np.eye(3) * 1e-4
+    return keyframer.add(
+        scan,
+        pts,
+        POSES[i],
+        float(i),
+        10 * i,
+        pose=POSES[i],
+        anchor=anchor,
+        cut=cut,
+        aligned=aligned,
+        kp=None,
+        cov=cov,
+    )
+
+
+def _sigmas(backend: Backend, index: int) -> np.ndarray:
+    return np.asarray(backend.graph.at(index).noiseModel().sigmas())
+
+
+def test_a_keyframe_is_due_after_distance_turn_time_a_jump_or_a_failed_alignment() -> None:
+    keyframer, _ = _keyframer()
+    _add(keyframer, 0)
+    opt, still = OPTIONS, np.zeros(3)
+    assert not keyframer.due(still, 0.1, jumped=False, aligned=True)
+    assert keyframer.due(np.array([opt.keyframe_distance, 0, 0]), 0.1, False, True)
+    assert keyframer.due(np.array([0, 0, opt.keyframe_angle]), 0.1, False, True)
+    assert keyframer.due(still, opt.keyframe_max_interval, False, True)
+    assert keyframer.due(still, 0.1, jumped=True, aligned=True)
+    assert keyframer.due(still, 0.1, jumped=False, aligned=False)
+
+
+def test_links_carry_the_matching_or_the_odometry_noise_and_a_cut_none() -> None:
+    keyframer, backend = _keyframer()
+    assert _add(keyframer, 0) == (0, 0.0)
+    assert backend.graph.size() == 1  # the first keyframe's prior, no link
+    k, dist = _add(keyframer, 1)
+    assert k == 1 and dist == pytest.approx(0.5)
+    assert np.allclose(keyframer.links[1], [0.5, 0.0, 0.1])
+    opt = OPTIONS
+    assert np.allclose(_sigmas(backend, 1), [opt.match_sigma_xy] * 2 + [opt.match_sigma_yaw])
+    _add(keyframer, 2, cut=True, aligned=False)
+    assert keyframer.links[2] is None and len(keyframer.links) == 3
+    assert isinstance(backend.graph.at(2), gtsam.PriorFactorPose2)  # a new segment's prior
+    assert np.allclose(_sigmas(backend, 3), CUT_SIGMAS)
+    assert keyframer.store.scan_index == [0, 10, 20] and len(keyframer.store) == 3
+
+
+def test_a_link_after_a_failed_alignment_gets_the_odometry_noise() -> None:
+    keyframer, backend = _keyframer()
+    _add(keyframer, 0)
+    _add(keyframer, 1, aligned=False)
+    sxy = OPTIONS.odometry_sigma_xy * (0.5 + 0.1)
+    assert np.allclose(_sigmas(backend, 1)[:2], [sxy, sxy])
+
+
+def test_keyframe_corners_go_into_the_place_index_when_it_is_on() -> None:
+    keyframer, _ = _keyframer()
+    _add(keyframer, 0)
+    assert len(keyframer.places) > 0
+    off, _ = _keyframer(OPTIONS.with_overrides(["places.enabled=false"]))
+    _add(off, 0)
+    assert len(off.places) == 0
