@@ -5,19 +5,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_localiser import BUILDING_PATH, building, loop_path, map_folder, scans_along
+from test_localiser import building, scans_along
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.localise.mapmodel import MapModel
 from laser_corners.localise.matcher import JUMP_SIGMA, MapMatcher
 from laser_corners.registration.points import scan_points
-from laser_corners.slam.mapfile import load_map
 
 
 @pytest.fixture(scope="module")
-def matcher_and_scan(tmp_path_factory):
-    truth = loop_path(BUILDING_PATH)
-    saved = load_map(map_folder(tmp_path_factory.mktemp("map"), building(), truth))
+def matcher_and_scan(building_world):
+    saved, truth = building_world
     options = LocaliseOptions()
     matcher = MapMatcher(MapModel(saved, options), options, np.zeros(3))
     scan = scans_along(building(), truth[40:41], seed=3)[0]

@@ -4,15 +4,7 @@ inside a lost track's window keeps its first hypothesis; a jump clears the hypot
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from test_localiser import (
-    BUILDING_PATH,
-    building,
-    loop_path,
-    map_folder,
-    noisy_odometry,
-    scans_along,
-)
+from test_localiser import building, noisy_odometry, scans_along
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.localise.local import LocalMap
@@ -23,14 +15,6 @@ from laser_corners.localise.search import GlobalSearch
 from laser_corners.localise.window import Window
 from laser_corners.pose import between_many
 from laser_corners.registration.points import scan_points
-from laser_corners.slam.mapfile import load_map
-
-
-@pytest.fixture(scope="module")
-def world(tmp_path_factory):
-    truth = loop_path(BUILDING_PATH)
-    saved = load_map(map_folder(tmp_path_factory.mktemp("map"), building(), truth))
-    return saved, truth
 
 
 def _search(saved, options) -> GlobalSearch:
@@ -54,8 +38,8 @@ def _run(search, drive, seed, jump_at=None):
     return None, None
 
 
-def test_the_winner_is_right_and_has_survived_fix_travel(world) -> None:
-    saved, truth = world
+def test_the_winner_is_right_and_has_survived_fix_travel(building_world) -> None:
+    saved, truth = building_world
     options = LocaliseOptions()
     search = _search(saved, options)
     drive = truth[150:450]
@@ -68,8 +52,8 @@ def test_the_winner_is_right_and_has_survived_fix_travel(world) -> None:
     assert search.hypotheses == [] and search.window is None
 
 
-def test_a_restart_in_a_window_follows_the_lost_pose_and_a_jump_clears_it(world) -> None:
-    saved, truth = world
+def test_a_restart_in_a_window_follows_the_lost_pose_and_a_jump_clears_it(building_world) -> None:
+    saved, truth = building_world
     options = LocaliseOptions()
     search = _search(saved, options)
     drive = truth[150:160]

@@ -4,15 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from test_localiser import (
-    BUILDING_PATH,
-    building,
-    loop_path,
-    map_folder,
-    noisy_odometry,
-    scans_along,
-)
+from test_localiser import building, noisy_odometry, scans_along
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.localise.local import LocalMap
@@ -21,14 +13,6 @@ from laser_corners.localise.matcher import MapMatcher
 from laser_corners.localise.tracking import Tracker
 from laser_corners.pose import between_many
 from laser_corners.registration.points import scan_points
-from laser_corners.slam.mapfile import load_map
-
-
-@pytest.fixture(scope="module")
-def world(tmp_path_factory):
-    truth = loop_path(BUILDING_PATH)
-    saved = load_map(map_folder(tmp_path_factory.mktemp("map"), building(), truth))
-    return saved, truth
 
 
 def _tracker(saved, options=None) -> tuple[Tracker, dict]:
@@ -49,8 +33,8 @@ def _steps(tracker, scans, odo, options):
     return out
 
 
-def test_a_started_track_follows_the_robot(world) -> None:
-    saved, truth = world
+def test_a_started_track_follows_the_robot(building_world) -> None:
+    saved, truth = building_world
     drive = truth[:120]
     tracker, counts = _tracker(saved)
     tracker.start(drive[0])
@@ -63,8 +47,8 @@ def test_a_started_track_follows_the_robot(world) -> None:
     assert np.all(np.linalg.eigvalsh(estimates[-1].covariance) > 0)
 
 
-def test_scans_of_another_place_lose_the_track_after_lost_scans(world) -> None:
-    saved, truth = world
+def test_scans_of_another_place_lose_the_track_after_lost_scans(building_world) -> None:
+    saved, truth = building_world
     options = LocaliseOptions(lost_scans=4)
     tracker, counts = _tracker(saved, options)
     tracker.start(truth[0] + np.array([3.0, 2.0, 1.2]))  # far from where the scans are
