@@ -9,9 +9,10 @@ pytest.importorskip("gtsam")
 
 import gtsam
 
+from laser_corners.registration.graph import X
 from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam import Slam, SlamOptions
-from laser_corners.slam.backend import Backend, X, new_isam
+from laser_corners.slam.backend import Backend, new_isam
 from sim_drives import noisy_odometry, straight, two_rooms
 
 INDETERMINATE = (

@@ -10,9 +10,10 @@ pytest.importorskip("gtsam")
 
 import gtsam
 
+from laser_corners.registration.graph import X, diagonal_noise, robust_noise
 from laser_corners.slam.batch import optimise
 from laser_corners.slam.counts import SlamCounts
-from laser_corners.slam.factors import FactorLog, X, diagonal_noise, robust_noise
+from laser_corners.slam.factors import FactorLog
 
 LOOP = (0.05, 0.05, 0.01)
 

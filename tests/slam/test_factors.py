@@ -9,7 +9,8 @@ pytest.importorskip("gtsam")
 
 import gtsam
 
-from laser_corners.slam.factors import FactorLog, L, X, diagonal_noise, robust_noise
+from laser_corners.registration.graph import L, X, diagonal_noise, robust_noise
+from laser_corners.slam.factors import FactorLog
 
 
 def _between(a: int, b: int, x: float = 1.0) -> object:

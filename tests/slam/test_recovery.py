@@ -8,9 +8,10 @@ pytest.importorskip("gtsam")
 
 import gtsam
 
+from laser_corners.registration.graph import X, diagonal_noise
 from laser_corners.slam.backend import new_isam
 from laser_corners.slam.counts import SlamCounts
-from laser_corners.slam.factors import FactorLog, X, diagonal_noise
+from laser_corners.slam.factors import FactorLog
 from laser_corners.slam.recovery import Recovery, first_line
 
 MESSAGE = (

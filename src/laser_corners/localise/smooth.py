@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from laser_corners.localise.localiser import LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import between_many, compose_many, rotate_covariance
-from laser_corners.slam.backend import X, diagonal_noise, require_gtsam, robust_noise
+from laser_corners.registration.graph import X, diagonal_noise, require_gtsam, robust_noise
 from laser_corners.slam.result import SlamResult
 
 __all__ = ["Smoothed", "smooth"]

@@ -20,17 +20,10 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.registration.graph import L, X, diagonal_noise, require_gtsam, robust_noise
 from laser_corners.slam.batch import Extra, levenberg_marquardt, optimise
 from laser_corners.slam.counts import SlamCounts
-from laser_corners.slam.factors import (
-    HUBER_K,
-    FactorLog,
-    L,
-    X,
-    diagonal_noise,
-    require_gtsam,
-    robust_noise,
-)
+from laser_corners.slam.factors import FactorLog
 from laser_corners.slam.recovery import Recovery
 
 try:
@@ -38,16 +31,7 @@ try:
 except ImportError:  # pragma: no cover - the "slam" extra is missing
     gtsam = None
 
-__all__ = [
-    "HUBER_K",
-    "Backend",
-    "L",
-    "X",
-    "diagonal_noise",
-    "new_isam",
-    "require_gtsam",
-    "robust_noise",
-]
+__all__ = ["Backend", "new_isam"]
 
 FALLBACK_SIGMAS = (1.0, 1.0, 0.1)
 """Standard deviations of a keyframe covariance gtsam cannot compute (an ill-conditioned graph):

@@ -11,8 +11,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.registration.graph import X, diagonal_noise
 from laser_corners.slam.counts import SlamCounts
-from laser_corners.slam.factors import FactorLog, X, diagonal_noise
+from laser_corners.slam.factors import FactorLog
 from laser_corners.slam.recovery import first_line
 
 try:

@@ -12,49 +12,18 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.errors import MissingDependencyError
+from laser_corners.registration.graph import L, X, diagonal_noise, require_gtsam, robust_noise
 
 try:
     import gtsam
 except ImportError:  # pragma: no cover - the "slam" extra is missing
     gtsam = None
 
-__all__ = ["HUBER_K", "FactorLog", "L", "X", "diagonal_noise", "require_gtsam", "robust_noise"]
-
-HUBER_K = 1.345
-"""Huber threshold (in standard deviations) of loop-closure factors."""
+__all__ = ["FactorLog"]
 
 Loop = tuple[int, int, object, object, int]
 """A loop closure: keyframes ``a``, ``b``, the measured ``gtsam.Pose2``, its (not robust)
 noise model and the index of its factor in :attr:`FactorLog.graph`."""
-
-
-def require_gtsam() -> None:
-    """Raise :class:`MissingDependencyError` when gtsam is not installed."""
-    if gtsam is None:
-        raise MissingDependencyError(
-            "laser_corners.slam needs gtsam: pip install 'laser-corners[slam]'"
-        )
-
-
-def X(k: int) -> int:
-    """Key of keyframe ``k``."""
-    return gtsam.symbol("x", k)
-
-
-def L(k: int) -> int:
-    """Key of landmark ``k``."""
-    return gtsam.symbol("l", k)
-
-
-def diagonal_noise(sx: float, sy: float, syaw: float) -> object:
-    """A diagonal gtsam noise model with these standard deviations (x, y, yaw)."""
-    return gtsam.noiseModel.Diagonal.Sigmas(np.array([sx, sy, syaw]))
-
-
-def robust_noise(noise: object) -> object:
-    """``noise`` under the Huber kernel of loop closures and landmark observations."""
-    return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(HUBER_K), noise)
 
 
 class FactorLog:

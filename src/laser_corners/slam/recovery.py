@@ -13,8 +13,9 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable
 
+from laser_corners.registration.graph import X
 from laser_corners.slam.counts import SlamCounts
-from laser_corners.slam.factors import FactorLog, X
+from laser_corners.slam.factors import FactorLog
 
 try:
     import gtsam
