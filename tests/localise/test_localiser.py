@@ -293,3 +293,10 @@ def test_a_sideways_mounted_scanner_finds_itself_by_corners(tmp_path) -> None:
     assert loc.fixes[0].travel <= 3.0
     d, yaw = errors(estimates, drive)
     assert d.max() < 0.1 and yaw.max() < math.radians(2)
+
+
+def loaded_building(tmp_path_factory) -> tuple:
+    """The building's map (loaded) and the true poses of a loop through it: the fixture of
+    the localiser's parts' tests."""
+    truth = loop_path(BUILDING_PATH)
+    return load_map(map_folder(tmp_path_factory.mktemp("map"), building(), truth)), truth

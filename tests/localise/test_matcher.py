@@ -5,12 +5,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_localiser import building, scans_along
+from test_localiser import building, loaded_building, scans_along
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.localise.mapmodel import MapModel
-from laser_corners.localise.matcher import JUMP_SIGMA, MapMatcher
+from laser_corners.localise.matcher import MapMatcher
+from laser_corners.registration.odometry import JUMP_SIGMAS
 from laser_corners.registration.points import scan_points
+
+
+@pytest.fixture(scope="module")
+def building_world(tmp_path_factory):
+    return loaded_building(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +36,7 @@ def test_the_odometry_prior_weakens_with_the_step_and_across_a_jump(matcher_and_
     assert np.all(np.diag(moved) < np.diag(still))
     opt = matcher.options
     assert still[0, 0] == pytest.approx(1.0 / (opt.odometry_sigma_xy * 0.1) ** 2)
-    assert np.allclose(matcher.prior(np.zeros(3), True), np.diag(1.0 / JUMP_SIGMA**2))
+    assert np.allclose(matcher.prior(np.zeros(3), True), np.diag(1.0 / JUMP_SIGMAS**2))
 
 
 def test_icp_pulls_a_shifted_guess_back_and_the_true_pose_is_admissible(matcher_and_scan) -> None:

@@ -4,7 +4,8 @@ inside a lost track's window keeps its first hypothesis; a jump clears the hypot
 from __future__ import annotations
 
 import numpy as np
-from test_localiser import building, noisy_odometry, scans_along
+import pytest
+from test_localiser import building, loaded_building, noisy_odometry, scans_along
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.localise.local import LocalMap
@@ -15,6 +16,11 @@ from laser_corners.localise.search import GlobalSearch
 from laser_corners.localise.window import Window
 from laser_corners.pose import between_many
 from laser_corners.registration.points import scan_points
+
+
+@pytest.fixture(scope="module")
+def building_world(tmp_path_factory):
+    return loaded_building(tmp_path_factory)
 
 
 def _search(saved, options) -> GlobalSearch:

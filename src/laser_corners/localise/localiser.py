@@ -65,7 +65,7 @@ from laser_corners.localise.matcher import MapMatcher
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.places import PlaceProposer
 from laser_corners.localise.search import GlobalSearch
-from laser_corners.localise.tracking import FIX_COVARIANCE, Tracker
+from laser_corners.localise.tracker import FIX_COVARIANCE, Tracker
 from laser_corners.localise.window import Window
 from laser_corners.pose import between_many
 from laser_corners.registration.points import scan_points
@@ -106,7 +106,7 @@ class Localiser:
     """Localisation in a saved map with odometry (see the module notes).
 
     A state machine over two parts: :class:`~laser_corners.localise.search.GlobalSearch`
-    (states ``global`` and ``lost``) and :class:`~laser_corners.localise.tracking.Tracker`
+    (states ``global`` and ``lost``) and :class:`~laser_corners.localise.tracker.Tracker`
     (``tracking``). The search's winner starts the tracker; a lost track restarts the search.
 
     Parameters

@@ -8,8 +8,6 @@ scan's free-space support at a pose (``localise.freespace``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -17,11 +15,9 @@ from laser_corners.localise.freespace import Support
 from laser_corners.localise.mapmodel import MapModel
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.registration.align import Alignment, icp
+from laser_corners.registration.odometry import odometry_information
 
-__all__ = ["JUMP_SIGMA", "MapMatcher"]
-
-JUMP_SIGMA = np.array([1.0, 1.0, 0.5])
-"""Standard deviations (m, m, rad) of the odometry prediction across a jump (a weak prior)."""
+__all__ = ["MapMatcher"]
 
 
 class MapMatcher:
@@ -43,15 +39,9 @@ class MapMatcher:
 
     def prior(self, delta: NDArray, jump: bool) -> NDArray[np.float64]:
         """Information of the odometry prediction of the step ``delta`` (a weak one across a
-        jump): ``odometry_sigma_xy`` per metre and ``odometry_sigma_yaw`` per metre and per
-        radian, each on 0.1 m more."""
+        jump): the one odometry noise model (``registration.odometry``)."""
         opt = self.options
-        if jump:
-            return np.diag(1.0 / JUMP_SIGMA**2)
-        dist = math.hypot(delta[0], delta[1])
-        sxy = opt.odometry_sigma_xy * (dist + 0.1)
-        syaw = opt.odometry_sigma_yaw * (abs(delta[2]) + dist + 0.1)
-        return np.diag(1.0 / np.array([sxy, sxy, syaw]) ** 2)
+        return odometry_information(delta, opt.odometry_sigma_xy, opt.odometry_sigma_yaw, jump)
 
     def align(self, xy: NDArray, guess: NDArray, prior: NDArray) -> tuple[Alignment, float]:
         """ICP of ``xy`` (base frame) against the map from ``guess``, and the agreement of its

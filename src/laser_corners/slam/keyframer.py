@@ -18,6 +18,7 @@ from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import relative_pose
 from laser_corners.registration.corners import corner_detector, scan_corners
+from laser_corners.registration.odometry import odometry_sigmas
 from laser_corners.registration.place_index import PlaceIndex
 from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
@@ -144,8 +145,8 @@ class Keyframer:
             return (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
         if cut:
             return CUT_SIGMAS
-        sxy = opt.odometry_sigma_xy * (dist + 0.1)
-        return (sxy, sxy, opt.odometry_sigma_yaw * (abs(float(rel[2])) + dist + 0.1))
+        sig = odometry_sigmas(rel, opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+        return (float(sig[0]), float(sig[1]), float(sig[2]))
 
     def _corners(
         self,

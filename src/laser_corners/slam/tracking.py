@@ -17,6 +17,7 @@ from laser_corners.keypoints import Keypoints
 from laser_corners.pose import compose, relative_pose, wrap_angle
 from laser_corners.registration.align import Alignment, PointMap, icp, match_share
 from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.odometry import JUMP_SIGMAS, odometry_sigmas
 from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
 from laser_corners.slam.corners import CornerRegistrar
@@ -163,13 +164,8 @@ class Tracking:
             return pred
         if corner is not None:
             pred = corner
-        dist = float(np.hypot(delta[0], delta[1]))
-        if jump:
-            sig = np.array([1.0, 1.0, 0.5])
-        else:
-            sxy = opt.odometry_sigma_xy * (dist + 0.1)
-            syaw = opt.odometry_sigma_yaw * (abs(float(delta[2])) + dist + 0.1)
-            sig = np.array([sxy, sxy, syaw])
+        noise = (opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+        sig = JUMP_SIGMAS if jump else odometry_sigmas(delta, *noise)
         prior = np.diag(1.0 / sig**2)
         aligned = self._icp(xy, pred, prior)
         if not jump:

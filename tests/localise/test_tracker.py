@@ -1,18 +1,24 @@
-"""Tracking a fix (``localise.tracking``): estimates while the scans fit, lost after
+"""Tracking a fix (``localise.tracker``): estimates while the scans fit, lost after
 ``lost_scans`` scans that do not, in a simulated building."""
 
 from __future__ import annotations
 
 import numpy as np
-from test_localiser import building, noisy_odometry, scans_along
+import pytest
+from test_localiser import building, loaded_building, noisy_odometry, scans_along
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.localise.local import LocalMap
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.matcher import MapMatcher
-from laser_corners.localise.tracking import Tracker
+from laser_corners.localise.tracker import Tracker
 from laser_corners.pose import between_many
 from laser_corners.registration.points import scan_points
+
+
+@pytest.fixture(scope="module")
+def building_world(tmp_path_factory):
+    return loaded_building(tmp_path_factory)
 
 
 def _tracker(saved, options=None) -> tuple[Tracker, dict]:
