@@ -28,7 +28,7 @@ ROS1 = BagMessages(ros2=False)
 def _scan_bytes(frame: str = "laser") -> bytes:
     ranges = np.array([1.0, 2.5, np.nan, np.inf, 0.25], dtype=np.float64)
     scan = LaserScan(ranges, -0.3, 0.15, 0.05, 20.0)
-    msg = ROS1.scan(1_700_000_000.25, scan, frame)
+    msg = ROS1.scan(1_700_000_000.5, scan, frame)
     return bytes(ROS1.ser(msg, LASERSCAN))
 
 
@@ -39,7 +39,7 @@ def test_laserscan_decodes_as_the_deserializer() -> None:
     expected = laserscan_fields(ROS1.store.deserialize_ros1(raw, LASERSCAN))
     assert fields[:6] == expected[:6]
     np.testing.assert_array_equal(fields[6], expected[6])
-    assert fields[1] == "base_laser" and fields[0] == 1_700_000_000_250_000_000
+    assert fields[1] == "base_laser" and fields[0] == 1_700_000_000_500_000_000
     assert fields[2] == pytest.approx(-0.3) and fields[6].dtype == np.float32
 
 
