@@ -23,6 +23,7 @@ def scored(
 ) -> Hypothesis:
     """A hypothesis that has seen ``agreements``, one per scan, with a constant support."""
     h = Hypothesis(np.asarray(pose, dtype=np.float64), born, travel=travel)
+    h.followed = travel  # followed since proposed (main's fix_followed_travel), all of it here
     for agreement in agreements:
         h.remember(agreement, Support(outside=outside, conflict=conflict), window=10)
         h.scans += 1

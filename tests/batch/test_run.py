@@ -1,5 +1,6 @@
-"""Batch detection: planning, one job against the detector, a real Dask LocalCluster (2 workers)
-with damaged inputs and a resumed run, a killed run that resumes, and the CLI (process pool)."""
+"""A batch run (:mod:`laser_corners.batch.run`): a real Dask LocalCluster (2 workers) with damaged
+inputs and a resumed run, an unreachable scheduler, a killed run that resumes, and the CLI
+(process pool). Planning, the manifest and one job: test_plan, test_manifest, test_worker."""
 
 from __future__ import annotations
 
