@@ -5,9 +5,11 @@ level; not ``__init__.py`` re-exports, not ``__main__``) is mirrored when
 ``tests/<subpackage path>/test_<module>.py`` exists (a top-level module:
 ``tests/test_<module>.py``), so a reader finds a module's tests without a search.
 
-The test folders are not packages (pytest's default ``prepend`` import mode), so two test files
-of one name (``tests/cli/test_slam.py`` and ``tests/viz/test_slam.py``) cannot be collected in
-one run: a module whose mirror would share its name with another test file stays unmirrored.
+The test folders are not packages (pytest's default ``prepend`` import mode): every file below
+``tests`` is imported under its bare name, so two test files of one name
+(``tests/cli/test_slam.py`` and ``tests/viz/test_slam.py``) cannot be collected in one run, and
+a second ``conftest.py`` hides the helpers the tests import from ``tests/conftest.py``. A
+module whose mirror would share its name with another file stays unmirrored.
 """
 
 from __future__ import annotations
@@ -75,22 +77,25 @@ def test_mirror_rules_on_a_small_tree(tmp_path: Path) -> None:
 
 
 def same_names(tests: Path = TESTS) -> dict[str, list[str]]:
-    """Test file names used more than once below ``tests``, with their folders."""
+    """File names (test modules, helpers, ``conftest.py``) used more than once below
+    ``tests``, with their folders."""
     found: dict[str, list[str]] = {}
-    for path in sorted(tests.rglob("test_*.py")):
+    for path in sorted(tests.rglob("*.py")):
         found.setdefault(path.name, []).append(path.parent.relative_to(tests).as_posix())
     return {name: folders for name, folders in found.items() if len(folders) > 1}
 
 
-def test_same_names_finds_two_test_files_of_one_name(tmp_path: Path) -> None:
+def test_same_names_finds_two_files_of_one_name(tmp_path: Path) -> None:
     for folder in ("cli", "viz", "slam"):
         (tmp_path / folder).mkdir()
         (tmp_path / folder / f"test_{'slam' if folder != 'slam' else 'grid'}.py").write_text("")
-    assert same_names(tmp_path) == {"test_slam.py": ["cli", "viz"]}
+    (tmp_path / "conftest.py").write_text("")
+    (tmp_path / "slam" / "conftest.py").write_text("")
+    assert same_names(tmp_path) == {"conftest.py": [".", "slam"], "test_slam.py": ["cli", "viz"]}
 
 
-def test_no_two_test_files_share_a_name() -> None:
-    assert same_names() == {}, "pytest cannot collect both of each (no __init__.py)"
+def test_no_two_files_below_tests_share_a_name() -> None:
+    assert same_names() == {}, "imported under one bare name: pytest cannot collect both"
 
 
 def test_most_modules_with_logic_have_their_mirrored_test_file() -> None:
