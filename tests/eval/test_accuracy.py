@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -19,10 +18,7 @@ from laser_corners.eval.accuracy import (
     match_scan,
     run_sweep,
 )
-from laser_corners.eval.linefit_study import line_fit_study
-from laser_corners.noise import estimate_range_noise
-from laser_corners.sim import SICK_LMS_1DEG, UST_10LX, World, random_poses, random_world
-from laser_corners.viz.paper_figures import neighbourhoods, plot_neighbourhoods
+from laser_corners.sim import UST_10LX
 from laser_corners.viz.report import write_accuracy_report
 
 
@@ -61,20 +57,6 @@ def test_stats_rates() -> None:
     assert s.error_quantile(0.5) == pytest.approx(0.002)
     assert s.keypoints_per_corner == pytest.approx(1.0)
     assert math.isnan(AccuracyStats("y", 0.0).recall)
-
-
-@pytest.mark.parametrize("sigma", [0.005, 0.01, 0.03])
-def test_noise_estimate_from_the_scan_alone(sigma: float) -> None:
-    rng = np.random.default_rng(11)
-    estimates = []
-    for _ in range(4):
-        world = random_world(rng)
-        pose = tuple(random_poses(world, 1, rng)[0])
-        estimates.append(estimate_range_noise(world.scan(pose, UST_10LX, sigma, rng)))
-    assert np.median(estimates) == pytest.approx(sigma, rel=0.15)
-    world = random_world(rng)
-    clean = world.scan(tuple(random_poses(world, 1, rng)[0]), SICK_LMS_1DEG)
-    assert estimate_range_noise(clean) < 0.003  # geometry alone looks like little noise
 
 
 def test_small_sweep_paper_and_baseline(tmp_path) -> None:
@@ -136,34 +118,6 @@ def test_cli_evaluate_sim_small(tmp_path) -> None:
     bad = CliRunner().invoke(app, ["evaluate", "sim", "-o", str(out), "--noise", "a,b"])
     assert bad.exit_code == 2
     assert "--noise" in bad.output
-
-
-def test_line_fit_study_selection_never_worse() -> None:
-    study = line_fit_study(np.array([-90.0, -45.0, 0.0, 30.0, 89.0]), n_samples=100, seed=1)
-    assert study.sel_worse_than_yx == 0 and study.sel_worse_than_xy == 0
-    assert np.all(study.rmse_sel <= np.minimum(study.rmse_yx, study.rmse_xy) + 1e-15)
-    # horizontal line: y|x fits with residual ~ sigma, x|y breaks down (and vice versa)
-    assert study.rmse_yx[2] == pytest.approx(0.03, rel=0.1)
-    assert study.rmse_xy[2] > 0.1 and study.rmse_yx[0] > 0.1
-    assert study.angle_err_xy_deg[2] > 10 * study.angle_err_yx_deg[2]
-    assert np.all(study.angle_err_sel_deg < 2.0)
-
-
-def test_fig2_helper_agrees_with_the_kernel() -> None:
-    world = World().add_polygon([[-1.0, -2.0], [2.0, -2.0], [2.0, 1.0], [-1.0, 1.0]])
-    scan = world.scan((0.0, 0.0, 0.0), UST_10LX, 0.005, np.random.default_rng(3))
-    xy, valid = scan.to_cartesian()
-    j = int(np.argmin(np.where(valid, np.hypot(xy[:, 0] - 2.0, xy[:, 1] - 1.0), np.inf)))
-    table = CornerDetector().scale_table(scan)
-    k = int(np.argmin(np.abs(table.scales - 0.15)))
-    arrival, departure = neighbourhoods(scan, j, 0.15)
-    assert arrival.stop - arrival.start >= 5 and departure.stop - departure.start >= 5
-    fig, ax = plt.subplots()
-    info = plot_neighbourhoods(ax, scan, j, 0.15)
-    plt.close(fig)
-    assert table.passed[j, k]
-    assert info["intersection"] == pytest.approx(table.intersections[j, k], abs=1e-9)
-    assert info["opening"] == pytest.approx(90.0, abs=3.0)
 
 
 @pytest.mark.parametrize("name", ["laser_corners.noise", "laser_corners.eval.baselines"])

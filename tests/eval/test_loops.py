@@ -20,7 +20,7 @@ from laser_corners.eval.loops import (
     loop_detectors,
     precision_recall,
 )
-from laser_corners.eval.revisits import candidates, revisits, travel_distance
+from laser_corners.eval.revisits import revisits, travel_distance
 from laser_corners.io.arrays import write_scans_npz
 from laser_corners.matching import describe, register_keypoints, register_pairs
 from laser_corners.scan import LaserScan, compose, invert
@@ -108,16 +108,6 @@ def test_precision_recall_without_revisits_and_bad_shapes() -> None:
         precision_recall(np.array([5, 1]), np.array([True]), np.array([False]), [2])
 
 
-def test_window_excludes_the_last_metres_of_travel() -> None:
-    poses = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1.0], [3, 0, 0], [6, 0, 0], [10, 0, 0.0]])
-    travel = travel_distance(poses)
-    assert travel.tolist() == [0, 1, 1, 3, 6, 10]
-    # standing still / turning on the spot (scans 1, 2) never leaves the window
-    assert candidates(travel, 1, 3.0).tolist() == [4, 5]
-    assert candidates(travel, 5, 5.0).tolist() == [0, 1, 2, 3]
-    assert candidates(travel, 3, 0.5).tolist() == [0, 1, 2, 4, 5]
-
-
 # ------------------------------------------------------------------ revisits
 def test_revisits_found_only_after_the_loop(loop_scans: list[LaserScan]) -> None:
     rev = revisits(loop_scans, window_travel=5.0, overlap=0.5)
@@ -128,36 +118,6 @@ def test_revisits_found_only_after_the_loop(loop_scans: list[LaserScan]) -> None
     assert np.all((rev < 0) | (np.abs(travel[np.maximum(rev, 0)] - travel) >= 5.0))
     # a window longer than the whole loop leaves no revisit at all
     assert np.all(revisits(loop_scans, window_travel=travel[-1] + 1.0) < 0)
-
-
-def test_revisit_overlap_any_scan_direction() -> None:
-    # a wall 3 m ahead (x = 3); scan B 6 m further back, with a mirrored beam order
-    # (negative increment), and C like B with angles wrapped by 2 pi, see all of A's points;
-    # A sees only the middle 41 % of B's longer stretch of wall (the rest is outside its view)
-    n = 181
-    angles = np.radians(np.linspace(-45.0, 45.0, n))
-    ranges_a = 3.0 / np.cos(angles)
-    a = LaserScan(ranges_a, math.radians(-45.0), math.radians(0.5), 0.0, 50.0, pose=(0, 0, 0))
-    ranges_b = (9.0 / np.cos(angles))[::-1]
-    b = LaserScan(
-        ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 50.0, pose=(-6.0, 0.0, 0.0)
-    )
-    c = LaserScan(
-        ranges_b,
-        math.radians(45.0) + math.tau,
-        -math.radians(0.5),
-        0.0,
-        50.0,
-        pose=(-6.0, 0.0, 0.0),
-    )
-    assert revisits([a, b], window_travel=1.0).tolist() == [1, -1]
-    assert revisits([a, c], window_travel=1.0).tolist() == [1, -1]
-    assert revisits([a, b], window_travel=1.0, overlap=0.4).tolist() == [1, 0]
-    # a scan whose range ends before the wall sees none of it
-    far = LaserScan(
-        ranges_b, math.radians(45.0), -math.radians(0.5), 0.0, 5.0, pose=(-6.0, 0.0, 0.0)
-    )
-    assert revisits([a, far], window_travel=1.0)[0] == -1
 
 
 # ------------------------------------------------------------------ matcher

@@ -108,19 +108,6 @@ def test_a_query_chained_by_odometry_is_in_the_newest_frame(mapped) -> None:
     assert any(_error(c.pose, truth[-1])[0] < 0.15 for c in found)
 
 
-def test_query_buffer_forgets_what_lies_beyond_its_travel() -> None:
-    buffer = QueryBuffer(1.0)
-    one = Corners(
-        np.array([[1.0, 0.0]]), np.zeros(1), np.full(1, 90.0), np.zeros((1, 3), np.float32)
-    )
-    for k in range(30):
-        buffer.add(np.array([0.1 * k, 0.0, 0.0]), one)
-    query = buffer.query()
-    # kept every 0.2 m over the last 1 m: the one corner seen from 5-6 places
-    assert 5 <= len(query) <= 6
-    assert np.all(query.xy[:, 0] <= 1.0 + 1e-9) and np.all(query.xy[:, 0] >= -0.01)
-
-
 def test_keyframes_at_or_after_upto_are_left_out(mapped) -> None:
     world, poses, index = mapped
     half = len(poses) // 2

@@ -21,11 +21,14 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO
+from types import SimpleNamespace
+from typing import IO, Any
 
 import pytest
 
 from conftest import die_with_parent
+from laser_corners import LaserScan
+from laser_corners.sim import corner_scan
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 FR079 = (REPO_ROOT / ".." / "shared" / "data" / "real" / "fr079.bag").resolve()
@@ -117,3 +120,38 @@ def isolated_message_packages() -> Iterator[None]:
             del sys.modules[name]
         sys.modules.update(saved)
         sys.meta_path[:] = meta_path
+
+
+def scan_msg(scan: LaserScan, ros2: bool = False, angle_max: float | None = None) -> Any:
+    """A sensor_msgs/LaserScan-like object with the fields of ``scan``."""
+    stamp = scan.stamp or 0.0
+    sec, nsec = int(stamp), round((stamp - int(stamp)) * 1e9)
+    header_stamp = (
+        SimpleNamespace(sec=sec, nanosec=nsec) if ros2 else SimpleNamespace(secs=sec, nsecs=nsec)
+    )
+    return SimpleNamespace(
+        header=SimpleNamespace(stamp=header_stamp, frame_id=scan.frame_id),
+        angle_min=scan.angle_min,
+        angle_max=angle_max if angle_max is not None else float(scan.angles[-1]),
+        angle_increment=scan.angle_increment,
+        time_increment=0.0,
+        scan_time=0.0,
+        range_min=scan.range_min,
+        range_max=scan.range_max,
+        ranges=[float(r) for r in scan.ranges],
+        intensities=[],
+    )
+
+
+def stamped_corner_scan() -> LaserScan:
+    """The simulated corner scan, stamped 1234.5 s in frame ``laser``."""
+    base = corner_scan()
+    return LaserScan(
+        base.ranges,
+        base.angle_min,
+        base.angle_increment,
+        base.range_min,
+        base.range_max,
+        stamp=1234.5,
+        frame_id="laser",
+    )

@@ -17,20 +17,26 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.errors import InputError
 from laser_corners.scan import Pose2D, compose
 
 __all__ = [
     "POSE_TOLERANCE_S",
+    "Edge",
     "OdomSample",
     "PoseTrack",
     "StreamingTrack",
     "Transform",
     "frame_name",
     "interp_at",
+    "stamped_transforms",
+    "tf_odometry",
     "yaw_from_quaternion",
 ]
 
@@ -272,3 +278,75 @@ class StreamingTrack:
             interp_at(stamp, times, self._yaw, j),
         )
         return compose(base, mount)
+
+
+Edge = tuple[str, str]
+"""A tf edge: parent frame, child frame."""
+
+
+def stamped_transforms(msg: Any) -> list[tuple[Edge, OdomSample]]:
+    """``((parent, child), (stamp, x, y, yaw))`` of each transform of a ``TFMessage``."""
+    found = []
+    for transform in msg.transforms:
+        stamp = transform.header.stamp.sec + 1e-9 * transform.header.stamp.nanosec
+        t, q = transform.transform.translation, transform.transform.rotation
+        edge = (frame_name(transform.header.frame_id), frame_name(transform.child_frame_id))
+        found.append((edge, (stamp, t.x, t.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))))
+    return found
+
+
+def tf_odometry(
+    laser: str,
+    static: dict[str, str],
+    moving: dict[Edge, list[OdomSample]],
+    where: Path,
+) -> tuple[Edge, list[OdomSample]] | None:
+    """The odometry edge of a bag's ``/tf`` and its samples (sorted), or None.
+
+    Parameters
+    ----------
+    laser : str
+        The scan frame.
+    static : dict of str to str
+        Child -> parent of every transform (``/tf_static`` first, then ``/tf``).
+    moving : dict of Edge to list of OdomSample
+        Samples of every ``/tf`` edge (not in ``/tf_static``).
+    where : Path
+        The bag (for the error).
+
+    Returns
+    -------
+    tuple or None
+        Of the edges whose value changes, the one nearest above ``laser`` in the tree (the
+        robot's ``odom -> base``, not a ``map -> odom`` above it); with none above the
+        laser, the only one; None when no edge changes.
+
+    Raises
+    ------
+    InputError
+        Several changing edges and none above the laser frame.
+    """
+    dynamic = {
+        edge: samples
+        for edge, samples in moving.items()
+        if len({s[1:] for s in samples}) > 1  # the transform changes: a moving robot
+    }
+    if not dynamic:
+        return None
+    chain, frame = [], frame_name(laser)
+    while frame in static and frame not in chain:
+        chain.append(frame)
+        frame = static[frame]
+    for child in chain:
+        found = [edge for edge in dynamic if edge[1] == child]
+        if found:
+            return found[0], sorted(dynamic[found[0]])
+    if len(dynamic) == 1:
+        edge = next(iter(dynamic))
+        return edge, sorted(dynamic[edge])
+    listed = ", ".join(f"{p} -> {c}" for p, c in sorted(dynamic))
+    raise InputError(
+        f"{where}: odometry from /tf, which has several moving transforms ({listed}) "
+        f"none of which is above the scan frame {laser!r}: add the missing /tf_static link "
+        "or an Odometry topic"
+    )

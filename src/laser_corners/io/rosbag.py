@@ -11,9 +11,9 @@ odometry frame, interpolated at its stamp. The odometry source (``odom_topic``):
 by default the only Odometry topic, ``/tf`` when there is none, and with several of them
 a :class:`~laser_corners.io.base.TopicChoiceError` for ``--odom-topic`` (the reader does not
 choose).
-From ``/tf`` (:func:`tf_odometry`), the odometry is the transform that changes over the bag
-nearest above the scan frame in the tf tree (``odom -> base_link`` under a ``map -> odom``),
-whose parent is the odometry frame.
+From ``/tf`` (:func:`~laser_corners.io.poses.tf_odometry`), the odometry is the transform that
+changes over the bag nearest above the scan frame in the tf tree (``odom -> base_link`` under
+a ``map -> odom``), whose parent is the odometry frame.
 
 Speed: the bag is read in one pass (scans, odometry and tf in log-time order, each chunk
 decompressed once); a scan waits in a small look-ahead buffer until an odometry sample stamped
@@ -47,13 +47,15 @@ from laser_corners.io.bagfile import (
 )
 from laser_corners.io.base import BAD_POSE, ScanSource, SourceKind, TopicChoiceError
 from laser_corners.io.poses import (
+    Edge,
     OdomSample,
     PoseTrack,
     StreamingTrack,
     add_transforms,
     frame_name,
+    stamped_transforms,
+    tf_odometry,
     track_from,
-    yaw_from_quaternion,
 )
 from laser_corners.io.ros1.decode import (
     LASERSCAN,
@@ -87,165 +89,50 @@ TF_ODOMETRY = "/tf"
 TF_ODOMETRY_CHOICE = "tf"
 """The ``odom_topic`` value (``--odom-topic tf``) that takes the odometry from ``/tf``."""
 
-Edge = tuple[str, str]
-"""A tf edge: parent frame, child frame."""
 
+class _TopicChoice:
+    """The topic-choice part of :class:`BagSource`: the bag's topics from its index, the scan
+    topic and the odometry (a topic, ``/tf``, or none) among them, and ``describe``."""
 
-def _stamped_transforms(msg: Any) -> list[tuple[Edge, OdomSample]]:
-    """``((parent, child), (stamp, x, y, yaw))`` of each transform of a ``TFMessage``."""
-    found = []
-    for transform in msg.transforms:
-        stamp = transform.header.stamp.sec + 1e-9 * transform.header.stamp.nanosec
-        t, q = transform.transform.translation, transform.transform.rotation
-        edge = (frame_name(transform.header.frame_id), frame_name(transform.child_frame_id))
-        found.append((edge, (stamp, t.x, t.y, yaw_from_quaternion(q.x, q.y, q.z, q.w))))
-    return found
+    path: Path
+    topic: str | None
+    topics: dict[str, tuple[str, int]]
+    laser_topics: list[str]
+    odom_topics: list[str]
+    tf_topics: list[str]
+    start_ns: int
+    end_ns: int
+    from_chunks: bool
+    odom_topic: str | None
+    tf_odometry: Edge | None
+    _tf_asked: bool
 
-
-def tf_odometry(
-    laser: str,
-    static: dict[str, str],
-    moving: dict[Edge, list[OdomSample]],
-    where: Path,
-) -> tuple[Edge, list[OdomSample]] | None:
-    """The odometry edge of a bag's ``/tf`` and its samples (sorted), or None.
-
-    Parameters
-    ----------
-    laser : str
-        The scan frame.
-    static : dict of str to str
-        Child -> parent of every transform (``/tf_static`` first, then ``/tf``).
-    moving : dict of Edge to list of OdomSample
-        Samples of every ``/tf`` edge (not in ``/tf_static``).
-    where : Path
-        The bag (for the error).
-
-    Returns
-    -------
-    tuple or None
-        Of the edges whose value changes, the one nearest above ``laser`` in the tree (the
-        robot's ``odom -> base``, not a ``map -> odom`` above it); with none above the
-        laser, the only one; None when no edge changes.
-
-    Raises
-    ------
-    InputError
-        Several changing edges and none above the laser frame.
-    """
-    dynamic = {
-        edge: samples
-        for edge, samples in moving.items()
-        if len({s[1:] for s in samples}) > 1  # the transform changes: a moving robot
-    }
-    if not dynamic:
-        return None
-    chain, frame = [], frame_name(laser)
-    while frame in static and frame not in chain:
-        chain.append(frame)
-        frame = static[frame]
-    for child in chain:
-        found = [edge for edge in dynamic if edge[1] == child]
-        if found:
-            return found[0], sorted(dynamic[found[0]])
-    if len(dynamic) == 1:
-        edge = next(iter(dynamic))
-        return edge, sorted(dynamic[edge])
-    listed = ", ".join(f"{p} -> {c}" for p, c in sorted(dynamic))
-    raise InputError(
-        f"{where}: odometry from /tf, which has several moving transforms ({listed}) "
-        f"none of which is above the scan frame {laser!r}: add the missing /tf_static link "
-        "or an Odometry topic"
-    )
-
-
-class BagSource(ScanSource):
-    """The LaserScan messages of one topic of a ROS 1/ROS 2/MCAP bag.
-
-    Parameters
-    ----------
-    path : Path
-        The bag (file or ROS 2 bag directory).
-    kind : {"ros1", "ros2", "mcap"}
-        Its kind.
-    topic : str, optional
-        The LaserScan topic; default: the only one.
-    strict : bool
-        With False, several LaserScan topics and no ``topic`` pick the first one instead of
-        raising, and several Odometry topics and no ``odom_topic`` read no odometry (for
-        listings such as ``laser-corners info``).
-    odom_topic : str, optional
-        The odometry: a ``nav_msgs/msg/Odometry`` topic, or ``"tf"`` for ``/tf``. Default:
-        the only Odometry topic, ``/tf`` when there is none; several raise a
-        :class:`~laser_corners.io.base.TopicChoiceError` (``option="--odom-topic"``).
-
-    Attributes
-    ----------
-    topics : dict of str to tuple of (str, int)
-        Every topic of the bag: message type and message count.
-    laser_topics : list of str
-        The ``sensor_msgs/msg/LaserScan`` topics.
-    odom_topics : list of str
-        The ``nav_msgs/msg/Odometry`` topics.
-    odom_topic : str or None
-        The odometry topic used for poses; :data:`TF_ODOMETRY` when the odometry comes from
-        ``/tf`` (set to None on the first read when ``/tf`` has no moving transform, unless
-        it was asked for: then that read raises :class:`InputError`).
-    tf_odometry : tuple of (str, str) or None
-        ``(odometry frame, base frame)`` of the ``/tf`` odometry, once read.
-    mounts : dict of str to Pose2D or None
-        Base -> laser transform of each scan frame read so far (what scan poses composed).
-    stamps_ns : list of int
-        Header stamps (ns) of the scans yielded so far, by scan index (exact, for writers).
-    log_times_ns : list of int
-        Bag log times (ns) of the scans yielded so far.
-    start_ns, end_ns : int
-        Bag time span.
-    from_chunks : bool
-        rosbags refused the bag's index; it is read from its chunk records.
-    """
-
-    lean: bool = True
-    """Read ROS 1 bags with :mod:`laser_corners.io.ros1.lean` where it applies (False: the
-    per-message path through rosbags, e.g. to compare them)."""
-
-    def __init__(
-        self,
-        path: Path,
-        kind: SourceKind,
-        topic: str | None = None,
-        strict: bool = True,
-        *,
-        odom_topic: str | None = None,
-    ) -> None:
-        super().__init__(path, topic)
-        self.kind = kind
-        self.stamps_ns: list[int] = []
-        self.log_times_ns: list[int] = []
-        self.mounts: dict[str, Pose2D | None] = {}
-        self._lean_index = 0
-        with self.reader() as reader:
-            self.topics: dict[str, tuple[str, int]] = {}
-            for connection in reader.connections:
-                msgtype, count = self.topics.get(connection.topic, (connection.msgtype, 0))
-                self.topics[connection.topic] = (msgtype, count + connection.msgcount)
-            self.start_ns = int(reader.start_time) if reader.connections else 0
-            self.end_ns = int(reader.end_time) if reader.connections else 0
-            self.from_chunks = read_from_chunks(reader)
+    def _index_topics(self, reader: Any) -> None:
+        """Every topic of the open bag with its type and count, the time span, and the
+        LaserScan, Odometry and tf topics among them."""
+        self.topics = {}
+        for connection in reader.connections:
+            msgtype, count = self.topics.get(connection.topic, (connection.msgtype, 0))
+            self.topics[connection.topic] = (msgtype, count + connection.msgcount)
+        self.start_ns = int(reader.start_time) if reader.connections else 0
+        self.end_ns = int(reader.end_time) if reader.connections else 0
+        self.from_chunks = read_from_chunks(reader)
         self.laser_topics = sorted(t for t, (m, _) in self.topics.items() if m == LASERSCAN)
-        if not strict and topic is None and len(self.laser_topics) > 1:
-            self.topic = self.laser_topics[0]  # ``strict=False``: listing, not reading
-        else:
-            self.topic = self._choose_topic(topic)
         self.odom_topics = sorted(t for t, (m, _) in self.topics.items() if m == ODOMETRY)
         self.tf_topics = [
             t for t in ("/tf_static", "/tf") if self.topics.get(t, ("",))[0] == TFMESSAGE
         ]
-        self.tf_odometry: Edge | None = None
-        self._tf_samples: list[OdomSample] | None = None
-        self._tf_asked = odom_topic in (TF_ODOMETRY_CHOICE, TF_ODOMETRY)
-        # a TF_ODOMETRY choice is resolved (or dropped) by _read_tf_odometry
-        self.odom_topic: str | None = self._choose_odometry(odom_topic, strict)
+
+    def _choose_topic(self, topic: str | None) -> str:
+        if topic is not None:
+            found = f"LaserScan topics: {', '.join(self.laser_topics) or 'none'}"
+            return self._named_topic(topic, LASERSCAN, "topic", found)
+        if not self.laser_topics:
+            listed = ", ".join(f"{t} ({m})" for t, (m, _) in sorted(self.topics.items()))
+            raise InputError(f"{self.path}: no {LASERSCAN} topic; topics: {listed or 'none'}")
+        if len(self.laser_topics) > 1:
+            raise TopicChoiceError(self.path, self.laser_topics)
+        return self.laser_topics[0]
 
     def _choose_odometry(self, asked: str | None, strict: bool) -> str | None:
         """The odometry topic (:data:`TF_ODOMETRY` for ``/tf``) for ``odom_topic=asked``."""
@@ -281,6 +168,39 @@ class BagSource(ScanSource):
             )
         return topic
 
+    @property
+    def n_scans(self) -> int:
+        """Number of messages on the scan topic (from the bag's index)."""
+        return self.topics[self.topic][1]  # type: ignore[index]
+
+    def describe(self) -> dict[str, object]:
+        """Kind, path, every topic with type and count, the scan topic, time span."""
+        info = super().describe()
+        info["topic"] = self.topic
+        info["topics"] = {t: {"type": m, "count": n} for t, (m, n) in sorted(self.topics.items())}
+        info["duration_s"] = round((self.end_ns - self.start_ns) * 1e-9, 3)
+        info["odometry"] = self.odom_topic
+        if self.odom_topic is None and len(self.odom_topics) > 1:
+            info["odometry"] = f"not chosen: {', '.join(self.odom_topics)} (--odom-topic)"
+        if self.tf_odometry is not None:
+            info["odometry"] = f"/tf {self.tf_odometry[0]} -> {self.tf_odometry[1]}"
+        info["index"] = "unreadable; read from its chunks" if self.from_chunks else "ok"
+        return info
+
+
+class _PoseReading:
+    """The pose part of :class:`BagSource`: the odometry edge of ``/tf``, the whole-bag pose
+    track, and one odometry or tf message into a streaming track."""
+
+    path: Path
+    topic: str | None
+    tf_topics: list[str]
+    odom_topic: str | None
+    tf_odometry: Edge | None
+    position: str
+    _tf_samples: list[OdomSample] | None
+    _tf_asked: bool
+
     def _read_tf_odometry(self, reader: Any) -> None:
         """With the odometry from ``/tf``: read the tf topics once for :func:`tf_odometry`
         (the scan frame from the first scan message); no moving transform: no odometry."""
@@ -307,7 +227,7 @@ class BagSource(ScanSource):
             except CORRUPT_ERRORS:
                 continue  # counted when the scans are read
             is_static = connection.topic == "/tf_static"
-            for (parent, child), sample in _stamped_transforms(msg):
+            for (parent, child), sample in stamped_transforms(msg):
                 if is_static:
                     static[child] = parent
                     fixed.add(child)
@@ -323,32 +243,6 @@ class BagSource(ScanSource):
             self._tf_samples = []
             return
         self.tf_odometry, self._tf_samples = chosen
-
-    def _choose_topic(self, topic: str | None) -> str:
-        if topic is not None:
-            found = f"LaserScan topics: {', '.join(self.laser_topics) or 'none'}"
-            return self._named_topic(topic, LASERSCAN, "topic", found)
-        if not self.laser_topics:
-            listed = ", ".join(f"{t} ({m})" for t, (m, _) in sorted(self.topics.items()))
-            raise InputError(f"{self.path}: no {LASERSCAN} topic; topics: {listed or 'none'}")
-        if len(self.laser_topics) > 1:
-            raise TopicChoiceError(self.path, self.laser_topics)
-        return self.laser_topics[0]
-
-    @contextmanager
-    def reader(self) -> Iterator[Any]:
-        """An open rosbags ``AnyReader``; damaged bags raise :class:`InputError`."""
-        with open_bag_reader(self.path, self.kind, lean=self.lean) as reader:
-            yield reader
-
-    def messages(self, reader: Any, topics: list[str]) -> Iterator[tuple[Any, int, bytes]]:
-        """``(connection, log_time_ns, raw)`` of ``topics``; damage raises :class:`InputError`."""
-        return iter_messages(reader, topics, self.error)
-
-    @property
-    def n_scans(self) -> int:
-        """Number of messages on the scan topic (from the bag's index)."""
-        return self.topics[self.topic][1]  # type: ignore[index]
 
     def pose_track(self, reader: Any) -> PoseTrack | None:
         """Read odometry and tf (one pass over those topics) into a pose track, or None."""
@@ -393,60 +287,16 @@ class BagSource(ScanSource):
         else:
             track.add_transforms(decoded, connection.topic == "/tf_static")
 
-    def _scans(self) -> Iterator[LaserScan]:
-        """One pass over the bag: scans, odometry and tf in log-time order.
 
-        A scan waits in a small look-ahead buffer until the odometry has a sample stamped
-        after it (so the interpolation brackets it) and its frame's mount is known; what is
-        still waiting at the end of the bag is released with everything read.
-        """
-        self.stamps_ns = []
-        self.log_times_ns = []
-        with self.reader() as reader:
-            # ROS 1 connections of the standard definitions: decode their bytes with numpy
-            fast = {
-                c.id
-                for c in reader.connections
-                if not reader.is2 and ROS1_DIGESTS.get(c.msgtype) == c.digest
-            }
-            self._read_tf_odometry(reader)
-            track = StreamingTrack() if self.odom_topic is not None else None
-            topics = [self.topic, *([self.odom_topic, *self.tf_topics] if track else [])]
-            topics = list(dict.fromkeys(topics))  # /tf once when it is the odometry
-            if track is not None and self.tf_odometry is not None:
-                for sample in self._tf_samples or []:  # the odometry from /tf, read first
-                    track.add_odometry(*self.tf_odometry, sample)
-            if self.lean and lean_readable(reader, topics, fast):
-                yield from self._lean_scans(reader, topics, track)
-                return
-            waiting: deque[RawScan] = deque()
-            index = 0
-            for connection, log_time, raw in self.messages(reader, topics):  # type: ignore[arg-type]
-                if connection.topic != self.topic:
-                    assert track is not None
-                    if index == 0:  # later, the last scan message read says where we are
-                        self.position = f"reading {self.odom_topic} and tf"
-                    self._pose_message(reader, connection, raw, connection.id in fast, track)
-                    while waiting and track.ready(waiting[0].stamp_ns, waiting[0].frame_id):
-                        yield from self._release(waiting.popleft(), track)
-                    continue
-                where = f"message {index} of {self.topic}"
-                index += 1
-                self.position = where
-                fields = decode_ros1_laserscan(raw) if connection.id in fast else None
-                if fields is None:
-                    try:
-                        fields = laserscan_fields(reader.deserialize(raw, connection.msgtype))
-                    except CORRUPT_ERRORS as exc:
-                        self._skip("undecodable LaserScan message", where, first_line(exc))
-                        continue
-                item = RawScan(where, int(log_time), *fields)
-                if track is None or (not waiting and track.ready(item.stamp_ns, item.frame_id)):
-                    yield from self._release(item, track)
-                else:
-                    waiting.append(item)
-            while waiting:
-                yield from self._release(waiting.popleft(), track)
+class _LeanReading:
+    """The lean part of :class:`BagSource` (ROS 1 bags of standard definitions): the messages
+    of each chunk run located and decoded in blocks (:mod:`laser_corners.io.ros1.lean`)."""
+
+    topic: str | None
+    odom_topic: str | None
+    position: str
+    skipped: dict[str, int]
+    _lean_index: int
 
     def _lean_scans(
         self, reader: Any, topics: list[str], track: StreamingTrack | None
@@ -536,6 +386,153 @@ class BagSource(ScanSource):
                 return None
         return RawScan(where, log_time, *fields)
 
+
+class BagSource(_TopicChoice, _PoseReading, _LeanReading, ScanSource):
+    """The LaserScan messages of one topic of a ROS 1/ROS 2/MCAP bag.
+
+    Split by concern: :class:`_TopicChoice` (the topics, the scan topic and the odometry),
+    :class:`_PoseReading` (``/tf`` odometry, pose tracks), :class:`_LeanReading` (the ROS 1
+    lean path); this class opens the bag and reads it in one pass (:meth:`_scans`).
+
+    Parameters
+    ----------
+    path : Path
+        The bag (file or ROS 2 bag directory).
+    kind : {"ros1", "ros2", "mcap"}
+        Its kind.
+    topic : str, optional
+        The LaserScan topic; default: the only one.
+    strict : bool
+        With False, several LaserScan topics and no ``topic`` pick the first one instead of
+        raising, and several Odometry topics and no ``odom_topic`` read no odometry (for
+        listings such as ``laser-corners info``).
+    odom_topic : str, optional
+        The odometry: a ``nav_msgs/msg/Odometry`` topic, or ``"tf"`` for ``/tf``. Default:
+        the only Odometry topic, ``/tf`` when there is none; several raise a
+        :class:`~laser_corners.io.base.TopicChoiceError` (``option="--odom-topic"``).
+
+    Attributes
+    ----------
+    topics : dict of str to tuple of (str, int)
+        Every topic of the bag: message type and message count.
+    laser_topics : list of str
+        The ``sensor_msgs/msg/LaserScan`` topics.
+    odom_topics : list of str
+        The ``nav_msgs/msg/Odometry`` topics.
+    odom_topic : str or None
+        The odometry topic used for poses; :data:`TF_ODOMETRY` when the odometry comes from
+        ``/tf`` (set to None on the first read when ``/tf`` has no moving transform, unless
+        it was asked for: then that read raises :class:`InputError`).
+    tf_odometry : tuple of (str, str) or None
+        ``(odometry frame, base frame)`` of the ``/tf`` odometry, once read.
+    mounts : dict of str to Pose2D or None
+        Base -> laser transform of each scan frame read so far (what scan poses composed).
+    stamps_ns : list of int
+        Header stamps (ns) of the scans yielded so far, by scan index (exact, for writers).
+    log_times_ns : list of int
+        Bag log times (ns) of the scans yielded so far.
+    start_ns, end_ns : int
+        Bag time span.
+    from_chunks : bool
+        rosbags refused the bag's index; it is read from its chunk records.
+    """
+
+    lean: bool = True
+    """Read ROS 1 bags with :mod:`laser_corners.io.ros1.lean` where it applies (False: the
+    per-message path through rosbags, e.g. to compare them)."""
+
+    def __init__(
+        self,
+        path: Path,
+        kind: SourceKind,
+        topic: str | None = None,
+        strict: bool = True,
+        *,
+        odom_topic: str | None = None,
+    ) -> None:
+        super().__init__(path, topic)
+        self.kind = kind
+        self.stamps_ns: list[int] = []
+        self.log_times_ns: list[int] = []
+        self.mounts: dict[str, Pose2D | None] = {}
+        self._lean_index = 0
+        with self.reader() as reader:
+            self._index_topics(reader)
+        if not strict and topic is None and len(self.laser_topics) > 1:
+            self.topic = self.laser_topics[0]  # ``strict=False``: listing, not reading
+        else:
+            self.topic = self._choose_topic(topic)
+        self.tf_odometry: Edge | None = None
+        self._tf_samples: list[OdomSample] | None = None
+        self._tf_asked = odom_topic in (TF_ODOMETRY_CHOICE, TF_ODOMETRY)
+        # a TF_ODOMETRY choice is resolved (or dropped) by _read_tf_odometry
+        self.odom_topic: str | None = self._choose_odometry(odom_topic, strict)
+
+    @contextmanager
+    def reader(self) -> Iterator[Any]:
+        """An open rosbags ``AnyReader``; damaged bags raise :class:`InputError`."""
+        with open_bag_reader(self.path, self.kind, lean=self.lean) as reader:
+            yield reader
+
+    def messages(self, reader: Any, topics: list[str]) -> Iterator[tuple[Any, int, bytes]]:
+        """``(connection, log_time_ns, raw)`` of ``topics``; damage raises :class:`InputError`."""
+        return iter_messages(reader, topics, self.error)
+
+    def _scans(self) -> Iterator[LaserScan]:
+        """One pass over the bag: scans, odometry and tf in log-time order.
+
+        A scan waits in a small look-ahead buffer until the odometry has a sample stamped
+        after it (so the interpolation brackets it) and its frame's mount is known; what is
+        still waiting at the end of the bag is released with everything read.
+        """
+        self.stamps_ns = []
+        self.log_times_ns = []
+        with self.reader() as reader:
+            # ROS 1 connections of the standard definitions: decode their bytes with numpy
+            fast = {
+                c.id
+                for c in reader.connections
+                if not reader.is2 and ROS1_DIGESTS.get(c.msgtype) == c.digest
+            }
+            self._read_tf_odometry(reader)
+            track = StreamingTrack() if self.odom_topic is not None else None
+            topics = [self.topic, *([self.odom_topic, *self.tf_topics] if track else [])]
+            topics = list(dict.fromkeys(topics))  # /tf once when it is the odometry
+            if track is not None and self.tf_odometry is not None:
+                for sample in self._tf_samples or []:  # the odometry from /tf, read first
+                    track.add_odometry(*self.tf_odometry, sample)
+            if self.lean and lean_readable(reader, topics, fast):
+                yield from self._lean_scans(reader, topics, track)
+                return
+            waiting: deque[RawScan] = deque()
+            index = 0
+            for connection, log_time, raw in self.messages(reader, topics):  # type: ignore[arg-type]
+                if connection.topic != self.topic:
+                    assert track is not None
+                    if index == 0:  # later, the last scan message read says where we are
+                        self.position = f"reading {self.odom_topic} and tf"
+                    self._pose_message(reader, connection, raw, connection.id in fast, track)
+                    while waiting and track.ready(waiting[0].stamp_ns, waiting[0].frame_id):
+                        yield from self._release(waiting.popleft(), track)
+                    continue
+                where = f"message {index} of {self.topic}"
+                index += 1
+                self.position = where
+                fields = decode_ros1_laserscan(raw) if connection.id in fast else None
+                if fields is None:
+                    try:
+                        fields = laserscan_fields(reader.deserialize(raw, connection.msgtype))
+                    except CORRUPT_ERRORS as exc:
+                        self._skip("undecodable LaserScan message", where, first_line(exc))
+                        continue
+                item = RawScan(where, int(log_time), *fields)
+                if track is None or (not waiting and track.ready(item.stamp_ns, item.frame_id)):
+                    yield from self._release(item, track)
+                else:
+                    waiting.append(item)
+            while waiting:
+                yield from self._release(waiting.popleft(), track)
+
     def _release(self, item: RawScan, track: StreamingTrack | None) -> Iterator[LaserScan]:
         """The LaserScan of a decoded message (nothing, counted as skipped, when invalid)."""
         self.position = item.where
@@ -562,17 +559,3 @@ class BagSource(ScanSource):
         self.stamps_ns.append(item.stamp_ns)
         self.log_times_ns.append(item.log_time_ns)
         yield scan
-
-    def describe(self) -> dict[str, object]:
-        """Kind, path, every topic with type and count, the scan topic, time span."""
-        info = super().describe()
-        info["topic"] = self.topic
-        info["topics"] = {t: {"type": m, "count": n} for t, (m, n) in sorted(self.topics.items())}
-        info["duration_s"] = round((self.end_ns - self.start_ns) * 1e-9, 3)
-        info["odometry"] = self.odom_topic
-        if self.odom_topic is None and len(self.odom_topics) > 1:
-            info["odometry"] = f"not chosen: {', '.join(self.odom_topics)} (--odom-topic)"
-        if self.tf_odometry is not None:
-            info["odometry"] = f"/tf {self.tf_odometry[0]} -> {self.tf_odometry[1]}"
-        info["index"] = "unreadable; read from its chunks" if self.from_chunks else "ok"
-        return info

@@ -11,6 +11,8 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from laser_corners import CornerDetector, DetectorParams, Keypoints, LaserScan
+from laser_corners.errors import InvalidParamsError
+from laser_corners.presets import get_preset
 from laser_corners.sim import UST_10LX, World, cast_ranges, corner_scan, rectangular_room
 
 DETECTOR = CornerDetector(DetectorParams())
@@ -264,3 +266,19 @@ def test_scale_index_is_the_first_scale_of_the_winning_run() -> None:
             assert k0 == 0 or not table.passed[j, k0 - 1]
     assert keypoints.to_dicts()[0]["scale_index"] == keypoints.scale_index[0]
     assert (Keypoints.empty().scale_index == np.zeros(0)).all()
+
+
+def test_detector_from_preset_and_by_name() -> None:
+    scan = corner_scan()
+    assert CornerDetector("paper").params == DetectorParams()
+    assert CornerDetector.from_preset("auto", scan).params == get_preset("auto", scan)
+    assert len(CornerDetector.from_preset("robust", scan).detect(scan)) == 1
+    for name in ("auto", "robust"):
+        with pytest.raises(InvalidParamsError, match=f"preset '{name}' needs a scan.*from_preset"):
+            CornerDetector.from_preset(name)
+        with pytest.raises(InvalidParamsError, match=f"preset '{name}' needs a scan"):
+            CornerDetector(name)
+    with pytest.raises(InvalidParamsError, match="unknown preset 'nope'"):
+        CornerDetector.from_preset("nope")
+    with pytest.raises(InvalidParamsError, match="takes DetectorParams or a preset name"):
+        CornerDetector(3)  # type: ignore[arg-type]

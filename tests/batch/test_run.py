@@ -1,5 +1,6 @@
-"""Batch detection: planning, one job against the detector, a real Dask LocalCluster (2 workers)
-with damaged inputs and a resumed run, a killed run that resumes, and the CLI (process pool)."""
+"""A batch run (:mod:`laser_corners.batch.run`): a real Dask LocalCluster (2 workers) with damaged
+inputs and a resumed run, an unreachable scheduler, a killed run that resumes, and the CLI
+(process pool). Planning, the manifest and one job: test_plan, test_manifest, test_worker."""
 
 from __future__ import annotations
 
@@ -13,23 +14,17 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
 from conftest import default_sigint, real_file
-from laser_corners import CornerDetector
 from laser_corners.batch import (
     MANIFEST_NAME,
-    BatchJob,
     BatchReport,
     JobResult,
     Manifest,
-    ParamsChoice,
-    plan_jobs,
     run_batch,
-    run_job,
 )
 from laser_corners.cli import app
 from laser_corners.errors import ClusterError
@@ -82,105 +77,9 @@ def cluster():
 
 
 # ------------------------------------------------------------------ planning
-def test_plan_expands_topics_and_keeps_names_unique(tmp_path: Path) -> None:
-    rooms = real_file("hokuyo270_rooms.bag")
-    log = real_file("fr079-corrected.clf.gz")
-    other = tmp_path / "robot2"
-    other.mkdir()
-    twin = other / log.name
-    twin.write_bytes(log.read_bytes())
-
-    jobs = plan_jobs([rooms, log, twin])
-    topics = sorted(j.topic for j in jobs if j.input == str(rooms.resolve()))
-    assert topics == ["/left_scan", "/rear_scan", "/right_scan"]
-    names = [j.output for j in jobs]
-    assert len(set(names)) == len(names) == 5
-    assert "hokuyo270_rooms.left_scan.parquet" in names
-    # the two logs of the same name get distinct names derived from their paths
-    twins = [j.output for j in jobs if j.output.startswith("fr079-corrected")]
-    assert len(twins) == 2 and "fr079-corrected.parquet" not in twins
-
-    # a name used in the folder before stays with its job; another job never takes it
-    reserved = {str(twin.resolve()): "fr079-corrected.parquet"}
-    again = {j.key: j.output for j in plan_jobs([log, twin], reserved=reserved)}
-    assert again[str(twin.resolve())] == "fr079-corrected.parquet"
-    assert again[str(log.resolve())] != "fr079-corrected.parquet"
-
-    only_left = plan_jobs([rooms], topic="/left_scan")
-    assert [(j.topic, j.output) for j in only_left] == [
-        ("/left_scan", "hokuyo270_rooms.left_scan.parquet")
-    ]
-
-
-def test_manifest_survives_a_torn_line(tmp_path: Path) -> None:
-    manifest = Manifest(tmp_path)
-    done = JobResult("/a.bag", None, "a.parquet", "done", scans=3, keypoints=4)
-    manifest.append(done)
-    with manifest.path.open("a", encoding="utf-8") as handle:
-        handle.write('{"input": "/b.bag", "topic": nu')  # killed while writing
-    later = JobResult("/c.bag", None, "c.parquet", "failed", error="boom")
-    manifest.append(later)
-    records = manifest.load()
-    assert set(records) == {"/a.bag", "/c.bag"}
-    assert records["/a.bag"].keypoints == 4 and records["/c.bag"].error == "boom"
 
 
 # ------------------------------------------------------------------ one job
-def test_run_job_writes_what_the_detector_finds(tmp_path: Path) -> None:
-    log = real_file("fr079-corrected.clf.gz")
-    job = BatchJob(str(log), None, "fr079.parquet")
-    result = run_job(job, tmp_path, ParamsChoice(), threads=2)
-    assert result.status == "done", result.error
-    assert not (tmp_path / "fr079.parquet.partial").exists()
-
-    scans = list(open_scans(log))
-    expected = CornerDetector().detect_many(scans)
-    table = pq.read_table(tmp_path / "fr079.parquet")
-    assert result.scans == len(scans)
-    assert result.keypoints == table.num_rows == sum(len(k) for k in expected)
-    assert 0.0 < result.read_seconds + result.detect_seconds + result.write_seconds
-    assert result.read_seconds + result.detect_seconds + result.write_seconds <= result.seconds
-    counts = np.bincount(table.column("scan_index").to_numpy(), minlength=len(scans))
-    assert counts.tolist() == [len(k) for k in expected]
-    xy = np.column_stack([table.column("x").to_numpy(), table.column("y").to_numpy()])
-    np.testing.assert_allclose(xy, np.concatenate([k.xy for k in expected]))
-    # the CARMEN log has map-frame laser poses, so the map columns are filled
-    assert np.isfinite(table.column("map_x").to_numpy()).all()
-    metadata = table.schema.metadata
-    assert b"min_points" in metadata[b"laser_corners.params"]
-    assert metadata[b"laser_corners.input"].decode() == str(log)
-    assert b"M. F. Silva" in metadata[b"laser_corners.method"]
-
-
-def test_run_job_with_auto_preset_and_overrides_records_them(tmp_path: Path) -> None:
-    log = real_file("intel-corrected.clf.gz")
-    choice = ParamsChoice(preset="auto", overrides=("min_points=6",))
-    result = run_job(BatchJob(str(log), None, "intel.parquet"), tmp_path, choice, threads=1)
-    assert result.status == "done", result.error
-    params = pq.read_schema(tmp_path / "intel.parquet").metadata[b"laser_corners.params"]
-    assert b"min_points: 6" in params
-    assert b"scales:\n- 0.05\n" in params  # the auto preset's scales, not the paper's 5
-    assert params.count(b"\n- ") > 5
-
-
-def test_unexpected_error_is_recorded_with_its_traceback(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    log = real_file("fr079-corrected.clf.gz")
-
-    def broken(self: CornerDetector, scan: object) -> None:
-        raise RuntimeError("kernel exploded")
-
-    monkeypatch.setattr(CornerDetector, "detect", broken)
-    monkeypatch.setattr(CornerDetector, "detect_many", broken)
-    result = run_job(BatchJob(str(log), None, "fr079.parquet"), tmp_path, threads=1)
-    assert result.status == "failed"
-    assert result.error.startswith("RuntimeError: kernel exploded")
-    assert "\n" not in result.error
-    traceback_text = (tmp_path / "errors" / "fr079.parquet.txt").read_text(encoding="utf-8")
-    assert "Traceback" in traceback_text and "kernel exploded" in traceback_text
-    assert not (tmp_path / "fr079.parquet").exists()
-    assert not (tmp_path / "fr079.parquet.partial").exists()
 
 
 # ------------------------------------------------------------------ Dask LocalCluster

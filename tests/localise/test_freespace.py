@@ -1,4 +1,5 @@
-"""Issue 20, a later visit: the far part of a hall that the map saw only from afar.
+"""Free space of the map (:mod:`laser_corners.localise.freespace`). Issue 20, a later visit: the
+far part of a hall that the map saw only from afar.
 
 The mapping robot stayed at one end of a long hall; its long-range scanner saw the far end, so
 the rays of the map cross the far part, but only tens of metres from their sensor, where a
