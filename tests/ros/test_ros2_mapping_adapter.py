@@ -86,7 +86,7 @@ class Node:
     def create_timer(self, period: float, callback: Any) -> None:
         self.timer = callback
 
-    def create_service(self, cls: Any, name: str, callback: Any) -> None:
+    def create_service(self, cls: Any, name: str, callback: Any, **kwargs: Any) -> None:
         self.services[name] = callback
 
 

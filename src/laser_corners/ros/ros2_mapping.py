@@ -18,9 +18,17 @@
 * localise: ``/initialpose`` (RViz's 2D Pose Estimate) sets the localiser's pose;
 * slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``
   (``output`` is checked at start);
-* ``std_srvs/Trigger`` services: ``save_map`` (map_server's map.yaml + map.pgm into
-  ``output``), ``serialize_map`` (slam: the whole map folder into ``output``) and
-  ``reinitialize_global_localization`` (localise: search the whole map again).
+* ``std_srvs/Trigger`` services (:mod:`laser_corners.ros.ros2_services`): ``save_map``
+  (map_server's map.yaml + map.pgm into ``output``), ``serialize_map`` (slam: the whole map
+  folder into ``output``), ``deserialize_map`` (localise: load the map the ``map`` parameter
+  names now) and ``reinitialize_global_localization`` (localise: search the whole map again);
+* localise: AMCL's ``set_initial_pose`` / ``initial_pose.*`` parameters set the pose, at
+  start or while running; every ``LocaliseOptions`` (slam: ``SlamOptions``) field is a
+  parameter by its name (:mod:`laser_corners.ros.mapping_config`).
+
+Every step of the core runs on one worker thread
+(:class:`~laser_corners.ros.mapping_worker.MappingWorker`); the publishers are in
+:mod:`laser_corners.ros.ros2_outputs`.
 
 All decisions are in :mod:`laser_corners.ros.slam_core` (ROS-free, unit-tested); this module
 turns messages into its calls and its results into messages.

@@ -23,6 +23,11 @@ The ``mode`` parameter (read at start) picks what the node does: ``detector`` (t
 above), ``slam`` or ``localise`` (:mod:`laser_corners.ros.ros2_mapping`: mapping and
 localisation with odometry from ``/tf``, ``map -> odom`` out; docs/ros.md).
 
+The node is a managed (lifecycle) node: with ``-p lifecycle:=true`` it waits unconfigured for
+nav2's lifecycle manager (``configure`` checks the parameters, loads the map and checks the
+output folder; ``activate`` subscribes; ``deactivate``, ``cleanup``, ``shutdown``); without
+it, it configures and activates itself at start.
+
 This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core`,
 :mod:`laser_corners.ros.slam_core` and :mod:`laser_corners.ros.convert`.
 """
@@ -153,6 +158,7 @@ class _NodeLogic:
         self.declare_parameter("lifecycle", False, dynamic)
         self.mode = check_mode(self.get_parameter("mode").value)
         self.managed = check_lifecycle(self.get_parameter("lifecycle").value)
+        self.service_node = None if self.mode == "detector" else _service_node(self)
         self.defaults = mode_parameters(self.mode)
         self.unknown = _declare(self, self.defaults)
         self.adapter = None
@@ -473,7 +479,8 @@ def _check_arguments(args: list[str]) -> None:
 
 
 def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
-    """Start the node and spin it until ``stop`` sees a signal or the context shuts down."""
+    """Start the node and spin it until ``stop`` sees a signal or the context shuts down
+    (its service node, see :func:`_service_node`, on a thread of its own)."""
     from rclpy.executors import SingleThreadedExecutor  # type: ignore[import-not-found]
     from rclpy.signals import SignalHandlerOptions  # type: ignore[import-not-found]
 
@@ -488,8 +495,13 @@ def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
     except RuntimeError as exc:  # rclpy's RCLError, UnknownROSArgsError
         raise LaserCornersError(f"ROS 2 arguments: {_rcl_message(exc)}") from None
     node = None
+    services = SingleThreadedExecutor(context=context)
+    spinner = threading.Thread(target=_spin, args=(services,), name="services", daemon=True)
     try:
         node = _make_node_class()(context=context)
+        if node.service_node is not None:
+            services.add_node(node.service_node)
+            spinner.start()
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         while stop.received is None and context.ok():
@@ -499,10 +511,42 @@ def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
             node.get_logger().info(line)
         executor.shutdown(timeout_sec=1.0)
     finally:
+        services.shutdown(timeout_sec=1.0)
+        if spinner.is_alive():  # out of its wait before the context goes (else: abort)
+            spinner.join(timeout=5.0)
+        if node is not None and node.service_node is not None:
+            node.service_node.destroy_node()
         if node is not None:
             node.destroy_node()
         if context.ok():
             rclpy.shutdown(context=context)
+
+
+def _spin(executor: Any) -> None:
+    """Spin ``executor`` until it is shut down."""
+    from rclpy.executors import ExternalShutdownException  # type: ignore[import-not-found]
+
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+
+
+def _service_node(node: Any) -> Any:
+    """A second node (``<name>_services``, same namespace, no parameters) for the mapping
+    modes' services, spun on a thread of its own: a service that waits for the worker (a map
+    write takes seconds) then holds none of the node's callbacks (scans, parameters,
+    lifecycle). It ignores the process's remappings (``__node:=`` would give it the node's
+    name); the services take the names the node resolves (:meth:`resolve_service_name`)."""
+    import rclpy  # type: ignore[import-not-found]
+
+    return rclpy.create_node(
+        f"{node.get_name()}_services",
+        namespace=node.get_namespace(),
+        context=node.context,
+        use_global_arguments=False,
+        start_parameter_services=False,
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

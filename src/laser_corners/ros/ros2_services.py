@@ -1,7 +1,9 @@
 """The services of the ROS 2 node's ``slam`` and ``localise`` modes (rclpy).
 
 ``std_srvs/Trigger`` services, each answered after the worker ran its step (so after the
-scans that came before the request):
+scans that came before the request). They are served by the node's service node on a
+thread of its own (``ros2_node._service_node``): while one waits for the worker (a map write
+takes seconds), the scan, odometry, parameter and lifecycle callbacks go on.
 
 * ``save_map``: map_server's ``map.yaml`` + ``map.pgm`` of the current grid into ``output``;
 * ``serialize_map`` (slam): the whole map folder (what ``localise`` reads) into ``output``;
@@ -69,13 +71,17 @@ class MappingServices:
             return
         callbacks = (self.on_save_map, self.on_serialize_map, self.on_deserialize_map)
         callbacks += (self.on_reinitialize,)
+        # on the node's service node when it has one (its own thread): a wait for the worker
+        # holds none of the node's callbacks; the names as the node resolves them
+        self.host = getattr(node, "service_node", None) or node
         for name, callback in zip(NAMES, callbacks, strict=True):
-            self.services.append(node.create_service(m.Trigger, name, callback))
+            full = name if self.host is node else node.resolve_service_name(name)
+            self.services.append(self.host.create_service(m.Trigger, full, callback))
 
     def close(self) -> None:
         """Remove the services."""
         for service in self.services:
-            self.node.destroy_service(service)
+            self.host.destroy_service(service)
         self.services = []
 
     def _answer(self, response: Any, service: str, step: Callable[[], tuple[bool, str]]) -> Any:
