@@ -9,7 +9,8 @@ from __future__ import annotations
 import subprocess
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from itertools import islice
 from typing import Any
 
@@ -144,3 +145,19 @@ def call_service(request: Callable[[], Any], what: str) -> Any:
         if future.done():
             return future.result()
     pytest.fail(f"no answer to {what}")
+
+
+@contextmanager
+def parameter_client(node: Any, remote: str) -> Iterator[Any]:
+    """rclpy's ``AsyncParameterClient`` of the node ``remote`` (its services ready); its
+    clients destroyed afterwards (it has no ``destroy`` of its own)."""
+    from rclpy.parameter_client import AsyncParameterClient
+
+    client = AsyncParameterClient(node, remote)
+    try:
+        assert client.wait_for_services(timeout_sec=STARTUP_TIMEOUT), f"no {remote} services"
+        yield client
+    finally:
+        for name, value in vars(client).items():
+            if name.endswith("_client"):
+                node.destroy_client(value)

@@ -17,13 +17,17 @@ ROS2 = Path(__file__).resolve().parents[2] / "ros2"
 @pytest.mark.parametrize(("name", "mode"), [("localise.yaml", "localise"), ("slam.yaml", "slam")])
 def test_parameter_files_are_valid_node_parameters(name: str, mode: str) -> None:
     params = yaml.safe_load((ROS2 / "config" / name).read_text())["laser_corners"]
-    values = params["ros__parameters"]
+    values = dict(params["ros__parameters"])
     assert values["mode"] == mode
+    assert values.pop("lifecycle") is False  # the node's own (rclpy LifecycleNode) switch
     if mode == "localise":  # the launch file's map:= argument fills it
         assert values["map"] == ""
         values = {**values, "map": "/maps/office/map.yaml"}
     config = MappingConfig.from_mapping(values)  # unknown or invalid: one-line error, raised
     assert (config.map_frame, config.odom_frame) == ("map", "odom")
+    assert config.overrides  # estimator options by name, checked here
+    options = config.localise_options() if mode == "localise" else config.slam_options()
+    assert all(getattr(options, k) == v for k, v in config.overrides.items())
 
 
 @pytest.mark.parametrize("name", ["localisation.launch.py", "slam.launch.py"])

@@ -29,6 +29,7 @@ from laser_corners.ros.nav_convert import (
 )
 from laser_corners.ros.slam_core import MappingConfig, MappingCore, OdometryBook, map_to_odom
 from laser_corners.sim import SICK_LMS_1DEG, World
+from laser_corners.slam.mapfile import load_map
 
 RATE = 10.0
 MOUNT = (0.2, -0.05, 0.1)
@@ -320,6 +321,42 @@ def test_localise_in_a_map_server_yaml(saved_map) -> None:
     config = MappingConfig.from_mapping({"mode": "localise", "map": str(bad)})
     with pytest.raises(InputError, match=r"bad.yaml: field 'mode'"):
         MappingCore(config)
+
+
+def test_localise_options_reach_the_localiser(saved_map, tmp_path) -> None:
+    """Every LocaliseOptions field is a parameter (issue 31 item 2): non-default values reach
+    the Localiser, also the one a reinitialisation or a new map makes; AMCL's
+    set_initial_pose + initial_pose start it tracking there."""
+    folder, truth, scans = saved_map
+    config = MappingConfig.from_mapping(
+        {
+            "mode": "localise",
+            "map": str(folder),
+            "mount": list(MOUNT),
+            "fix_scans": 7,
+            "places.min_votes": 3,
+            "smooth": False,
+            "set_initial_pose": True,
+            "initial_pose.x": float(truth[10][0]),
+            "initial_pose.y": float(truth[10][1]),
+            "initial_pose.yaw": float(truth[10][2]),
+        }
+    )
+    core = MappingCore(config)
+    out = _feed(core, truth, scans, start=10)
+    options = core.estimator.options
+    assert (options.fix_scans, options.places.min_votes, options.smooth) == (7, 3, False)
+    assert len(out) >= 45 and core.estimator.status == "tracking", core.summary()
+    np.testing.assert_allclose(out[0].pose[:2], truth[10][:2], atol=0.1)  # from initial_pose
+    other = load_map(folder)
+    assert core.reinitialize(other) and core.saved is other and core.grid() is other.grid
+    assert core.estimator.options.fix_scans == 7 and core.estimator.map is not None
+    with pytest.raises(InvalidParamsError, match="fix_scans"):  # checked at start
+        MappingCore(MappingConfig.from_mapping({**config_map(folder), "fix_scans": 0}))
+
+
+def config_map(folder) -> dict:
+    return {"mode": "localise", "map": str(folder), "mount": list(MOUNT)}
 
 
 def test_initial_pose_is_refused_in_slam_mode() -> None:

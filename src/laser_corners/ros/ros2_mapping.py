@@ -18,9 +18,17 @@
 * localise: ``/initialpose`` (RViz's 2D Pose Estimate) sets the localiser's pose;
 * slam: at shutdown, with ``-p output:=DIR``, writes the map folder as ``laser-corners slam``
   (``output`` is checked at start);
-* ``std_srvs/Trigger`` services: ``save_map`` (map_server's map.yaml + map.pgm into
-  ``output``), ``serialize_map`` (slam: the whole map folder into ``output``) and
-  ``reinitialize_global_localization`` (localise: search the whole map again).
+* ``std_srvs/Trigger`` services (:mod:`laser_corners.ros.ros2_services`): ``save_map``
+  (map_server's map.yaml + map.pgm into ``output``), ``serialize_map`` (slam: the whole map
+  folder into ``output``), ``deserialize_map`` (localise: load the map the ``map`` parameter
+  names now) and ``reinitialize_global_localization`` (localise: search the whole map again);
+* localise: AMCL's ``set_initial_pose`` / ``initial_pose.*`` parameters set the pose, at
+  start or while running; every ``LocaliseOptions`` (slam: ``SlamOptions``) field is a
+  parameter by its name (:mod:`laser_corners.ros.mapping_config`).
+
+Every step of the core runs on one worker thread
+(:class:`~laser_corners.ros.mapping_worker.MappingWorker`); the publishers are in
+:mod:`laser_corners.ros.ros2_outputs`.
 
 All decisions are in :mod:`laser_corners.ros.slam_core` (ROS-free, unit-tested); this module
 turns messages into its calls and its results into messages.
@@ -28,31 +36,21 @@ turns messages into its calls and its results into messages.
 
 from __future__ import annotations
 
-import threading
 import time
-from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
-from laser_corners.errors import (
-    InvalidParamsError,
-    LaserCornersError,
-    MissingDependencyError,
-    first_line,
-)
-from laser_corners.io.occupancy import OccupancyGrid
-from laser_corners.ros.convert import fill_marker_array, scan_from_msg, seconds_to_sec_nanosec
-from laser_corners.ros.nav_convert import (
-    fill_occupancy_grid,
-    fill_pose_with_covariance,
-    fill_transform,
-    landmark_marker_fields,
-    odometry_of,
-    pose_with_covariance_of,
-    transform_of,
-)
-from laser_corners.ros.slam_core import MappingConfig, MappingCore, Update
+import numpy as np
+
+from laser_corners.errors import InvalidParamsError, LaserCornersError, MissingDependencyError
+from laser_corners.ros.convert import scan_from_msg
+from laser_corners.ros.mapping_config import RUNTIME, MappingConfig, runtime_change
+from laser_corners.ros.mapping_worker import MappingWorker
+from laser_corners.ros.nav_convert import odometry_of, pose_with_covariance_of, transform_of
+from laser_corners.ros.ros2_outputs import MappingOutputs, latched_qos
+from laser_corners.ros.ros2_services import MappingServices
+from laser_corners.ros.slam_core import MappingCore
 
 __all__ = ["MappingAdapter", "messages"]
 
@@ -62,7 +60,6 @@ TF_HINT = (
     "source a ROS 2 installation, or take odometry from a topic with -p odom_topic:=/odom "
     "(and the laser mount with -p mount:=[x,y,yaw])"
 )
-NO_OUTPUT = "no output folder: start the node with -p output:=DIR"
 TF_FALLBACK = (
     "tf2_msgs is not importable: map -> odom goes to {topic} (geometry_msgs/TransformStamped), "
     "not /tf, and /tf_static is not read; build tf2_msgs with ros2/build_tf2_msgs.sh "
@@ -83,6 +80,9 @@ def messages() -> SimpleNamespace:
     import sensor_msgs.msg as sensor  # type: ignore[import-not-found]
     import visualization_msgs.msg as visualization  # type: ignore[import-not-found]
     from rclpy import qos  # type: ignore[import-not-found]
+    from rclpy.event_handler import (  # type: ignore[import-not-found]
+        SubscriptionEventCallbacks,
+    )
 
     try:
         import nav_msgs.msg as nav  # type: ignore[import-not-found]
@@ -113,23 +113,26 @@ def messages() -> SimpleNamespace:
         tf=None if tf2 is None else tf2.TFMessage,
         Trigger=Trigger,
         qos=qos,
+        events=SubscriptionEventCallbacks,
     )
 
 
-def _stamp(m: SimpleNamespace, seconds: float) -> Any:
-    sec, nanosec = seconds_to_sec_nanosec(max(seconds, 0.0))
-    return m.Time(sec=sec, nanosec=nanosec)
-
-
 class MappingAdapter:
-    """Publishers, subscriptions and callbacks of the mapping modes on ``node``.
+    """Subscriptions and callbacks of the mapping modes on ``node``.
+
+    Made at start (or at a managed node's ``configure``): it checks the parameters, loads
+    the map, checks ``output`` and creates the publishers
+    (:class:`~laser_corners.ros.ros2_outputs.MappingOutputs`), the worker
+    (:class:`~laser_corners.ros.mapping_worker.MappingWorker`) and the services
+    (:class:`~laser_corners.ros.ros2_services.MappingServices`); :meth:`activate` subscribes,
+    :meth:`deactivate` unsubscribes, :meth:`close` removes everything.
 
     Parameters
     ----------
     node : rclpy.node.Node
         The node (parameters already declared).
     values : dict
-        The parameter values given at start (``mode`` included).
+        The parameter values (``mode`` included).
     """
 
     def __init__(self, node: Any, values: dict[str, Any]) -> None:
@@ -137,143 +140,91 @@ class MappingAdapter:
         self.m = m = messages()
         self.config = MappingConfig.from_mapping(values)
         self.core = MappingCore(self.config)  # reads and checks the map first
-        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="grid")
-        self.building: Future[OccupancyGrid] | None = None
-        self.worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mapping")
-        """Every step of the core (scans, odometry, initial poses, services) runs here, in
-        arrival order: no callback waits for a global search or an optimisation."""
-        self.pending = 0  # scans submitted to the worker and not yet processed
-        self.lock = threading.Lock()
-        self.busy_drops = 0  # scans dropped because the worker was still busy
-        self.callback_ms = 0.0  # the longest callback
         if m.tf is None and not self.config.odom_topic:
             raise MissingDependencyError(TF_HINT)
+        self.map_path = self.config.map
+        """The ``map`` parameter now (``deserialize_map`` loads it)."""
+        self.outputs = MappingOutputs(node, m, self.core)
+        self.worker = MappingWorker(self.core, node.get_logger, self.outputs.publish)
+        self.services = MappingServices(node, m, self.worker, self.outputs, lambda: self.map_path)
+        self.subscriptions: list[Any] = []
+        self.timer: Any = None
         self.started = time.monotonic()
-        self.n_skipped = 0
-        depth = self.config.queue_size
+        if m.tf is None:
+            topic = self.outputs.tf_pub.topic_name
+            node.get_logger().warning(TF_FALLBACK.format(topic=topic))
+
+    def activate(self) -> None:
+        """Subscribe the inputs and start the timer (scans are processed from now)."""
+        m, node, config = self.m, self.node, self.config
         sensor = m.qos.QoSProfile(
             history=m.qos.HistoryPolicy.KEEP_LAST,
-            depth=depth,
+            depth=config.queue_size,
             reliability=m.qos.ReliabilityPolicy.BEST_EFFORT,
         )
-        latched = m.qos.QoSProfile(
-            history=m.qos.HistoryPolicy.KEEP_LAST,
-            depth=1,
-            reliability=m.qos.ReliabilityPolicy.RELIABLE,
-            durability=m.qos.DurabilityPolicy.TRANSIENT_LOCAL,
+        subs = self._odometry_subscriptions(sensor)
+        events = m.events(message_lost=self.on_scans_lost)  # DDS's lost samples: counted
+        scan_sub = node.create_subscription(
+            m.LaserScan, "scan", self.on_scan, sensor, event_callbacks=events
         )
-        self.pose_pub = node.create_publisher(m.PoseWithCovarianceStamped, "pose", depth)
-        self.map_pub = node.create_publisher(m.OccupancyGrid, "map", latched)
-        self.metadata_pub = node.create_publisher(m.MapMetaData, "map_metadata", latched)
-        self.marker_pub = node.create_publisher(m.MarkerArray, "landmarks", latched)
-        self._subscribe(sensor, latched, depth)
-        if m.tf is None:
-            node.get_logger().warning(TF_FALLBACK.format(topic=self.tf_pub.topic_name))
-        scan_sub = node.create_subscription(m.LaserScan, "scan", self.on_scan, sensor)
         self.core.watch.scan_topic = scan_sub.topic_name
-        if self.config.mode == "localise":
-            node.create_subscription(
-                m.PoseWithCovarianceStamped, "/initialpose", self.on_initial_pose, 10
+        subs.append(scan_sub)
+        if config.mode == "localise":
+            subs.append(
+                node.create_subscription(
+                    m.PoseWithCovarianceStamped, "/initialpose", self.on_initial_pose, 10
+                )
             )
-            self.publish_map()
-        node.create_timer(1.0, self.on_timer)
-        self._services()
-        odometry = self.config.odom_topic or "/tf"
+            self.outputs.publish_map()
+        self.subscriptions = subs
+        self.timer = node.create_timer(1.0, self.on_timer)
         node.get_logger().info(
-            f"mode {self.config.mode}: scans on {scan_sub.topic_name}, odometry "
-            f"from {odometry}; publishing {self.pose_pub.topic_name}, {self.map_pub.topic_name}"
+            f"mode {config.mode}: scans on {scan_sub.topic_name}, odometry from "
+            f"{config.odom_topic or '/tf'}; publishing {self.outputs.pose_pub.topic_name}, "
+            f"{self.outputs.map_pub.topic_name}"
         )
 
-    def _subscribe(self, sensor: Any, latched: Any, depth: int) -> None:
-        """Odometry (topic or /tf) and /tf_static subscriptions; the map -> odom publisher."""
-        m, node = self.m, self.node
-        if self.config.odom_topic:
-            node.create_subscription(m.Odometry, self.config.odom_topic, self.on_odometry, sensor)
+    def _odometry_subscriptions(self, sensor: Any) -> list[Any]:
+        """Odometry (topic or /tf) and /tf_static."""
+        m, node, config = self.m, self.node, self.config
+        subs = []
+        if config.odom_topic:
+            subs.append(
+                node.create_subscription(m.Odometry, config.odom_topic, self.on_odometry, sensor)
+            )
         if m.tf is not None:
             tf_qos = m.qos.QoSProfile(  # tf2_ros's listener QoS (reliable), deeper queue
                 history=m.qos.HistoryPolicy.KEEP_LAST,
-                depth=max(depth, 100),
+                depth=max(config.queue_size, 100),
                 reliability=m.qos.ReliabilityPolicy.RELIABLE,
             )
-            static_qos = m.qos.QoSProfile(
-                history=m.qos.HistoryPolicy.KEEP_LAST,
-                depth=100,
-                reliability=m.qos.ReliabilityPolicy.RELIABLE,
-                durability=m.qos.DurabilityPolicy.TRANSIENT_LOCAL,
-            )
-            if not self.config.odom_topic:
-                node.create_subscription(m.tf, "/tf", self.on_tf, tf_qos)
-            node.create_subscription(m.tf, "/tf_static", self.on_tf_static, static_qos)
-            self.tf_pub = node.create_publisher(m.tf, "/tf", 100)
-        else:
-            self.tf_pub = node.create_publisher(m.TransformStamped, "map_to_odom", depth)
+            if not config.odom_topic:
+                subs.append(node.create_subscription(m.tf, "/tf", self.on_tf, tf_qos))
+            static_qos = latched_qos(m, depth=100)
+            subs.append(node.create_subscription(m.tf, "/tf_static", self.on_tf_static, static_qos))
+        return subs
 
-    def _services(self) -> None:
-        """``std_srvs/Trigger`` services: save_map, serialize_map,
-        reinitialize_global_localization (a warning without std_srvs)."""
-        m, node = self.m, self.node
-        if m.Trigger is None:
-            node.get_logger().warning(
-                "std_srvs is not importable: no save_map, serialize_map or "
-                "reinitialize_global_localization services (pip install 'laser-corners[ros2]')"
-            )
-            return
-        node.create_service(m.Trigger, "save_map", self.on_save_map)
-        node.create_service(m.Trigger, "serialize_map", self.on_serialize_map)
-        node.create_service(m.Trigger, "reinitialize_global_localization", self.on_reinitialize)
+    def deactivate(self) -> None:
+        """Unsubscribe and stop the timer (scans are no longer taken); the worker finishes
+        what it has."""
+        for sub in self.subscriptions:
+            self.node.destroy_subscription(sub)
+        self.subscriptions = []
+        if self.timer is not None:
+            self.node.destroy_timer(self.timer)
+            self.timer = None
+        self.worker.drain()
 
-    # ------------------------------------------------------------------ services
-    def _answer(self, response: Any, service: str, step: Any) -> Any:
-        """Fill a Trigger response from ``step() -> (success, message)``, run on the worker
-        (after the scans before it); log it."""
-        try:
-            ok, text = self._submit(step).result()
-        except LaserCornersError as exc:
-            ok, text = False, first_line(exc)
-        response.success, response.message = bool(ok), text
-        if ok:  # two call sites: rclpy refuses one site logging at two severities
-            self.node.get_logger().info(f"{service}: {text}")
-        else:
-            self.node.get_logger().warning(f"{service}: {text}")
-        return response
+    def close(self) -> None:
+        """Remove everything :meth:`__init__` made (a managed node's ``cleanup``)."""
+        self.deactivate()
+        self.worker.shutdown()
+        self.services.close()
+        self.outputs.close()
 
-    def on_save_map(self, request: Any, response: Any) -> Any:
-        """``save_map``: map_server's map.yaml + map.pgm of the current grid into ``output``."""
-
-        def step() -> tuple[bool, str]:
-            if not self.config.output:
-                return False, NO_OUTPUT
-            path = self.core.save_grid(Path(self.config.output))
-            return True, f"wrote {path}, {path.with_suffix('.pgm')}"
-
-        return self._answer(response, "save_map", step)
-
-    def on_serialize_map(self, request: Any, response: Any) -> Any:
-        """``serialize_map`` (slam): the whole map folder (what ``localise`` reads) into
-        ``output``, as at shutdown."""
-
-        def step() -> tuple[bool, str]:
-            if self.config.mode != "slam":
-                return False, "mode localise: the map is the input here (needs mode slam)"
-            if not self.config.output:
-                return False, NO_OUTPUT
-            wall = time.monotonic() - self.started
-            folder = self.core.write_map(Path(self.config.output), wall)
-            if folder is None:
-                return False, "nothing mapped yet"
-            return True, f"wrote the map folder {folder}"
-
-        return self._answer(response, "serialize_map", step)
-
-    def on_reinitialize(self, request: Any, response: Any) -> Any:
-        """``reinitialize_global_localization`` (localise): search the whole map again."""
-
-        def step() -> tuple[bool, str]:
-            if self.core.reinitialize():
-                return True, "global search from the next scan"
-            return False, "nothing to reinitialize in mode slam (mode localise only)"
-
-        return self._answer(response, "reinitialize_global_localization", step)
+    def drain(self) -> None:
+        """Wait until the worker has run every step submitted so far."""
+        self.worker.drain()
 
     # ------------------------------------------------------------------ inputs
     def on_scan(self, msg: Any) -> None:
@@ -283,56 +234,22 @@ class MappingAdapter:
         try:
             scan = scan_from_msg(msg)
         except LaserCornersError as exc:
-            self._post(self.core.malformed_scan, "a malformed scan")
+            self.worker.post(self.core.malformed_scan, "a malformed scan")
             self.node.get_logger().warning(
                 f"skipped a malformed scan: {exc}", throttle_duration_sec=5.0
             )
             return
-        with self.lock:
-            full = self.pending >= self.config.queue_size
-            self.pending += not full
-            self.busy_drops += full
-        if full:
-            self.node.get_logger().warning(
-                "scans dropped: the worker is busy (a global search or an optimisation)",
-                throttle_duration_sec=5.0,
-            )
-        else:
-            self._post(lambda: self._scan_step(scan), "a scan")
-        self._timed(began)
+        self.worker.offer_scan(scan)
+        self.worker.timed(began)
 
-    def _scan_step(self, scan: Any) -> None:
-        try:
-            self._run(lambda: self.core.add_scan(scan))
-        finally:
-            with self.lock:
-                self.pending -= 1
-
-    def drain(self) -> None:
-        """Wait until the worker has run every step submitted so far."""
-        self._submit(lambda: None).result()
-
-    def _submit(self, step: Any) -> Future[Any]:
-        """Run ``step`` on the worker (in arrival order); the caller reads its result."""
-        return self.worker.submit(step)
-
-    def _post(self, step: Any, what: str) -> None:
-        """Run ``step`` on the worker, nobody waiting: a known error skips ``what`` (logged,
-        counted), any other is an error line; none is lost in an unread future."""
-
-        def guarded() -> None:
-            try:
-                step()
-            except LaserCornersError as exc:
-                self._skip(f"skipped {what}: {exc}")
-            except Exception as exc:  # a bug: keep the node alive, show the error
-                self.n_skipped += 1
-                self.node.get_logger().error(f"{what} failed: {exc!r}")
-
-        self._submit(guarded)
-
-    def _timed(self, began: float) -> None:
-        self.callback_ms = max(self.callback_ms, (time.perf_counter() - began) * 1e3)
+    def on_scans_lost(self, info: Any) -> None:
+        """The middleware lost scans before they reached the node (its queue overflowed, a
+        best-effort sample went missing): counted, a throttled warning."""
+        self.worker.lost = int(info.total_count)
+        self.node.get_logger().warning(
+            f"{info.total_count} scans lost before they reached the node (DDS)",
+            throttle_duration_sec=5.0,
+        )
 
     def on_odometry(self, msg: Any) -> None:
         """A ``nav_msgs/Odometry`` sample (booked and released on the worker)."""
@@ -340,15 +257,15 @@ class MappingAdapter:
         try:
             sample = odometry_of(msg)
         except LaserCornersError as exc:
-            self._skip(f"skipped an odometry message: {exc}")
+            self.worker.skip(f"skipped an odometry message: {exc}")
             return
 
         def step() -> None:
             self.core.book.add_odometry(*sample)
-            self._run(self.core.release)
+            self.worker.run(self.core.release)
 
-        self._post(step, "an odometry message")
-        self._timed(began)
+        self.worker.post(step, "an odometry message")
+        self.worker.timed(began)
 
     def on_tf(self, msg: Any, static: bool = False) -> None:
         """A ``tf2_msgs/TFMessage`` on ``/tf`` (or ``/tf_static``), booked on the worker."""
@@ -356,15 +273,15 @@ class MappingAdapter:
         try:
             transforms = [transform_of(ts) for ts in msg.transforms]
         except LaserCornersError as exc:
-            self._skip(f"skipped a tf message: {exc}")
+            self.worker.skip(f"skipped a tf message: {exc}")
             return
 
         def step() -> None:
             self.core.book.add_transforms(transforms, static)
-            self._run(self.core.release)
+            self.worker.run(self.core.release)
 
-        self._post(step, "a tf message")
-        self._timed(began)
+        self.worker.post(step, "a tf message")
+        self.worker.timed(began)
 
     def on_tf_static(self, msg: Any) -> None:
         """A ``/tf_static`` message."""
@@ -375,121 +292,66 @@ class MappingAdapter:
         try:
             frame, pose, cov = pose_with_covariance_of(msg)
         except LaserCornersError as exc:
-            self._skip(f"skipped an initial pose: {exc}")
+            self.worker.skip(f"skipped an initial pose: {exc}")
             return
         if frame.lstrip("/") != self.config.map_frame:
-            self._skip(f"skipped an initial pose in frame {frame!r}, not {self.config.map_frame}")
+            self.worker.skip(
+                f"skipped an initial pose in frame {frame!r}, not {self.config.map_frame}"
+            )
             return
+        self.set_pose(pose, cov, "initial pose")
+
+    def set_pose(self, pose: Any, covariance: Any, what: str) -> None:
+        """Hand a pose to the localiser on the worker (logged there)."""
 
         def step() -> None:
-            applied = self.core.set_pose(pose, cov)
+            applied = self.core.set_pose(pose, covariance)
             self.node.get_logger().info(
-                f"initial pose {pose.round(3).tolist()} "
+                f"{what} {np.round(pose, 3).tolist()} "
                 + ("applied" if applied else "ignored (mode slam)")
             )
 
-        self._post(step, "an initial pose")
-
-    def _skip(self, text: str) -> None:
-        self.n_skipped += 1
-        self.node.get_logger().warning(text, throttle_duration_sec=5.0)
-
-    def _run(self, step: Any) -> None:
-        """Run a core step, publish what it released, log the watch's warnings due."""
-        updates = []
-        try:
-            updates = step()
-        except LaserCornersError as exc:
-            self._skip(f"scan skipped: {exc}")
-        except Exception as exc:  # a bug: keep the node alive, show the error
-            self.n_skipped += 1
-            self.node.get_logger().error(f"scan processing failed: {exc!r}")
-        for update in updates:
-            self.publish(update)
-        for text in self.core.watch.warnings(self.core.book):
-            self.node.get_logger().warning(text)
-
-    # ------------------------------------------------------------------ outputs
-    def publish(self, update: Update) -> None:
-        """Pose and ``map -> odom`` of one processed scan (``map -> odom`` future-dated by
-        ``transform_tolerance``, as AMCL does: valid until the next scan's)."""
-        m, config = self.m, self.config
-        stamp = _stamp(m, update.stamp)
-        pose = fill_pose_with_covariance(
-            m.PoseWithCovarianceStamped(), update.pose, update.covariance
-        )
-        pose.header.stamp, pose.header.frame_id = stamp, config.map_frame
-        self.pose_pub.publish(pose)
-        ts = fill_transform(
-            m.TransformStamped(), config.map_frame, self.core.book.odom_frame, update.map_to_odom
-        )
-        ts.header.stamp = _stamp(m, update.stamp + config.transform_tolerance)
-        self.tf_pub.publish(m.tf(transforms=[ts]) if m.tf is not None else ts)
-        self.node.get_logger().debug(f"{update.status}: {update.ms:.2f} ms")
-
-    def publish_map(self, grid: OccupancyGrid | None = None) -> None:
-        """The grid (default: the core's) and landmarks on the latched topics."""
-        grid = self.core.grid() if grid is None else grid
-        if grid is None:
-            return
-        msg = fill_occupancy_grid(self.m.OccupancyGrid(), grid)
-        msg.header.frame_id = self.config.map_frame
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.info.map_load_time = msg.header.stamp
-        self.map_pub.publish(msg)
-        self.metadata_pub.publish(msg.info)
-        markers = landmark_marker_fields(self.core.landmarks())
-        if markers:
-            m = self.m
-            header = msg.header
-
-            def duration(seconds: float) -> Any:
-                sec, nanosec = seconds_to_sec_nanosec(seconds)
-                return m.Duration(sec=sec, nanosec=nanosec)
-
-            out = fill_marker_array(m.MarkerArray(), m.Marker, m.Point, duration, header, markers)
-            self.marker_pub.publish(out)
+        self.worker.post(step, f"an {what}" if what[0] in "aeiou" else f"a {what}")
 
     def on_timer(self) -> None:
         """On the worker: drop the scans that waited too long for odometry; publish a grid
         the grid thread finished; start the next one when due."""
-        self._post(self._timer_step, "the timer's step")
 
-    def _timer_step(self) -> None:
-        self._run(self.core.release)
-        if self.building is not None and self.building.done():
-            future, self.building = self.building, None
-            try:
-                self.publish_map(future.result())
-            except LaserCornersError as exc:
-                self._skip(f"map not published: {exc}")
-        if self.building is None and self.core.grid_due():
-            job = self.core.grid_job()
-            if job is not None:
-                self.building = self.pool.submit(job)
+        def step() -> None:
+            self.worker.run(self.core.release)
+            self.outputs.grid_step(self.worker.skip)
+
+        self.worker.post(step, "the timer's step")
 
     # ------------------------------------------------------------------ lifecycle
     def set_parameters(self, parameters: list[Any]) -> tuple[bool, str]:
-        """Parameters of these modes are read at start only."""
-        ours = [p.name for p in parameters if p.name in MappingConfig.model_fields]
-        if ours:
-            return False, f"{', '.join(ours)}: read at start only in mode {self.config.mode}"
+        """A run-time change (:func:`~laser_corners.ros.mapping_config.runtime_change`):
+        localise takes ``map`` (``deserialize_map`` loads it) and AMCL's
+        ``set_initial_pose`` / ``initial_pose.*`` (the pose is set now)."""
+        changes = {p.name: p.value for p in parameters}
+        current = {p.name: p.value for p in self.node.get_parameters(list(RUNTIME))}
+        try:
+            after = runtime_change(self.config.mode, changes, current)
+        except InvalidParamsError as exc:
+            return False, str(exc)
+        if after is not None:
+            self.map_path = after.map
+            pose = after.pose()
+            if pose is not None and set(changes) & set(RUNTIME) - {"map"}:
+                self.set_pose(np.asarray(pose, dtype=np.float64), None, "initial_pose")
         return True, ""
 
     def summary(self) -> str:
         """The counts for the log line at shutdown, after the worker's queue and a last
         release (the scans whose ``tf_wait`` ran out count as dropped, not as waiting)."""
-        self._submit(lambda: self._run(self.core.release)).result()
-        return (
-            f"{self.core.summary()}, {self.busy_drops} scans dropped while the worker was "
-            f"busy, {self.n_skipped} messages skipped, longest callback {self.callback_ms:.1f} ms"
-        )
+        worker = self.worker.summary()
+        return f"{self.core.summary()}, {worker}"
 
     def shutdown(self) -> str | None:
         """Finish the worker's queue; slam with ``output``: write the map folder; a line
         saying where (or None)."""
-        self.worker.shutdown(wait=True)
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        self.worker.shutdown()
+        self.outputs.pool.shutdown(wait=False, cancel_futures=True)
         if not self.config.output:
             return None
         folder = self.core.write_map(Path(self.config.output), time.monotonic() - self.started)

@@ -23,6 +23,11 @@ The ``mode`` parameter (read at start) picks what the node does: ``detector`` (t
 above), ``slam`` or ``localise`` (:mod:`laser_corners.ros.ros2_mapping`: mapping and
 localisation with odometry from ``/tf``, ``map -> odom`` out; docs/ros.md).
 
+The node is a managed (lifecycle) node: with ``-p lifecycle:=true`` it waits unconfigured for
+nav2's lifecycle manager (``configure`` checks the parameters, loads the map and checks the
+output folder; ``activate`` subscribes; ``deactivate``, ``cleanup``, ``shutdown``); without
+it, it configures and activates itself at start.
+
 This module is a thin adapter: all decisions live in :mod:`laser_corners.ros.node_core`,
 :mod:`laser_corners.ros.slam_core` and :mod:`laser_corners.ros.convert`.
 """
@@ -47,9 +52,9 @@ from laser_corners.io.messages import keypoints_to_marker_fields
 from laser_corners.keypoints import Keypoints
 from laser_corners.params import DetectorParams
 from laser_corners.ros.convert import fill_marker_array, fill_pose_array, seconds_to_sec_nanosec
+from laser_corners.ros.mapping_config import MAPPING_OPTIONS, estimator_parameters
 from laser_corners.ros.node_core import NODE_OPTIONS, CornerNodeCore, NodeConfig, parameter_names
 from laser_corners.ros.ros2_mapping import MappingAdapter, check_mode
-from laser_corners.ros.slam_core import MAPPING_OPTIONS
 
 __all__ = ["NODE_NAME", "import_rclpy", "main", "parameter_values"]
 
@@ -110,67 +115,175 @@ def parameter_values(parameters: Sequence[Any], unset_type: Any) -> dict[str, An
 
 
 def _make_node_class() -> type:
-    import rclpy.node  # type: ignore[import-not-found]
-    from rcl_interfaces.msg import (  # type: ignore[import-not-found]
-        ParameterDescriptor,
-        SetParametersResult,
+    from rcl_interfaces.msg import SetParametersResult  # type: ignore[import-not-found]
+    from rclpy.lifecycle import (  # type: ignore[import-not-found]
+        LifecycleNode,
+        TransitionCallbackReturn,
     )
 
-    class LaserCornersNode(rclpy.node.Node):  # type: ignore[misc]
-        """The ROS 2 node: ``mode`` (read at start) picks the adapter that does the work."""
+    class LaserCornersNode(_NodeLogic, LifecycleNode):  # type: ignore[misc]
+        """The ROS 2 node, a managed (lifecycle) node (see :class:`_NodeLogic`)."""
+
+        Return = TransitionCallbackReturn
+        Result = SetParametersResult
 
         def __init__(self, context: Any = None) -> None:
-            super().__init__(NODE_NAME, context=context)
-            dynamic = ParameterDescriptor(dynamic_typing=True)
-            self.declare_parameter("mode", "detector", dynamic)
-            self.mode = check_mode(self.get_parameter("mode").value)
-            if self.mode == "detector":
-                defaults = {
-                    "preset": "paper",
-                    **dict.fromkeys(DetectorParams.model_fields),
-                    **NODE_OPTIONS,
-                }
-                self.adapter: Any = _DetectorAdapter(self, _declare(self, defaults))
-            else:
-                defaults = {k: v for k, v in MAPPING_OPTIONS.items() if k != "mode"}
-                values = _declare(self, defaults)
-                self.adapter = MappingAdapter(self, {**values, "mode": self.mode})
-            self.add_on_set_parameters_callback(self.on_set_parameters)
-
-        def on_set_parameters(self, parameters: list[Any]) -> Any:
-            """Check a change against all current values; apply it only when valid."""
-            if any(p.name == "mode" for p in parameters):
-                return SetParametersResult(successful=False, reason="mode: read at start only")
-            ok, reason = self.adapter.set_parameters(parameters)
-            return SetParametersResult(successful=ok, reason=reason)
-
-        def summary(self) -> str:
-            """Counts for the log line at shutdown."""
-            return str(self.adapter.summary())
+            LifecycleNode.__init__(self, NODE_NAME, context=context)
+            self.setup()
 
     return LaserCornersNode
 
 
-def _declare(node: Any, defaults: dict[str, Any]) -> dict[str, Any]:
-    """Declare ``defaults`` (dynamic typing) on ``node``; return the values given at start.
+class _NodeLogic:
+    """What the node does; ``mode`` (read at start) picks the adapter that does the work.
 
-    Overrides (``-p``, ``--params-file``) for names the node does not know are returned too,
-    so that the mode's config rejects them as ROS 1 does; rclpy itself would ignore them
-    silently.
+    A managed (lifecycle) node: ``configure`` makes the adapter (parameters checked, map
+    loaded, output checked, publishers and services), ``activate`` subscribes,
+    ``deactivate`` unsubscribes, ``cleanup`` removes it, ``shutdown`` writes the map and
+    removes it. Unless ``lifecycle`` is true, the node configures and activates itself at
+    start (an error there stops it with one line). Mixed into rclpy's ``LifecycleNode``
+    (imported lazily): ``Return`` and ``Result`` are its transition return and rcl's
+    ``SetParametersResult``.
+    """
+
+    Return: Any
+    Result: Any
+
+    def setup(self) -> None:
+        """Declare the parameters; without ``lifecycle``: configure and activate."""
+        from rcl_interfaces.msg import ParameterDescriptor  # type: ignore[import-not-found]
+
+        dynamic = ParameterDescriptor(dynamic_typing=True)
+        self.declare_parameter("mode", "detector", dynamic)
+        self.declare_parameter("lifecycle", False, dynamic)
+        self.mode = check_mode(self.get_parameter("mode").value)
+        self.managed = check_lifecycle(self.get_parameter("lifecycle").value)
+        self.service_node = None if self.mode == "detector" else _service_node(self)
+        self.defaults = mode_parameters(self.mode)
+        self.unknown = _declare(self, self.defaults)
+        self.adapter = None
+        self.error: BaseException | None = None
+        self.finished: list[str] = []
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        if not self.managed:  # nav2's autostart: configure and activate now
+            self.trigger_configure()
+            if self.error is not None:
+                raise self.error
+            self.trigger_activate()
+        else:
+            self.get_logger().info(
+                "lifecycle: unconfigured; waiting for configure "
+                "(lifecycle_msgs/srv/ChangeState on ~/change_state)"
+            )
+
+    def on_configure(self, state: Any) -> Any:
+        """Check the parameters (their values now), load the map, check ``output``;
+        make the publishers and services."""
+        values = {**self.unknown, **_values(self, list(self.defaults))}
+        self.error, self.finished = None, []
+        try:
+            if self.mode == "detector":
+                self.adapter = _DetectorAdapter(self, values)
+            else:
+                self.adapter = MappingAdapter(self, {**values, "mode": self.mode})
+        except Exception as exc:  # a managed node stays unconfigured and says why
+            self.error = exc
+            if self.managed:
+                text = first_line(exc) if isinstance(exc, LaserCornersError) else repr(exc)
+                self.get_logger().error(f"configure failed: {text}")
+            return self.Return.FAILURE
+        return self.Return.SUCCESS
+
+    def on_activate(self, state: Any) -> Any:
+        """Subscribe: scans are processed from now."""
+        self.adapter.activate()
+        return self.Return.SUCCESS
+
+    def on_deactivate(self, state: Any) -> Any:
+        """Unsubscribe: scans are no longer taken."""
+        self.adapter.deactivate()
+        return self.Return.SUCCESS
+
+    def on_cleanup(self, state: Any) -> Any:
+        """Remove what ``configure`` made."""
+        self.adapter.close()
+        self.adapter = None
+        return self.Return.SUCCESS
+
+    def on_shutdown(self, state: Any) -> Any:
+        """Summary, then slam with ``output``: the map folder (as at SIGINT)."""
+        for line in self.finish("lifecycle shutdown"):
+            self.get_logger().info(line)
+        return self.Return.SUCCESS
+
+    def on_set_parameters(self, parameters: list[Any]) -> Any:
+        """Check a change against all current values; apply it only when valid (while
+        unconfigured: any change, checked at ``configure``)."""
+        fixed = [p.name for p in parameters if p.name in ("mode", "lifecycle")]
+        if fixed:
+            reason = f"{', '.join(fixed)}: read at start only"
+            return self.Result(successful=False, reason=reason)
+        if self.adapter is None:
+            return self.Result(successful=True)
+        ok, reason = self.adapter.set_parameters(parameters)
+        return self.Result(successful=ok, reason=reason)
+
+    def finish(self, reason: str) -> list[str]:
+        """The summary line (``reason``: ...) and what the adapter wrote at shutdown;
+        once (later calls return the same lines)."""
+        if self.adapter is not None:
+            self.finished = [f"{reason}: {self.adapter.summary()}"]
+            written = self.adapter.shutdown()
+            self.finished += [written] if written else []
+            self.adapter.close()
+            self.adapter = None
+        return self.finished or [f"{reason}: not configured, nothing processed"]
+
+
+def check_lifecycle(value: Any) -> bool:
+    """The ``lifecycle`` parameter, checked."""
+    if not isinstance(value, bool):
+        raise InvalidParamsError(
+            f"ROS 2 parameter lifecycle: expected true or false, got {value!r}"
+        )
+    return value
+
+
+def mode_parameters(mode: str) -> dict[str, Any]:
+    """The parameters of ``mode`` (``mode`` and ``lifecycle`` aside) with their defaults
+    (None: unset until given)."""
+    if mode == "detector":
+        return {"preset": "paper", **dict.fromkeys(DetectorParams.model_fields), **NODE_OPTIONS}
+    own = {k: v for k, v in MAPPING_OPTIONS.items() if k != "mode"}
+    return {**own, **dict.fromkeys(estimator_parameters(mode))}
+
+
+def _values(node: Any, names: list[str]) -> dict[str, Any]:
+    """The current values of ``names`` that are set."""
+    from rclpy.parameter import Parameter  # type: ignore[import-not-found]
+
+    return parameter_values(node.get_parameters(names), Parameter.Type.NOT_SET)
+
+
+def _declare(node: Any, defaults: dict[str, Any]) -> dict[str, Any]:
+    """Declare ``defaults`` (dynamic typing) on ``node``; return the start-up overrides
+    (``-p``, ``--params-file``) of names the node does not know, so that the mode's config
+    rejects them as ROS 1 does (rclpy itself would ignore them silently); a dotted name is
+    ours to reject when its head is (``places.x``), else rclpy's (``qos_overrides....``).
     """
     from rcl_interfaces.msg import ParameterDescriptor  # type: ignore[import-not-found]
-    from rclpy.parameter import Parameter  # type: ignore[import-not-found]
 
     dynamic = ParameterDescriptor(dynamic_typing=True)
     for name, default in defaults.items():  # an empty list (mount) stays unset until given
         node.declare_parameter(name, None if default == [] else default, dynamic)
-    values = parameter_values(node.get_parameters(list(defaults)), Parameter.Type.NOT_SET)
+    heads = {name.partition(".")[0] for name in defaults if "." in name}
     # rclpy keeps the start-up overrides in a private dict (no public accessor)
     overrides = getattr(node, "_parameter_overrides", {})
-    for name, override in overrides.items():
-        if not node.has_parameter(name) and "." not in name:  # not ours, not rclpy's
-            values[name] = override.value
-    return values
+    return {
+        name: override.value
+        for name, override in overrides.items()
+        if not node.has_parameter(name) and ("." not in name or name.partition(".")[0] in heads)
+    }
 
 
 class _DetectorAdapter:
@@ -209,12 +322,32 @@ class _DetectorAdapter:
         )
         self.corners_pub = node.create_publisher(PoseArray, "corners", depth)
         self.markers_pub = node.create_publisher(MarkerArray, "corner_markers", depth)
-        self.scan_sub = node.create_subscription(LaserScanMsg, "scan", self.on_scan, scan_qos)
-        node.get_logger().info(
+        self.subscribe = lambda: node.create_subscription(
+            LaserScanMsg, "scan", self.on_scan, scan_qos
+        )
+        self.scan_sub: Any = None
+
+    def activate(self) -> None:
+        """Subscribe ``scan``: scans are processed from now."""
+        self.scan_sub = self.subscribe()
+        config = self.core.config
+        self.node.get_logger().info(
             f"{self.scan_sub.topic_name} -> {self.corners_pub.topic_name}, "
             f"{self.markers_pub.topic_name} (preset {config.preset}, "
             f"overrides {config.overrides or 'none'})"
         )
+
+    def deactivate(self) -> None:
+        """Unsubscribe ``scan``."""
+        if self.scan_sub is not None:
+            self.node.destroy_subscription(self.scan_sub)
+            self.scan_sub = None
+
+    def close(self) -> None:
+        """Remove the subscription and the publishers."""
+        self.deactivate()
+        self.node.destroy_publisher(self.corners_pub)
+        self.node.destroy_publisher(self.markers_pub)
 
     def get_logger(self) -> Any:
         return self.node.get_logger()
@@ -346,7 +479,8 @@ def _check_arguments(args: list[str]) -> None:
 
 
 def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
-    """Start the node and spin it until ``stop`` sees a signal or the context shuts down."""
+    """Start the node and spin it until ``stop`` sees a signal or the context shuts down
+    (its service node, see :func:`_service_node`, on a thread of its own)."""
     from rclpy.executors import SingleThreadedExecutor  # type: ignore[import-not-found]
     from rclpy.signals import SignalHandlerOptions  # type: ignore[import-not-found]
 
@@ -361,23 +495,58 @@ def _run(rclpy: ModuleType, args: list[str], stop: _StopSignals) -> None:
     except RuntimeError as exc:  # rclpy's RCLError, UnknownROSArgsError
         raise LaserCornersError(f"ROS 2 arguments: {_rcl_message(exc)}") from None
     node = None
+    services = SingleThreadedExecutor(context=context)
+    spinner = threading.Thread(target=_spin, args=(services,), name="services", daemon=True)
     try:
         node = _make_node_class()(context=context)
+        if node.service_node is not None:
+            services.add_node(node.service_node)
+            spinner.start()
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         while stop.received is None and context.ok():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
         reason = f"stopped by {stop.received}" if stop.received else "ROS 2 context shut down"
-        node.get_logger().info(f"{reason}: {node.summary()}")
-        written = node.adapter.shutdown()
-        if written:
-            node.get_logger().info(written)
+        for line in node.finish(reason):
+            node.get_logger().info(line)
         executor.shutdown(timeout_sec=1.0)
     finally:
+        services.shutdown(timeout_sec=1.0)
+        if spinner.is_alive():  # out of its wait before the context goes (else: abort)
+            spinner.join(timeout=5.0)
+        if node is not None and node.service_node is not None:
+            node.service_node.destroy_node()
         if node is not None:
             node.destroy_node()
         if context.ok():
             rclpy.shutdown(context=context)
+
+
+def _spin(executor: Any) -> None:
+    """Spin ``executor`` until it is shut down."""
+    from rclpy.executors import ExternalShutdownException  # type: ignore[import-not-found]
+
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+
+
+def _service_node(node: Any) -> Any:
+    """A second node (``<name>_services``, same namespace, no parameters) for the mapping
+    modes' services, spun on a thread of its own: a service that waits for the worker (a map
+    write takes seconds) then holds none of the node's callbacks (scans, parameters,
+    lifecycle). It ignores the process's remappings (``__node:=`` would give it the node's
+    name); the services take the names the node resolves (:meth:`resolve_service_name`)."""
+    import rclpy  # type: ignore[import-not-found]
+
+    return rclpy.create_node(
+        f"{node.get_name()}_services",
+        namespace=node.get_namespace(),
+        context=node.context,
+        use_global_arguments=False,
+        start_parameter_services=False,
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:

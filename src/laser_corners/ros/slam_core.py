@@ -20,35 +20,33 @@ this module and its results into messages.
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any, ClassVar, Literal
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import Field, ValidationInfo, field_validator
 
 from laser_corners.errors import OutputError
 from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.io.poses import StreamingTrack, frame_name
-from laser_corners.localise import LocaliseOptions, Localiser
-from laser_corners.options import Options
+from laser_corners.localise import Localiser
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.ros.mapping_config import MAPPING_OPTIONS, MappingConfig, check_output
 from laser_corners.ros.mapping_watch import MappingWatch
 from laser_corners.scan import LaserScan
 from laser_corners.slam.grid import occupancy_grid
 from laser_corners.slam.mapfile import SavedMap, load_map
-from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.slam import Slam
 from laser_corners.viz.slam_report import SlamRunInfo, peak_rss_mb, write_slam_outputs
 
 __all__ = [
     "MAPPING_OPTIONS",
+    "MapViews",
     "MappingConfig",
     "MappingCore",
     "OdometryBook",
@@ -56,127 +54,6 @@ __all__ = [
     "check_output",
     "map_to_odom",
 ]
-
-
-def check_output(folder: Path) -> None:
-    """Create ``folder`` and check a file can be written there.
-
-    Raises
-    ------
-    OutputError
-        One line naming the folder and the reason.
-    """
-    probe = folder / f".laser-corners-check-{os.getpid()}"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise OutputError(f"output {folder}: not writable ({exc.strerror or exc})") from None
-
-
-class MappingConfig(Options):
-    """Validated parameters of the ``slam`` / ``localise`` node modes.
-
-    Attributes
-    ----------
-    mode : {"slam", "localise"}
-    map : str
-        ``localise``: the map folder ``laser-corners slam`` wrote, or a ``map_server`` YAML
-        (a map made by another package: virtual keyframes, :mod:`laser_corners.slam.gridmap`)
-        (required).
-    output : str
-        Folder for the map ("" = none): slam writes the map folder there at shutdown and on
-        ``serialize_map``; ``save_map`` writes map.yaml + map.pgm there. Created and checked
-        for writing at start.
-    mount : list of float
-        Base -> laser ``[x, y, yaw]``; empty: from ``/tf_static`` (identity without it).
-    odom_topic : str
-        A ``nav_msgs/Odometry`` topic to take odometry from; empty (or ``tf``, the value
-        ``--odom-topic`` takes for it): ``/tf``.
-    map_frame, odom_frame, base_frame : str
-        Frame names; ``odom_frame`` / ``base_frame`` empty: taken from the first odometry.
-    map_period : float
-        Seconds between republications of the SLAM grid on ``map``.
-    resolution : float
-        Grid cell size, metres (slam mode).
-    slam_config : str
-        A YAML file of :class:`~laser_corners.slam.SlamOptions` ("" = defaults).
-    queue_size : int
-        Subscriber depth; also the most scans kept waiting for odometry.
-    tf_wait : float
-        Seconds (wall clock) a scan may wait for odometry after its stamp once it arrived:
-        a lagging odometry callback (several odometry messages per scan) is not a missing
-        odometry.
-    transform_tolerance : float
-        Seconds ``map -> odom`` is future-dated by (its stamp is the scan's plus this), so
-        that tf lookups up to then succeed until the next scan (AMCL's parameter, same
-        default).
-    odom_timeout : float
-        Seconds (wall clock) without odometry while scans arrive before a warning.
-    max_odom_jump : float
-        slam: metres the odometry may move between consecutive scans before a warning.
-    """
-
-    what: ClassVar[str] = "parameter"
-
-    mode: Literal["slam", "localise"] = "slam"
-    map: str = ""
-    output: str = ""
-    mount: list[float] = Field(default_factory=list)
-    odom_topic: str = ""
-    map_frame: str = Field("map", min_length=1)
-    odom_frame: str = ""
-    base_frame: str = ""
-    map_period: float = Field(5.0, gt=0.0, le=3600.0)
-    resolution: float = Field(0.05, ge=0.001, le=10.0)
-    slam_config: str = ""
-    queue_size: int = Field(50, ge=1, le=100_000)
-    tf_wait: float = Field(1.0, gt=0.0, le=60.0)
-    transform_tolerance: float = Field(0.1, ge=0.0, le=10.0)
-    odom_timeout: float = Field(2.0, gt=0.0, le=3600.0)
-    max_odom_jump: float = Field(1.0, gt=0.0, le=1e6)
-
-    @field_validator("mount")
-    @classmethod
-    def _mount(cls, mount: list[float]) -> list[float]:
-        if mount and (len(mount) != 3 or not all(math.isfinite(v) for v in mount)):
-            raise ValueError(f"expected [x, y, yaw], got {mount}")
-        return mount
-
-    @field_validator("odom_topic")
-    @classmethod
-    def _odom_topic(cls, topic: str) -> str:
-        return "" if topic in ("tf", "/tf") else topic  # the odometry on /tf, as the CLI's
-
-    @field_validator("map")
-    @classmethod
-    def _map(cls, folder: str, info: ValidationInfo) -> str:
-        if info.data.get("mode") == "localise" and not folder:
-            raise ValueError("mode localise needs -p map:=DIR (or a map_server .yaml)")
-        return folder
-
-    @classmethod
-    def from_mapping(
-        cls, data: Mapping[str, Any], source: str = "ROS 2 parameters"
-    ) -> MappingConfig:
-        """Check parameter name -> value; one :class:`InvalidParamsError` line when invalid
-        (``ROS 2 parameters: map_period: ...``, ``ROS 2 parameters: unknown parameter 'x';
-        known: ...``, as every :class:`~laser_corners.options.Options` says it)."""
-        return super().from_mapping(data, source)
-
-    def slam_options(self) -> SlamOptions:
-        """The SLAM options (``slam_config`` YAML, or the defaults)."""
-        if not self.slam_config:
-            return SlamOptions()
-        return SlamOptions.from_file(self.slam_config)
-
-
-MAPPING_OPTIONS: dict[str, Any] = {
-    name: field.get_default(call_default_factory=True)
-    for name, field in MappingConfig.model_fields.items()
-}
-"""Parameters of the ``slam`` and ``localise`` modes, with their defaults (see docs/ros.md)."""
 
 
 def map_to_odom(pose: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -296,7 +173,101 @@ class Counts:
     ms: list[float] = field(default_factory=list)
 
 
-class MappingCore:
+class MapViews:
+    """What :class:`MappingCore` makes of its map: the grid (published, saved as
+    map_server's files), its landmarks and the map folder (slam)."""
+
+    config: MappingConfig
+    clock: Callable[[], float]
+    estimator: Any
+    saved: SavedMap | None
+    saved_grid: OccupancyGrid | None
+    _grid_at: float
+    _grid_keyframes: int
+
+    def write_map(self, folder: Path, wall_s: float) -> Path | None:
+        """slam: write the map folder as ``laser-corners slam`` does (same writer); None when
+        nothing was mapped.
+
+        Raises
+        ------
+        OutputError
+            When the folder cannot be written.
+        """
+        if self.config.mode != "slam" or self.estimator is None:
+            return None
+        result = self.estimator.result()
+        info = SlamRunInfo(
+            "laser-corners ros2 (live)", wall_s, peak_rss_mb(), resolution=self.config.resolution
+        )
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"output {folder}: {exc}") from None
+        write_slam_outputs(result, folder, info)
+        return folder
+
+    def save_grid(self, folder: Path) -> Path:
+        """Write the current grid as map_server's ``map.yaml`` + ``map.pgm`` into ``folder``
+        (slam: built from the keyframes now; localise: the map's); the YAML path.
+
+        Raises
+        ------
+        OutputError
+            Nothing mapped yet, or the files cannot be written.
+        """
+        grid = self.grid()
+        if grid is None:
+            raise OutputError("nothing mapped yet: no keyframe")
+        folder.mkdir(parents=True, exist_ok=True)
+        return write_map(grid, folder / "map.yaml")[0]
+
+    def grid_due(self) -> bool:
+        """slam: a new grid is due (``map_period`` passed and new keyframes since the last)."""
+        if self.config.mode != "slam" or self.estimator is None:
+            return False
+        n = len(self.estimator.kf)
+        return (
+            n > 0
+            and n != self._grid_keyframes
+            and self.clock() - self._grid_at >= (self.config.map_period)
+        )
+
+    def grid(self) -> OccupancyGrid | None:
+        """slam: the grid of the keyframes at their current estimates; localise: the saved
+        map."""
+        if self.config.mode == "localise":
+            return self.saved_grid
+        job = self.grid_job()
+        return None if job is None else job()
+
+    def grid_job(self) -> Callable[[], OccupancyGrid] | None:
+        """slam: a snapshot of the keyframes (estimates copied) and the function that builds
+        their grid, for a worker thread (the numba kernel releases the GIL, so scans go on
+        meanwhile); the grid counts as built from now. None before the first keyframe."""
+        if self.config.mode != "slam" or self.estimator is None or not len(self.estimator.kf):
+            return None
+        kf = self.estimator.kf
+        n = min(len(kf.estimate), len(kf.scans))
+        self._grid_at, self._grid_keyframes = self.clock(), len(kf)
+        return partial(
+            occupancy_grid,
+            np.array(kf.estimate[:n], copy=True),
+            list(kf.scans[:n]),
+            self.estimator.mount.copy(),
+            self.config.resolution,
+        )
+
+    def landmarks(self) -> NDArray[np.float64]:
+        """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
+        if self.config.mode == "slam" and self.estimator is not None:
+            return self.estimator.backend.landmark_estimates().reshape(-1, 2)
+        if self.saved is not None and self.saved.landmarks is not None:
+            return np.asarray(self.saved.landmarks, dtype=np.float64).reshape(-1, 2)
+        return np.zeros((0, 2))
+
+
+class MappingCore(MapViews):
     """Scans + odometry in, poses and ``map -> odom`` out (slam or localise).
 
     Parameters
@@ -311,7 +282,9 @@ class MappingCore:
         self.config = config
         self.clock = clock
         self.book = OdometryBook(config.odom_frame, config.base_frame)
-        self.options = config.slam_options() if config.mode == "slam" else None
+        self.options = (  # checked at start: InvalidParamsError, one line
+            config.slam_options() if config.mode == "slam" else config.localise_options()
+        )
         self.estimator: Any = None
         self.mount: NDArray[np.float64] | None = (
             np.asarray(config.mount, dtype=np.float64) if config.mount else None
@@ -335,6 +308,9 @@ class MappingCore:
         if config.mode == "localise":  # read (and checked) at start: InputError, one line
             self.saved = load_map(config.map)
             self.saved_grid = self.saved.grid
+            start = config.pose()
+            if start is not None:  # AMCL's set_initial_pose + initial_pose
+                self._initial = (np.asarray(start, dtype=np.float64), None)
         if config.output:  # checked now, not after the run: OutputError, one line
             check_output(Path(config.output))
 
@@ -414,56 +390,22 @@ class MappingCore:
             self.estimator = Slam(self.options, self.mount)
             return
         assert self.saved is not None
-        self.estimator = Localiser(self.saved, options=LocaliseOptions(), mount=self.mount)
+        self.estimator = Localiser(self.saved, options=self.options, mount=self.mount)
         if self._initial is not None:
             self.estimator.set_pose(*self._initial)
 
-    def write_map(self, folder: Path, wall_s: float) -> Path | None:
-        """slam: write the map folder as ``laser-corners slam`` does (same writer); None when
-        nothing was mapped.
-
-        Raises
-        ------
-        OutputError
-            When the folder cannot be written.
-        """
-        if self.config.mode != "slam" or self.estimator is None:
-            return None
-        result = self.estimator.result()
-        info = SlamRunInfo(
-            "laser-corners ros2 (live)", wall_s, peak_rss_mb(), resolution=self.config.resolution
-        )
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(f"output {folder}: {exc}") from None
-        write_slam_outputs(result, folder, info)
-        return folder
-
-    def save_grid(self, folder: Path) -> Path:
-        """Write the current grid as map_server's ``map.yaml`` + ``map.pgm`` into ``folder``
-        (slam: built from the keyframes now; localise: the map's); the YAML path.
-
-        Raises
-        ------
-        OutputError
-            Nothing mapped yet, or the files cannot be written.
-        """
-        grid = self.grid()
-        if grid is None:
-            raise OutputError("nothing mapped yet: no keyframe")
-        folder.mkdir(parents=True, exist_ok=True)
-        return write_map(grid, folder / "map.yaml")[0]
-
-    def reinitialize(self) -> bool:
+    def reinitialize(self, saved: SavedMap | None = None) -> bool:
         """localise: forget the pose and hypotheses; the next scans search the whole map
-        (a new ``Localiser`` on the same map). False in slam mode."""
+        (a new ``Localiser`` on the same map, or on ``saved``: a map loaded while running).
+        False in slam mode."""
         if self.config.mode != "localise":
             return False
         self._initial = None
+        if saved is not None:
+            self.saved, self.saved_grid = saved, saved.grid
         if self.estimator is not None:
             assert self.saved is not None and self.mount is not None
-            self.estimator = Localiser(self.saved, options=LocaliseOptions(), mount=self.mount)
+            self.estimator = Localiser(self.saved, options=self.options, mount=self.mount)
         return True
 
     def set_pose(self, pose: NDArray[np.float64], covariance: NDArray[np.float64] | None) -> bool:
@@ -479,51 +421,6 @@ class MappingCore:
         else:
             self.estimator.set_pose(pose, covariance=covariance)
         return True
-
-    # ------------------------------------------------------------------ map
-    def grid_due(self) -> bool:
-        """slam: a new grid is due (``map_period`` passed and new keyframes since the last)."""
-        if self.config.mode != "slam" or self.estimator is None:
-            return False
-        n = len(self.estimator.kf)
-        return (
-            n > 0
-            and n != self._grid_keyframes
-            and self.clock() - self._grid_at >= (self.config.map_period)
-        )
-
-    def grid(self) -> OccupancyGrid | None:
-        """slam: the grid of the keyframes at their current estimates; localise: the saved
-        map."""
-        if self.config.mode == "localise":
-            return self.saved_grid
-        job = self.grid_job()
-        return None if job is None else job()
-
-    def grid_job(self) -> Callable[[], OccupancyGrid] | None:
-        """slam: a snapshot of the keyframes (estimates copied) and the function that builds
-        their grid, for a worker thread (the numba kernel releases the GIL, so scans go on
-        meanwhile); the grid counts as built from now. None before the first keyframe."""
-        if self.config.mode != "slam" or self.estimator is None or not len(self.estimator.kf):
-            return None
-        kf = self.estimator.kf
-        n = min(len(kf.estimate), len(kf.scans))
-        self._grid_at, self._grid_keyframes = self.clock(), len(kf)
-        return partial(
-            occupancy_grid,
-            np.array(kf.estimate[:n], copy=True),
-            list(kf.scans[:n]),
-            self.estimator.mount.copy(),
-            self.config.resolution,
-        )
-
-    def landmarks(self) -> NDArray[np.float64]:
-        """Landmark positions ``(N, 2)`` in the map frame (empty when there are none)."""
-        if self.config.mode == "slam" and self.estimator is not None:
-            return self.estimator.backend.landmark_estimates().reshape(-1, 2)
-        if self.saved is not None and self.saved.landmarks is not None:
-            return np.asarray(self.saved.landmarks, dtype=np.float64).reshape(-1, 2)
-        return np.zeros((0, 2))
 
     def summary(self) -> str:
         """Counts and timing, for the log line at shutdown."""
