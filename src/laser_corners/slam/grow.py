@@ -1,8 +1,9 @@
 """Maps that grow: a SLAM run that starts in a map folder of an earlier run (``prior_map``).
 
 The prior map's keyframes come first in the run's keyframe store, place index and pose graph
-(:meth:`~.keyframer.Keyframer.seed`), each held by a strong prior (:data:`PRIOR_SIGMAS`) so
-the map's frame stays; the new session's keyframes follow. Without an initial pose the first
+(:meth:`~.keyframer.Keyframer.seed`), each held by a strong prior (:data:`PRIOR_SIGMAS`) and
+linked to the one before as the map has them, so the map's frame and shape stay; the new
+session's keyframes follow. Without an initial pose the first
 new keyframe starts a lost segment (:mod:`.relocalise`), searched for in the prior map with
 its place index until two attempts agree; with one (the first scan's base pose in the map's
 frame) it starts there under a prior of :data:`INITIAL_SIGMAS`. Loop closure then searches
@@ -43,8 +44,11 @@ __all__ = [
     "prior_scans",
 ]
 
-PRIOR_SIGMAS = (0.01, 0.01, 0.001)
-"""Standard deviations (m, m, rad) of the prior holding each keyframe of a prior map."""
+PRIOR_SIGMAS = (0.1, 0.1, 0.01)
+"""Standard deviations (m, m, rad) of the prior holding each keyframe of a prior map (with
+the links between them, hundreds of these hold the map's frame; a new session's closures may
+move a keyframe by a few cm: aces moved 5 cm at most; 0.01 m / 0.001 rad, the map held still,
+scored 1.16x the one-run SLAM on aces instead of 1.11x, ``docs/benchmarks/grow.md``)."""
 INITIAL_SIGMAS = (0.5, 0.5, 0.2)
 """Standard deviations (m, m, rad) of the prior on the first new keyframe at a given initial
 pose (loop closures with the prior map then place it)."""

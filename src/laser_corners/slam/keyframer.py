@@ -18,7 +18,7 @@ from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import relative_pose
 from laser_corners.registration.corners import corner_detector, scan_corners
-from laser_corners.registration.place_index import PlaceIndex
+from laser_corners.registration.place_index import PlaceIndex, index_arrays, index_from_arrays
 from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
@@ -94,22 +94,28 @@ class Keyframer:
 
     def seed(self, saved: SavedMap, initial_pose: bool = False) -> None:
         """Start from a prior map (:mod:`.grow`): its keyframes become keyframes ``0 .. K - 1``
-        (store, place index, and the graph, each under a prior of :data:`~.grow.PRIOR_SIGMAS`);
+        (store, place index, and the graph: each under a prior of :data:`~.grow.PRIOR_SIGMAS`,
+        each linked to the one before by their relative pose in the map, with the scan
+        matching's noise);
         the session's keyframes follow (:attr:`KeyframeStore.first`). ``initial_pose``: the
         session's first keyframe gets a prior of :data:`~.grow.INITIAL_SIGMAS` at its pose
         (else it starts a lost segment, ``cut``)."""
         points = prior_points(saved)
         scans = prior_scans(points, self.mount, self.options.max_range)
-        for k in range(len(saved)):
-            self.backend.add_keyframe(saved.poses[k], sigmas=PRIOR_SIGMAS)
-            pose = saved.poses[k]
+        opt = self.options
+        link = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
+        for k, pose in enumerate(saved.poses):
+            self.backend.add_keyframe(pose, sigmas=PRIOR_SIGMAS)
+            if k:  # the map's shape as it was made
+                self.backend.add_between(k - 1, k, relative_pose(saved.poses[k - 1], pose), link)
             self.store.add(scans[k], points[k], -1, saved.stamps[k], pose, pose)
         self.store.first = len(saved)
         self.links = [None] * len(saved)
         self.start_sigmas = INITIAL_SIGMAS if initial_pose else None
         if saved.places is not None and self.options.places.enabled and not len(self.places):
-            self.places.keyframe = saved.places.keyframe.copy()
-            self.places.corners = saved.places.corners
+            old = index_from_arrays(index_arrays(saved.places), self.options.places)
+            if old is not None:
+                self.places.keyframe, self.places.corners = old.keyframe, old.corners
         self.store.estimate = self.backend.update()
 
     def keypoints(self, scan: LaserScan) -> Keypoints:
