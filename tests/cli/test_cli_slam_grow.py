@@ -73,7 +73,7 @@ def test_slam_map_grows_the_old_map_into_a_new_one(sessions, tmp_path) -> None:
     counts = summary["counts"]
     assert counts["prior_keyframes"] == n_old and counts["grow_unjoined"] == 0
     assert len(grown) == counts["keyframes"] > n_old
-    np.testing.assert_allclose(grown.poses[:n_old], load_map(old).poses, atol=0.05)
+    np.testing.assert_allclose(grown.poses[:n_old], load_map(old).poses, atol=0.02)
     # the second session's trajectory, in the map's frame (the truth's)
     stamps, poses = read_tum(new / "trajectory.tum")
     truth = legs(SESSION_2)[5:]

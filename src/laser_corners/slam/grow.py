@@ -44,11 +44,11 @@ __all__ = [
     "prior_scans",
 ]
 
-PRIOR_SIGMAS = (0.1, 0.1, 0.01)
-"""Standard deviations (m, m, rad) of the prior holding each keyframe of a prior map (with
-the links between them, hundreds of these hold the map's frame; a new session's closures may
-move a keyframe by a few cm: aces moved 5 cm at most; 0.01 m / 0.001 rad, the map held still,
-scored 1.16x the one-run SLAM on aces instead of 1.11x, ``docs/benchmarks/grow.md``)."""
+PRIOR_SIGMAS = (0.01, 0.01, 0.001)
+"""Standard deviations (m, m, rad) of the prior holding each keyframe of a prior map (with the
+links between them): the map stays put (its keyframes move by millimetres). Softer, 0.1 m /
+0.01 rad, let a new session's closures move them by up to 5 cm and scored aces 1.11x instead
+of 1.16x the one-run SLAM but intel 1.33x instead of 1.13x (``docs/benchmarks/grow.md``)."""
 INITIAL_SIGMAS = (0.5, 0.5, 0.2)
 """Standard deviations (m, m, rad) of the prior on the first new keyframe at a given initial
 pose (loop closures with the prior map then place it)."""
