@@ -127,8 +127,9 @@ class LoopCloser:
                 self.accept(good)
                 closed = True
                 start = self.relocaliser.start
-                # a closure within a lost segment does not put it into the map
-                self._joined |= start is not None and good.match < start
+                # a closure puts a lost segment into the map, unless the segment is unplaced
+                # (its frame unrelated to the map's) and the closure within it
+                self._joined |= self.unplaced is None or (start is not None and good.match < start)
         if closed:
             self._since_closure = 0.0
         return closed
