@@ -2,6 +2,9 @@
 
 * :func:`two_rooms`: the building of the SLAM tests (two rooms joined by a door, a pillar, a
   triangle, optionally a round post); :func:`straight`: poses along a leg at 0.05 m a scan;
+* :func:`marked_building`: :func:`two_rooms` with two marks that break its near-symmetry
+  (a 180° turn about the centre maps the pillar near the triangle); :func:`legs`: a drive
+  along waypoints;
 * :func:`noisy_odometry`: odometry from true poses with a scale error, a yaw bias and white
   noise (optionally no motion across chosen steps, a kidnap);
 * :func:`drive_slam`: every scan of a drive through a world, fed to ``Slam.add``;
@@ -14,6 +17,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -53,6 +57,26 @@ def straight(a, b) -> list[tuple[float, float, float]]:
     heading = math.atan2(b[1] - a[1], b[0] - a[0])
     n = int(np.hypot(*(b - a)) / 0.05)
     return [(*(a + t * (b - a)), heading) for t in np.arange(n) / n]
+
+
+def marked_building() -> World:
+    """:func:`two_rooms` with a slanted corner (top left) and a second post (4, 6.5): no
+    pose of the building looks like another."""
+    world = two_rooms()
+    world.add_polygon([[0, 7.0], [1.0, 8.0], [0, 8]])
+    world.add_circle((4.0, 6.5), 0.2)
+    return world
+
+
+def legs(waypoints: Sequence[Sequence[float]], pause: int = 3) -> np.ndarray:
+    """Poses along the legs between ``waypoints`` (:func:`straight`), ``pause`` scans at each
+    waypoint after the first."""
+    poses: list[tuple[float, float, float]] = []
+    for a, b in itertools.pairwise(waypoints):
+        poses += straight(a, b)
+        heading = math.atan2(b[1] - a[1], b[0] - a[0])
+        poses.extend((float(b[0]), float(b[1]), heading) for _ in range(pause))
+    return np.array(poses)
 
 
 def noisy_odometry(

@@ -70,3 +70,55 @@ def test_a_new_segment_starts_relocalisation_when_it_is_on() -> None:
     off, _ = _closer(SlamOptions(relocalisation=False))
     off.lost_from(2)
     assert not off.relocaliser.lost
+
+
+def _closing_with(monkeypatch, closer: LoopCloser, olds: list[int], accept: bool) -> list[int]:
+    """Every keyframe's loop-closure candidates are ``olds``; each is verified as ``accept``
+    and passes the gate at once; no relocalisation finds anything. Returns the keyframes
+    verified (appended to as the closer runs)."""
+    verified: list[int] = []
+
+    def verify(k, j, *args, **kwargs):
+        verified.append(j)
+        return LoopClosure(k, j, (0.0, 0.0, 0.0), accept, "ok" if accept else "low score")
+
+    monkeypatch.setattr("laser_corners.slam.closing.candidates", lambda *a, **k: list(olds))
+    monkeypatch.setattr("laser_corners.slam.closing.verify", verify)
+    monkeypatch.setattr(closer.gate, "offer", lambda closure, estimate: [closure])
+    monkeypatch.setattr(closer.relocaliser, "attempt", lambda *a, **k: [])
+    return verified
+
+
+def _store(n: int) -> KeyframeStore:
+    store = KeyframeStore()
+    store.estimate = np.array([[float(k), 0.0, 0.0] for k in range(n)])
+    store.travelled = [float(k) for k in range(n)]
+    store.points = [None] * n
+    return store
+
+
+def test_an_unplaced_segment_closes_only_with_its_own_keyframes(monkeypatch) -> None:
+    # a new session on a prior map (keyframes 0-3), no initial pose: its frame is not the
+    # map's, so a window around its estimate among the map's keyframes means nothing
+    closer, backend = _closer(SlamOptions(loop_every=1), n=7)
+    verified = _closing_with(monkeypatch, closer, [1, 4], accept=False)
+    closer.lost_from(4, unplaced=True)
+    closer.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))
+    assert verified == [4] and backend.counts.closures_proposed == 1
+    placed, _ = _closer(SlamOptions(loop_every=1), n=7)  # an ordinary lost segment
+    verified = _closing_with(monkeypatch, placed, [1, 4], accept=False)
+    placed.lost_from(4)
+    placed.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))
+    assert verified == [1, 4]
+
+
+def test_a_closure_within_an_unplaced_segment_does_not_end_its_search(monkeypatch) -> None:
+    # an ordinary lost segment: a closure ends the search (the segment's dead-reckoned frame
+    # is near the map's); an unplaced one (a new session on a prior map): only relocalisation
+    # into the map before it does
+    for unplaced, still_lost in ((False, False), (True, True)):
+        closer, _ = _closer(SlamOptions(loop_every=1), n=7)
+        _closing_with(monkeypatch, closer, [4], accept=True)
+        closer.lost_from(3, unplaced=unplaced)
+        assert closer.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))[0]  # closed
+        assert closer.relocaliser.lost == still_lost

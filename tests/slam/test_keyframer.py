@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,10 @@ import gtsam
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam.backend import Backend
+from laser_corners.slam.grow import INITIAL_SIGMAS, LOST_SIGMAS, PRIOR_SIGMAS
 from laser_corners.slam.keyframer import CUT_SIGMAS, Keyframer
+from laser_corners.slam.keyframes import SESSION_GAP
+from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from sim_drives import two_rooms
 
@@ -95,3 +100,51 @@ def test_keyframe_corners_go_into_the_place_index_when_it_is_on() -> None:
     off, _ = _keyframer(OPTIONS.with_overrides(["places.enabled=false"]))
     _add(off, 0)
     assert len(off.places) == 0
+
+
+def _saved(keyframer: Keyframer) -> SavedMap:
+    """The keyframes of ``keyframer`` as a map folder would give them back."""
+    store = keyframer.store
+    sizes = [len(p.xy) for p in store.points]
+    return SavedMap(
+        folder=Path("map"),
+        poses=POSES.copy(),
+        stamps=np.asarray(store.stamps),
+        scan_index=np.asarray(store.scan_index),
+        offsets=np.concatenate([[0], np.cumsum(sizes)]),
+        points=np.concatenate([p.xy for p in store.points]),
+        normals=np.concatenate([p.normals for p in store.points]),
+        has_normal=np.concatenate([p.has_normal for p in store.points]),
+        mount=np.zeros(3),
+        places=keyframer.places,
+    )
+
+
+@pytest.mark.parametrize("initial_pose", [False, True])
+def test_a_seeded_keyframer_keeps_the_prior_map_and_starts_a_session_after_it(
+    initial_pose: bool,
+) -> None:
+    first, _ = _keyframer()
+    for i in range(3):
+        _add(first, i)
+    saved = _saved(first)
+    keyframer, backend = _keyframer()
+    keyframer.seed(saved, initial_pose=initial_pose)
+    store = keyframer.store
+    assert len(store) == 3 and store.first == 3 and keyframer.links == [None] * 3
+    np.testing.assert_allclose(store.estimate, POSES, atol=1e-9)
+    # three priors, two links with the map's relative poses
+    kinds = [type(backend.graph.at(i)).__name__ for i in range(backend.graph.size())]
+    prior, link = "PriorFactorPose2", "BetweenFactorPose2"
+    assert kinds == [prior, prior, link, prior, link]
+    np.testing.assert_allclose(_sigmas(backend, 0), PRIOR_SIGMAS)
+    assert len(keyframer.places) == len(first.places) > 0
+    # the session's first keyframe: no link to the map's last, a prior of its own
+    k, dist = _add(keyframer, 1, cut=not initial_pose)
+    assert (k, dist) == (3, 0.0) and keyframer.links[3] is None
+    assert backend.graph.size() == 6
+    assert type(backend.graph.at(5)).__name__ == "PriorFactorPose2"
+    np.testing.assert_allclose(_sigmas(backend, 5), INITIAL_SIGMAS if initial_pose else LOST_SIGMAS)
+    assert store.travelled[3] - store.travelled[2] == SESSION_GAP
+    store.estimate = backend.update()
+    assert store.local_map(20)[1].xy.shape[0] == len(store.points[3].xy)  # the session's only

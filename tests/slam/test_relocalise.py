@@ -10,8 +10,9 @@ import pytest
 
 pytest.importorskip("gtsam")
 
+from laser_corners.registration.points import ScanPoints
 from laser_corners.slam import Slam, SlamOptions
-from laser_corners.slam.relocalise import free_space_conflict, occupancy_keys
+from laser_corners.slam.relocalise import OldMap, free_space_conflict, occupancy_keys
 from sim_drives import drive_slam, noisy_odometry, straight, two_rooms
 
 RATE = 10.0
@@ -85,3 +86,23 @@ def test_free_space_conflict_counts_beams_through_walls() -> None:
     assert free_space_conflict(wall, origin, through) == 1.0
     assert free_space_conflict(wall, origin, before) == 0.0
     assert free_space_conflict(wall, origin, at) == 0.0
+
+
+def test_the_old_map_of_a_prior_map_takes_its_occupancy_from_the_grid() -> None:
+    # keyframe 0 (a prior map's) saw a person at (2, 0) whom its grid cleared later; a
+    # beam of a later visit through there is no conflict. Keyframe 1 is the new session's.
+    wall = np.column_stack([np.full(41, 4.0), np.linspace(-1.0, 1.0, 41)])
+    person = np.array([[2.0, 0.0], [2.02, 0.03]])
+    first = ScanPoints(np.vstack([wall, person]), np.zeros((43, 2)), np.zeros(43, bool))
+    second = ScanPoints(np.array([[1.0, 3.0]]), np.zeros((1, 2)), np.zeros(1, bool))
+    estimate = np.zeros((2, 3))
+    grid = occupancy_keys(wall)  # the grid's occupied cells: the wall only
+    plain = OldMap.build([first, second], estimate, 2)
+    old = OldMap.build([first, second], estimate, 2, prior=(1, grid))
+    for keys, person_there in ((plain.occupied, True), (old.occupied, False)):
+        assert np.isin(occupancy_keys(person), keys).all() == person_there
+        assert np.isin(occupancy_keys(wall), keys).all()
+        assert np.isin(occupancy_keys(second.xy), keys).all()
+    beam = np.array([[3.9, 0.0]])  # from the origin through the person to the wall
+    assert free_space_conflict(plain.occupied, np.zeros(3), beam) == 1.0
+    assert free_space_conflict(old.occupied, np.zeros(3), beam) == 0.0

@@ -56,6 +56,24 @@ _StopScan = Annotated[
     int | None,
     typer.Option("--stop-scan", min=1, help="Stop before this scan index (map the first N scans)."),
 ]
+_StartScan = Annotated[int, typer.Option("--start-scan", min=0, help="Start at this scan index.")]
+_PriorMap = Annotated[
+    Path | None,
+    typer.Option(
+        "--map",
+        "--prior-map",
+        help="Grow this map folder (written by `laser-corners slam -o`; never modified): "
+        "start in it, keep its keyframes, add this run's; -o gets the one grown map.",
+    ),
+]
+_Pose = Annotated[
+    str | None,
+    typer.Option(
+        "--initial-pose",
+        help="With --map: the base pose x,y,θ (m, m, rad) of the first scan in the map "
+        "(default: found by a global search of the map).",
+    ),
+]
 _Resolution = Annotated[
     float, typer.Option("--resolution", help="Occupancy grid cell size, metres (map.pgm).")
 ]
@@ -85,22 +103,27 @@ def _run(
     input_path: Path,
     options: SlamOptions,
     topics: tuple[str | None, str | None],
-    stop_scan: int | None,
+    span: tuple[int, int | None],
+    grow: dict[str, Any],
 ) -> tuple[SlamResult, float]:
     """``run_slam`` under a progress bar showing the real-time factor; the result, wall s.
 
-    ``topics``: the LaserScan topic and the odometry (``--topic``, ``--odom-topic``)."""
+    ``topics``: the LaserScan topic and the odometry (``--topic``, ``--odom-topic``);
+    ``span``: ``--start-scan``, ``--stop-scan``; ``grow``: ``prior_map`` and
+    ``initial_pose`` (``--map``, ``--initial-pose``)."""
     from laser_corners.slam import run_slam
 
     start = time.perf_counter()
-    with RecordingProgress(input_path.name, stop_scan) as progress:
+    with RecordingProgress(input_path.name, span[1]) as progress:
         result = run_slam(
             input_path,
             options,
             topic=topics[0],
             odom_topic=topics[1],
             progress=progress,
-            stop_scan=stop_scan,
+            start_scan=span[0],
+            stop_scan=span[1],
+            **grow,
         )
     return result, time.perf_counter() - start
 
@@ -174,18 +197,25 @@ def slam_command(
     stop_scan: _StopScan = None,
     resolution: _Resolution = 0.05,
     mount: MountOption = None,
+    start_scan: _StartScan = 0,
+    prior_map: _PriorMap = None,
+    initial_pose: _Pose = None,
 ) -> None:
     """Map a recording with odometry: trajectory, pose graph, corner landmarks, occupancy grid.
 
     Writes trajectory.tum, odometry.tum, graph.g2o, landmarks.csv, map.pgm + map.yaml, map.png,
     options.yaml, summary.json and report.md into the output folder (docs/slam.md), replacing
     a previous result there only once the new one is complete. Ctrl-C (SIGTERM, an error)
-    writes what was mapped so far, marked partial (exit 130, 143, 1).
+    writes what was mapped so far, marked partial (exit 130, 143, 1). With --map OLD, the run
+    grows the map OLD (never modified) and writes the one grown map (docs/slam.md).
     """
     check_number("--resolution", resolution, minimum=0.001)
     if not input_path.exists():
         raise fail(f"{input_path}: no such file or folder")
-    refuse_overlap(output, [input_path])
+    if stop_scan is not None and stop_scan <= start_scan:
+        raise fail(f"--stop-scan ({stop_scan}) must be after --start-scan ({start_scan})")
+    refuse_overlap(output, [input_path] + ([prior_map] if prior_map is not None else []))
+    grow = _grow_arguments(prior_map, initial_pose)
     from rich.console import Console
 
     from laser_corners.errors import InvalidParamsError
@@ -209,7 +239,7 @@ def slam_command(
         raise fail(f"--resolution: {exc}") from None
     folder = new_folder(output)
     try:
-        result, wall = _run(input_path, options, (topic, odom_topic), stop_scan)
+        result, wall = _run(input_path, options, (topic, odom_topic), (start_scan, stop_scan), grow)
     except KeyboardInterrupt:  # before the first scan (run_slam keeps later interrupts)
         typer.echo(f"interrupted before the first scan; nothing written to {folder}", err=True)
         raise typer.Exit(130) from None
@@ -232,6 +262,19 @@ def slam_command(
         console.print(relations_table(info.relations, f"relation metric ({relations})"))
     if result.interrupted:
         _stopped_early(result, folder)
+
+
+def _grow_arguments(prior_map: Path | None, initial_pose: str | None) -> dict[str, Any]:
+    """``run_slam``'s ``prior_map`` (read and checked now, before any mapping) and
+    ``initial_pose``; an ``--initial-pose`` without ``--map`` is refused."""
+    if prior_map is None:
+        if initial_pose is not None:
+            raise fail("--initial-pose: only with --map (the map the first scan is in)")
+        return {}
+    from laser_corners.slam.grow import load_prior_map
+
+    pose = parse_pose(initial_pose, "--initial-pose") if initial_pose is not None else None
+    return {"prior_map": load_prior_map(prior_map), "initial_pose": pose}
 
 
 def _stopped_early(result: SlamResult, folder: Path) -> None:

@@ -100,16 +100,23 @@ class Backend:
         self.factors.add(factor)
         self._new.add(factor)
 
-    def add_keyframe(self, guess: NDArray[np.float64], prior: bool = False) -> int:
+    def add_keyframe(
+        self,
+        guess: NDArray[np.float64],
+        prior: bool = False,
+        sigmas: tuple[float, float, float] | None = None,
+    ) -> int:
         """Add the next keyframe variable at ``guess``; the first one (or ``prior``) gets a
-        prior (strong for the first, weak for a new odometry segment)."""
+        prior (strong for the first, weak for a new odometry segment); ``sigmas``: a prior of
+        these standard deviations instead (a prior map's keyframe, an initial pose)."""
         k = self.n
         pose = gtsam.Pose2(*map(float, guess))
         self._new_values.insert(X(k), pose)
         self.factors.initial.insert(X(k), pose)
-        if k == 0 or prior:
-            sig = (1e-3, 1e-3, 1e-4) if k == 0 else (100.0, 100.0, 3.0)
-            self._add(gtsam.PriorFactorPose2(X(k), pose, diagonal_noise(*sig)))
+        if sigmas is None and (k == 0 or prior):
+            sigmas = (1e-3, 1e-3, 1e-4) if k == 0 else (100.0, 100.0, 3.0)
+        if sigmas is not None:
+            self._add(gtsam.PriorFactorPose2(X(k), pose, diagonal_noise(*sigmas)))
         self.n += 1
         return k
 

@@ -71,12 +71,19 @@ class LoopCloser:
             options.loop_agree_xy, options.loop_agree_yaw, 4 * options.loop_every
         )
         self._since_closure = 0.0  # distance (m) driven since the last closure
+        self._joined = False  # a closure joined the lost segment to the map before it
+        self.unplaced: int | None = None  # first keyframe of a segment not yet placed
 
-    def lost_from(self, k: int) -> None:
+    def lost_from(self, k: int, unplaced: bool = False) -> None:
         """Keyframe ``k`` starts a new segment, which relocalisation
-        (``options.relocalisation``) searches for in the older map."""
+        (``options.relocalisation``) searches for in the older map. ``unplaced``: the
+        segment's frame is unrelated to the map's (a new session on a prior map, no initial
+        pose): until relocalised, the ordinary loop closure keeps it to its own keyframes
+        (a window around its estimate in the map means nothing)."""
         if self.options.relocalisation:
             self.relocaliser.begin(k)
+        if unplaced:
+            self.unplaced = k
 
     def travelled(self, dist: float) -> None:
         """The keyframes moved on by ``dist`` (m): the search window's yaw grows with it."""
@@ -90,8 +97,9 @@ class LoopCloser:
         the others at their estimates): whether a closure was accepted, whether a lost
         segment was put back into the map."""
         closed = self._close(k, store, pose) if self.options.loop_closure and not first else False
-        if closed:
+        if self._joined:
             self.relocaliser.end()  # an ordinary closure put the segment into the map
+            self._joined = False
         relocalised = self._relocalise(k, store, pose) if self.relocaliser.lost else False
         return closed, relocalised
 
@@ -108,6 +116,8 @@ class LoopCloser:
         closed = False
         travelled = store.travelled_array
         for j in candidates(k, estimate, travelled(), window[0], opt):
+            if self.unplaced is not None and j < self.unplaced:
+                continue
             self.counts.closures_proposed += 1
             closure = verify(k, j, store.points, estimate, travelled(), window, opt, self.submaps)
             self.closures.append(closure)
@@ -116,6 +126,10 @@ class LoopCloser:
             for good in self.gate.offer(closure, estimate):
                 self.accept(good)
                 closed = True
+                start = self.relocaliser.start
+                # a closure puts a lost segment into the map, unless the segment is unplaced
+                # (its frame unrelated to the map's) and the closure within it
+                self._joined |= self.unplaced is None or (start is not None and good.match < start)
         if closed:
             self._since_closure = 0.0
         return closed
@@ -131,6 +145,7 @@ class LoopCloser:
             self.accept(closure)
         if found:
             self._since_closure = 0.0
+            self.unplaced = None
         return bool(found)
 
     def accept(self, closure: LoopClosure) -> None:

@@ -20,7 +20,9 @@ class SlamCounts:
 
     ``scans_without_returns`` and ``keyframes_one_direction`` are counted by
     :func:`~laser_corners.slam.run.run_slam` only: None (left out of :meth:`as_dict`) when
-    nothing counted them, e.g. a ROS node's SLAM.
+    nothing counted them, e.g. a ROS node's SLAM. ``prior_keyframes`` (the keyframes of the
+    map a run grows) and ``grow_unjoined`` (1 when the new session never found itself in it,
+    :mod:`.grow`) only in a run that grows a map.
     """
 
     scans: int = 0
@@ -51,6 +53,8 @@ class SlamCounts:
     relocalisations_exhaustive: int = 0
     scans_without_returns: int | None = None
     keyframes_one_direction: int | None = None
+    prior_keyframes: int | None = None
+    grow_unjoined: int | None = None
     optimiser_recoveries: int = 0
     optimiser_anchors: int = 0
     optimiser_factors_dropped: int = 0

@@ -19,14 +19,22 @@ from laser_corners.keypoints import Keypoints
 from laser_corners.pose import relative_pose
 from laser_corners.registration.corners import corner_detector, scan_corners
 from laser_corners.registration.odometry import odometry_sigmas
-from laser_corners.registration.place_index import PlaceIndex
+from laser_corners.registration.place_index import PlaceIndex, index_arrays, index_from_arrays
 from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.corners import CornerRegistrar
 from laser_corners.slam.counts import SlamCounts
+from laser_corners.slam.grow import (
+    INITIAL_SIGMAS,
+    LOST_SIGMAS,
+    PRIOR_SIGMAS,
+    prior_points,
+    prior_scans,
+)
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.landmarks import LandmarkTracker
+from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 
 __all__ = ["CUT_SIGMAS", "Keyframer"]
@@ -81,8 +89,35 @@ class Keyframer:
         self.store = KeyframeStore()
         self.places = PlaceIndex(options.places)
         self.links: list[NDArray | None] = [None]
+        self.start_sigmas: tuple[float, float, float] | None = None
         self._detector: CornerDetector | None = None
         self._place_detector: CornerDetector | None = None
+
+    def seed(self, saved: SavedMap, initial_pose: bool = False) -> None:
+        """Start from a prior map (:mod:`.grow`): its keyframes become keyframes ``0 .. K - 1``
+        (store, place index, and the graph: each under a prior of :data:`~.grow.PRIOR_SIGMAS`,
+        each linked to the one before by their relative pose in the map, with the scan
+        matching's noise);
+        the session's keyframes follow (:attr:`KeyframeStore.first`). ``initial_pose``: the
+        session's first keyframe gets a prior of :data:`~.grow.INITIAL_SIGMAS` at its pose
+        (else it starts a lost segment, ``cut``)."""
+        points = prior_points(saved)
+        scans = prior_scans(points, self.mount, self.options.max_range)
+        opt = self.options
+        link = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
+        for k, pose in enumerate(saved.poses):
+            self.backend.add_keyframe(pose, sigmas=PRIOR_SIGMAS)
+            if k:  # the map's shape as it was made
+                self.backend.add_between(k - 1, k, relative_pose(saved.poses[k - 1], pose), link)
+            self.store.add(scans[k], points[k], -1, saved.stamps[k], pose, pose)
+        self.store.first = len(saved)
+        self.links = [None] * len(saved)
+        self.start_sigmas = INITIAL_SIGMAS if initial_pose else None
+        if saved.places is not None and self.options.places.enabled and not len(self.places):
+            old = index_from_arrays(index_arrays(saved.places), self.options.places)
+            if old is not None:
+                self.places.keyframe, self.places.corners = old.keyframe, old.corners
+        self.store.estimate = self.backend.update()
 
     def keypoints(self, scan: LaserScan) -> Keypoints:
         """Corner keypoints of ``scan`` (sensor frame), detector made on the first scan."""
@@ -124,13 +159,19 @@ class Keyframer:
         ``kp``: its keypoints, when detected already; ``cov``: the last keyframe's marginal
         (the landmark observations' pose noise). Returns ``k`` and the distance (m) from the
         last keyframe."""
-        k = self.backend.add_keyframe(pose, prior=cut)
+        start = len(self.store) == self.store.first
+        sigmas = None
+        if start and self.store.first:  # a session's first keyframe on a prior map
+            sigmas = LOST_SIGMAS if cut else self.start_sigmas
+        k = self.backend.add_keyframe(pose, prior=cut, sigmas=sigmas)
         dist = 0.0
-        if k > 0:
+        if not start:
             rel = np.array(relative_pose(anchor, pose))
             self.links.append(None if cut else rel)
             dist = float(np.hypot(rel[0], rel[1]))
             self.backend.add_between(k - 1, k, rel, self._link_sigmas(rel, dist, cut, aligned))
+        elif k > 0:  # a session's first keyframe after a prior map: no link to it
+            self.links.append(None)
         self.store.add(scan, pts, index, stamp, odo, pose)
         self._corners(k, scan, kp, stamp, pose, cov)
         self._place(k, scan)

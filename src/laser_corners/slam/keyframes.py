@@ -9,13 +9,26 @@ from laser_corners.registration.align import PointMap
 from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
 
-__all__ = ["KeyframeStore"]
+__all__ = ["SESSION_GAP", "KeyframeStore"]
+
+SESSION_GAP = 1e4
+"""Travel (m) counted between the last keyframe of a prior map and the first of the session
+that grows it: no keyframe of an older session is ever a recent one (loop closure)."""
 
 
 class KeyframeStore:
-    """The keyframes of a run, in order."""
+    """The keyframes of a run, in order.
+
+    Attributes
+    ----------
+    first : int
+        The first keyframe of this run's session: 0, or the number of keyframes of a prior
+        map the run grows (they come first, :meth:`~.keyframer.Keyframer.seed`). The local
+        maps of the session's keyframes never reach before it.
+    """
 
     def __init__(self) -> None:
+        self.first = 0
         self.scans: list[LaserScan] = []
         self.points: list[ScanPoints] = []
         self.scan_index: list[int] = []
@@ -38,7 +51,9 @@ class KeyframeStore:
     ) -> None:
         """Append a keyframe (``pose``: its current estimate)."""
         step = 0.0
-        if self.scans:
+        if self.scans and len(self.scans) == self.first:
+            step = SESSION_GAP
+        elif self.scans:
             last = self.estimate[-1] if len(self.estimate) == len(self.scans) else pose
             step = float(np.hypot(*(pose[:2] - last[:2])))
         self.travelled.append((self.travelled[-1] if self.travelled else 0.0) + step)
@@ -54,8 +69,8 @@ class KeyframeStore:
 
     def local_map(self, n: int) -> tuple[PointMap, PointMap]:
         """The last ``n`` keyframes at their estimates: line points with normals (for ICP)
-        and every point (for the overlap)."""
-        return self.span_map(max(0, len(self.points) - n), len(self.points))
+        and every point (for the overlap); of this session's keyframes only (:attr:`first`)."""
+        return self.span_map(max(self.first, len(self.points) - n), len(self.points))
 
     def span_map(self, first: int, stop: int) -> tuple[PointMap, PointMap]:
         """Keyframes ``first`` to ``stop`` (excluded) at their estimates, as

@@ -144,19 +144,25 @@ class SavedMap:
 
 
 def keyframe_arrays(result: Any) -> dict[str, NDArray]:
-    """The arrays of ``keyframes.npz`` from a SLAM result (points remade from its keyframe
-    scans with the result's own range limits and spacing)."""
+    """The arrays of ``keyframes.npz`` from a SLAM result: its ``keyframe_points`` when it
+    has them, else points remade from its keyframe scans with its own range limits and
+    spacing."""
     opt = result.options
-    pts = [
-        scan_points(s, result.mount, opt.min_range, opt.max_range, opt.point_spacing)
-        for s in result.scans
-    ]
+    pts = getattr(result, "keyframe_points", None)
+    if pts is None:
+        pts = [
+            scan_points(s, result.mount, opt.min_range, opt.max_range, opt.point_spacing)
+            for s in result.scans
+        ]
+    stamps = getattr(result, "keyframe_stamps", None)
+    if stamps is None:
+        stamps = np.asarray(result.stamps, dtype=np.float64)[result.keyframes]
     sizes = [len(p.xy) for p in pts]
     cat = np.concatenate if pts else (lambda _a: np.zeros((0, 2)))
     return {
         "format_version": np.int64(FORMAT_VERSION),
         "poses": np.asarray(result.keyframe_poses, dtype=np.float64).reshape(-1, 3),
-        "stamps": np.asarray(result.stamps, dtype=np.float64)[result.keyframes],
+        "stamps": np.asarray(stamps, dtype=np.float64),
         "scan_index": np.asarray(result.keyframes, dtype=np.int64),
         "offsets": np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
         "points": cat([p.xy for p in pts]).reshape(-1, 2),

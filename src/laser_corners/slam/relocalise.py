@@ -112,11 +112,25 @@ class OldMap:
     centres: NDArray[np.float64]
 
     @classmethod
-    def build(cls, points: list[ScanPoints], estimate: NDArray[np.float64], end: int) -> OldMap:
-        """The map of keyframes ``0 .. end - 1`` at ``estimate``."""
+    def build(
+        cls,
+        points: list[ScanPoints],
+        estimate: NDArray[np.float64],
+        end: int,
+        prior: tuple[int, NDArray[np.int64]] | None = None,
+    ) -> OldMap:
+        """The map of keyframes ``0 .. end - 1`` at ``estimate``. ``prior``: the first ``n``
+        keyframes are a prior map's whose occupancy (:func:`occupancy_keys`) is given, from
+        its occupancy grid (people and doors seen once are cleared there; its keyframes'
+        points keep them, and beams of a later visit would cross them)."""
         parts = [transform(points[i].xy, estimate[i]) for i in range(end)]
         xy = thin_points(np.concatenate(parts), 0.05)
         occupied = occupancy_keys(xy)
+        if prior is not None and prior[0] <= end:
+            n, keys = prior
+            rest = [transform(points[i].xy, estimate[i]) for i in range(n, end)]
+            own = occupancy_keys(np.concatenate(rest)) if rest else keys[:0]
+            occupied = np.union1d(keys, own)
         centres: list[NDArray] = []
         for p in estimate[:end, :2]:
             if all(math.hypot(*(p - q)) >= CENTER_SPACING for q in centres):
@@ -214,6 +228,8 @@ class Relocaliser:
     old: OldMap | None = None
     pending: LoopClosure | None = None
     pending_shift: NDArray[np.float64] | None = None
+    prior: tuple[int, NDArray[np.int64]] | None = None
+    """A prior map's keyframe count and occupancy (:meth:`OldMap.build`), when it has a grid."""
     counts: SlamCounts = field(default_factory=SlamCounts)
     """Counts ``relocalisations_attempted``, ``_accepted`` and ``_exhaustive``."""
 
@@ -243,7 +259,7 @@ class Relocaliser:
         self.attempts += 1
         self.counts.relocalisations_attempted += 1
         if self.old is None:
-            self.old = OldMap.build(points, estimate, self.start)
+            self.old = OldMap.build(points, estimate, self.start, self.prior)
         query = query_points(k, points, estimate, min(QUERY_KEYFRAMES, k - self.start + 1))
         if len(query) < 20 or len(self.old.centres) == 0:
             return []

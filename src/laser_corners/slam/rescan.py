@@ -104,7 +104,9 @@ def rescan(
         if group.size == 0:
             continue
         k = int(ref[group[0]])
-        line, every = keyframes.span_map(max(0, k - half), min(len(keyframes), k + half + 1))
+        line, every = keyframes.span_map(
+            max(keyframes.first, k - half), min(len(keyframes), k + half + 1)
+        )
         if len(line) < MIN_POINTS:
             continue
         for i in group.tolist():

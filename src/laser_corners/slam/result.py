@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from laser_corners.errors import OutputError
 from laser_corners.pose import compose_many
 from laser_corners.registration.place_index import PlaceIndex
+from laser_corners.registration.points import ScanPoints
 from laser_corners.scan import LaserScan
 from laser_corners.slam.counts import COUNT_KEYS
 from laser_corners.slam.options import SlamOptions
@@ -71,7 +72,8 @@ class SlamResult:
     odometry : ndarray, shape (N, 3)
         Raw odometry base pose.
     keyframes : ndarray of int, shape (K,)
-        Scan indices (into ``stamps``) of the keyframes.
+        Scan indices (into ``stamps``) of the keyframes; -1 for the ``prior_keyframes``
+        first ones.
     keyframe_poses : ndarray, shape (K, 3)
         Final keyframe base poses in the map frame.
     scans : list of LaserScan
@@ -109,6 +111,13 @@ class SlamResult:
         before is not measured).
     skipped : dict of str to int
         Records the reader skipped (damaged chunks, broken rows), by reason (``ScanSource``).
+    prior_keyframes : int
+        The first this many keyframes are a prior map's (a run that grows a map,
+        :mod:`.grow`): no scan of this run; their ``scans`` are remade from their points.
+    keyframe_stamps : ndarray, shape (K,), optional
+        Every keyframe's stamp (None: ``stamps[keyframes]``).
+    keyframe_points : list of ScanPoints, optional
+        Every keyframe's thinned points (base frame) as mapped (None: remade from ``scans``).
     """
 
     stamps: NDArray[np.float64]
@@ -131,6 +140,9 @@ class SlamResult:
     cuts: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     places: PlaceIndex | None = None
     skipped: dict[str, int] = field(default_factory=dict)
+    prior_keyframes: int = 0
+    keyframe_stamps: NDArray[np.float64] | None = None
+    keyframe_points: list[ScanPoints] | None = None
 
     @property
     def laser_poses(self) -> NDArray[np.float64]:

@@ -21,13 +21,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.errors import InputError, first_line
 from laser_corners.pipeline.interrupt import STOP_REASONS, stop_requests
 from laser_corners.pipeline.recording import Recording, open_recording
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.scan import LaserScan
+from laser_corners.slam.grow import load_prior_map
+from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import SlamResult
 from laser_corners.slam.slam import Slam
@@ -48,6 +50,9 @@ def run_slam(
     odom_topic: str | None = None,
     progress: Callable[[int, int | None, float], None] | None = None,
     stop_scan: int | None = None,
+    start_scan: int = 0,
+    prior_map: str | Path | SavedMap | None = None,
+    initial_pose: ArrayLike | None = None,
 ) -> SlamResult:
     """Run SLAM over a recording with odometry.
 
@@ -64,7 +69,15 @@ def run_slam(
     progress : callable, optional
         Called after every scan with ``(scans done, scans total or None, scan stamp)``.
     stop_scan : int, optional
-        Stop after this many scans.
+        Stop before this scan index.
+    start_scan : int
+        Start at this scan index.
+    prior_map : str, Path or SavedMap, optional
+        A map folder written by a SLAM run to grow (:mod:`.grow`; ``--map`` of the CLI): the
+        run starts in it, keeps its keyframes and adds its own; never modified.
+    initial_pose : array_like, optional
+        With ``prior_map``: the first scan's base pose in the map's frame (default: a global
+        search of the map).
 
     Returns
     -------
@@ -75,17 +88,21 @@ def run_slam(
     Raises
     ------
     InputError
-        No readable scan, or no scan with odometry.
+        No readable scan, or no scan with odometry; a prior map that cannot be read or is not
+        a map folder of this package (one line).
     """
     options = options or SlamOptions()
+    prior = load_prior_map(prior_map) if prior_map is not None else None
+    if initial_pose is not None and prior is None:
+        raise InputError("initial_pose: only with a prior map (--map) to start in")
     with open_recording(path, topic, odom_topic=odom_topic) as rec:
         require_odometry(rec, path)
         recorded = getattr(rec.source, "mounts", {}).get(rec.first.frame_id) or (0.0, 0.0, 0.0)
         mount = np.asarray(options.mount if options.mount is not None else recorded)
-        slam = Slam(options, mount)
+        slam = Slam(options, mount, prior_map=prior, initial_pose=initial_pose)
         feed = OdometryFeed()
         try:
-            for i, scan, base in odometry_scans(rec, feed, stop_scan=stop_scan):
+            for i, scan, base in odometry_scans(rec, feed, start_scan, stop_scan):
                 feed.at = i
                 feed.blank += not scan.valid.any()
                 slam.add(scan, base, float(scan.stamp))

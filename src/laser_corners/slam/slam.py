@@ -30,8 +30,10 @@ from laser_corners.slam.backend import Backend
 from laser_corners.slam.closing import LoopCloser
 from laser_corners.slam.corners import CornerRegistrar
 from laser_corners.slam.finish import ScanLog, final_graph
+from laser_corners.slam.grow import grid_occupancy, join_warning
 from laser_corners.slam.keyframer import Keyframer
 from laser_corners.slam.landmarks import LandmarkTracker
+from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.relocalise import Relocaliser
 from laser_corners.slam.result import Landmarks, SlamResult
@@ -56,6 +58,12 @@ class Slam:
     backend : Backend, optional
         The pose graph (default: a new :class:`~.backend.Backend`); the run counts into its
         :attr:`~.backend.Backend.counts`.
+    prior_map : SavedMap, optional
+        A map folder to grow (:mod:`.grow`, read by :func:`~.grow.load_prior_map`): its
+        keyframes come first and stay, the run's follow in its frame.
+    initial_pose : array_like, optional
+        With ``prior_map``: the base pose ``(x, y, yaw)`` of the first scan in the map's frame
+        (default: none, a global search of the map).
 
     Attributes
     ----------
@@ -75,6 +83,8 @@ class Slam:
         options: SlamOptions | None = None,
         mount: ArrayLike = (0.0, 0.0, 0.0),
         backend: Backend | None = None,
+        prior_map: SavedMap | None = None,
+        initial_pose: ArrayLike | None = None,
     ) -> None:
         self.options = opt = options or SlamOptions()
         chosen = opt.mount if opt.mount is not None else mount
@@ -88,9 +98,15 @@ class Slam:
             opt, self.mount, self.backend, self.counts, corners, self.landmarks
         )
         self.kf = self.keyframer.store
+        self._start = None if initial_pose is None else np.asarray(initial_pose, float).reshape(3)
+        if prior_map is not None:
+            self.keyframer.seed(prior_map, initial_pose=self._start is not None)
+            self.counts.prior_keyframes = len(prior_map)
         self.places = self.keyframer.places
         relocaliser = Relocaliser(opt, self.mount, self.places, counts=self.counts)
         self.closing = LoopCloser(opt, self.backend, self.counts, relocaliser)
+        if prior_map is not None and prior_map.grid is not None:
+            relocaliser.prior = (len(prior_map), grid_occupancy(prior_map.grid))
         # the scan pass re-runs the front end's ICP: only with it
         self.log = ScanLog(opt.rescan_final and opt.scan_alignment and opt.front_end != "corners")
         self.pose: NDArray[np.float64] | None = None
@@ -119,7 +135,7 @@ class Slam:
         pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
         kp = self.keyframer.keypoints(scan) if tracking.corners is not None else None
         if self.pose is None:
-            self.pose = odo.copy()
+            self.pose = odo.copy() if self._start is None else self._start.copy()
             self._keyframe(scan, pts, odo, stamp, kp, first=True)
         else:
             jump = abs(stamp - self._last_stamp) > opt.time_jump
@@ -164,8 +180,10 @@ class Slam:
         and relocalisation, an iSAM2 update, the new local map."""
         opt, tracking = self.options, self.tracking
         assert self.pose is not None
-        # a gap the alignment did not bridge, or a scan that fit nothing: a new segment
+        # a gap the alignment did not bridge, or a scan that fit nothing: a new segment; on a
+        # prior map without an initial pose, the session starts lost
         cut = (tracking.jumped or tracking.lost) and not tracking.aligned and not first
+        cut = cut or (first and self.kf.first > 0 and self._start is None)
         k, dist = self.keyframer.add(
             scan,
             pts,
@@ -180,9 +198,9 @@ class Slam:
             cov=self._cov,
         )
         if cut:
-            self.closing.lost_from(k)
+            self.closing.lost_from(k, unplaced=first)
         self.closing.travelled(dist)
-        closed, relocalised = self.closing.keyframe(k, self.kf, self.pose, first)
+        closed, relocalised = self.closing.keyframe(k, self.kf, self.pose, k == 0)
         full = closed or relocalised or k % FULL_ESTIMATE_EVERY == 0
         if full:
             self.closing.submaps.invalidate()
@@ -212,7 +230,15 @@ class Slam:
             landmarks = self.landmarks.landmarks(self.backend.marginals())
         self.counts.landmarks = len(landmarks)
         self.closing.tally()
+        warnings = list(self.backend.warnings)
+        if self.kf.first:
+            joined = join_warning(self.closing.closures, self.kf.first, self._start is not None)
+            self.counts.grow_unjoined = int(joined is not None)
+            warnings += [] if joined is None else [joined]
         keyframes = np.asarray(self.kf.scan_index, dtype=np.int64)
+        starts = [
+            k for k in range(self.kf.first + 1, len(keyframes)) if self.keyframer.links[k] is None
+        ]
         return SlamResult(
             stamps=np.asarray(self.log.stamps, dtype=np.float64),
             poses=poses,
@@ -228,9 +254,12 @@ class Slam:
             counts=self.counts.as_dict(),
             interrupted=interrupted or partial_reason is not None,
             partial_reason=partial_reason,
-            warnings=list(self.backend.warnings),
+            warnings=warnings,
             graph=graph,
             values=values,
             places=self.places if opt.places.enabled else None,
-            cuts=keyframes[[x is None for x in self.keyframer.links]][1:],
+            cuts=keyframes[starts],
+            prior_keyframes=self.kf.first,
+            keyframe_stamps=np.asarray(self.kf.stamps, dtype=np.float64),
+            keyframe_points=list(self.kf.points),
         )
