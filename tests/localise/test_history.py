@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -20,19 +22,26 @@ def _fill(history: SearchHistory, odometry: np.ndarray, step: float) -> None:
 def test_keeps_one_scan_per_step_and_forgets_after_keep() -> None:
     history = SearchHistory(keep=1.0, step=0.25)
     _fill(history, np.zeros((40, 3)), 0.125)  # every second is kept
-    kept = [p.scan.index for p in history.replay(np.zeros(3), np.zeros(3), *_exact())]
+    kept = [p.scan.index for p in history.replay(_matcher(), np.zeros(3), np.zeros(3))]
     assert kept == [38, 36, 34, 32, 30]  # 4.75 m travelled; the last 1.0 m kept
     history.clear()
     assert len(history) == 0
 
 
-def _exact():
-    """ICP that returns the guess with full agreement, no prior, no free-space conflict."""
+def _matcher(agreement: float = 1.0, moved: np.ndarray | None = None) -> SimpleNamespace:
+    """A stand-in for ``MapMatcher``: ICP returns ``moved`` (default: the guess) agreeing
+    ``agreement``; no free-space conflict; hypotheses need 0.5."""
 
     def align(xy, guess, prior):
-        return Alignment(guess, 1.0, 2, np.eye(3)), 1.0
+        pose = guess if moved is None else moved
+        return Alignment(pose, agreement, 2, np.eye(3)), agreement
 
-    return align, (lambda delta: np.eye(3)), (lambda pose, xy: Support(0.0, 0.0, 0.0)), 0.5
+    return SimpleNamespace(
+        align=align,
+        prior=lambda delta, jump: np.eye(3),
+        support=lambda pose, xy: Support(0.0, 0.0, 0.0),
+        options=SimpleNamespace(hypothesis_agreement=0.5),
+    )
 
 
 def test_replay_chains_back_by_odometry_from_the_given_pose() -> None:
@@ -42,7 +51,7 @@ def test_replay_chains_back_by_odometry_from_the_given_pose() -> None:
     history = SearchHistory(keep=100.0, step=0.0)
     _fill(history, odometry, 1.0)
     pose_now = compose_many(truth_shift, odometry[-1])
-    replayed = list(history.replay(pose_now, odometry[-1], *_exact(), before=11))
+    replayed = list(history.replay(_matcher(), pose_now, odometry[-1], before=11))
     assert [p.scan.index for p in replayed] == list(range(10, -1, -1))  # the current left out
     for p in replayed:
         assert np.allclose(p.pose, compose_many(truth_shift, odometry[p.scan.index]))
@@ -51,13 +60,9 @@ def test_replay_chains_back_by_odometry_from_the_given_pose() -> None:
 def test_replay_keeps_the_guess_where_icp_disagrees() -> None:
     history = SearchHistory(keep=100.0, step=0.0)
     _fill(history, np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]), 1.0)
-    moved = np.array([9.0, 9.0, 0.0])
-
-    def poor(xy, guess, prior):  # ICP would move it far, but agrees too little to be kept
-        return Alignment(moved, 0.2, 2, np.eye(3)), 0.2
-
-    _, prior, support, _ = _exact()
-    out = list(history.replay(np.zeros(3), np.array([1.0, 0.0, 0.0]), poor, prior, support, 0.5))
+    # ICP would move it far, but agrees too little to be kept
+    poor = _matcher(agreement=0.2, moved=np.array([9.0, 9.0, 0.0]))
+    out = list(history.replay(poor, np.zeros(3), np.array([1.0, 0.0, 0.0])))
     assert out[1].agreement == pytest.approx(0.2)
     expected = compose_many(invert_many([1.0, 0.0, 0.0]), np.zeros(3))
     assert np.allclose(out[1].pose, expected)  # dead reckoning, not the poor alignment

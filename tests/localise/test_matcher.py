@@ -45,7 +45,7 @@ def test_icp_pulls_a_shifted_guess_back_and_the_true_pose_is_admissible(matcher_
     aligned, agreement = matcher.align(xy, guess, np.zeros((3, 3)))
     assert np.hypot(*(aligned.pose[:2] - truth[:2])) < 0.03
     assert agreement > 0.9
-    assert matcher.admissible(truth, xy)
+    assert matcher.admits(matcher.support(truth, xy))
 
 
 def test_a_pose_that_sees_through_walls_is_not_admissible(matcher_and_scan) -> None:
@@ -53,4 +53,4 @@ def test_a_pose_that_sees_through_walls_is_not_admissible(matcher_and_scan) -> N
     turned = truth + np.array([0.0, 0.0, np.pi / 2])  # the beams end in free space / walls
     support = matcher.support(turned, xy)
     assert support.conflict > matcher.options.max_conflict
-    assert not matcher.admissible(turned, xy)
+    assert not matcher.admits(support)

@@ -21,7 +21,7 @@ hypothesis (10 by default), stopping at the first scan that does not fit.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +30,6 @@ from numpy.typing import NDArray
 from laser_corners.localise.freespace import Support
 from laser_corners.localise.matcher import MapMatcher
 from laser_corners.pose import between_many, compose_many
-from laser_corners.registration.align import Alignment
 
 __all__ = ["HISTORY_STEP", "PastScan", "Replayed", "SearchHistory"]
 
@@ -63,10 +62,6 @@ class Replayed:
     """Share of its points near a map point after ICP."""
     support: Support
     """Its free-space shares at :attr:`pose`."""
-
-
-Align = Callable[[NDArray, NDArray, NDArray], tuple[Alignment, float]]
-"""``(xy, guess, prior) -> (alignment, agreement)``: ICP of a scan against the map."""
 
 
 class SearchHistory:
@@ -103,47 +98,26 @@ class SearchHistory:
             scans.popleft()
 
     def replay(
-        self,
-        pose: NDArray,
-        odometry: NDArray,
-        align: Align,
-        prior: Callable[[NDArray], NDArray],
-        support: Callable[[NDArray, NDArray], Support],
-        accept: float,
-        before: int | None = None,
+        self, matcher: MapMatcher, pose: NDArray, odometry: NDArray, before: int | None = None
     ) -> Iterator[Replayed]:
         """The kept scans, newest first, chained back from ``pose`` (at ``odometry``).
 
-        Each is aligned to the map from the chained guess under the odometry ``prior`` of
-        the step; the aligned pose is kept when it agrees at least ``accept``, else the
-        guess (dead reckoning through what the map does not show). ``before``: only scans
-        with a smaller index (leaves out the current one).
+        Each is aligned to the map (``matcher``) from the chained guess under the odometry
+        prior of the step; the aligned pose is kept when it agrees at least
+        ``hypothesis_agreement``, else the guess (dead reckoning through what the map does not
+        show). ``before``: only scans with a smaller index (leaves out the current one).
         """
+        accept = matcher.options.hypothesis_agreement
         last = odometry
         for past in reversed(self._scans):
             if before is not None and past.index >= before:
                 continue
             delta = between_many(last, past.odometry)
             guess = compose_many(pose, delta)
-            aligned, agreement = align(past.xy, guess, prior(delta))
+            aligned, agreement = matcher.align(past.xy, guess, matcher.prior(delta, False))
             pose = aligned.pose if agreement >= accept else guess
-            yield Replayed(past, pose, float(agreement), support(pose, past.xy))
+            yield Replayed(past, pose, float(agreement), matcher.support(pose, past.xy))
             last = past.odometry
-
-    def against(
-        self, matcher: MapMatcher, pose: NDArray, odometry: NDArray, before: int | None = None
-    ) -> Iterator[Replayed]:
-        """:meth:`replay` against the saved map: ``matcher``'s ICP, odometry prior and
-        free-space support; an alignment is kept when it agrees ``hypothesis_agreement``."""
-        return self.replay(
-            pose,
-            odometry,
-            matcher.align,
-            lambda delta: matcher.prior(delta, False),
-            matcher.support,
-            matcher.options.hypothesis_agreement,
-            before,
-        )
 
     def fits(self, matcher: MapMatcher, pose: NDArray, odometry: NDArray) -> bool:
         """Whether the kept scans, chained back from ``pose``, never contradict the map's free
@@ -157,7 +131,7 @@ class SearchHistory:
         the building had changed)."""
         opt = matcher.options
         conflicts: list[float] = []
-        for past in self.against(matcher, pose, odometry):
+        for past in self.replay(matcher, pose, odometry):
             if past.support.outside > opt.max_outside:
                 break  # the robot came from outside the map: further back is dead reckoning
             conflicts.append(past.support.conflict)
@@ -173,17 +147,11 @@ class SearchHistory:
         """The kept scans before scan ``before`` that a hypothesis at ``pose`` explains,
         newest first: up to ``fix_travel`` back from the search's ``travel``, stopping at the
         first that agrees less than ``hypothesis_agreement`` or contradicts the map's free
-        space as a hypothesis may not (:meth:`MapMatcher.admissible`'s limits)."""
+        space as a hypothesis may not (:meth:`MapMatcher.admits`)."""
         opt = matcher.options
         out: list[Replayed] = []
-        for past in self.against(matcher, pose, odometry, before):
-            s = past.support
-            if (
-                past.agreement < opt.hypothesis_agreement
-                or s.conflict > opt.max_conflict
-                or s.loose > opt.max_loose_conflict
-                or s.outside > opt.max_outside
-            ):
+        for past in self.replay(matcher, pose, odometry, before):
+            if past.agreement < opt.hypothesis_agreement or not matcher.admits(past.support):
                 break
             out.append(past)
             if travel - past.scan.travel >= opt.fix_travel:

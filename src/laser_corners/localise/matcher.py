@@ -64,11 +64,10 @@ class MapMatcher:
         """Outside / conflict shares of the scan ``xy`` at ``pose`` (``localise.freespace``)."""
         return self.model.space.support(pose, xy, self.mount)
 
-    def admissible(self, pose: NDArray, xy: NDArray) -> bool:
-        """Whether the scan at ``pose`` neither contradicts the map's free space
-        (``max_conflict``, ``max_loose_conflict``) nor lies mostly outside the map
+    def admits(self, s: Support) -> bool:
+        """Whether a scan with the free-space support ``s`` neither contradicts the map's free
+        space (``max_conflict``, ``max_loose_conflict``) nor lies mostly outside the map
         (``max_outside``): what a hypothesis needs."""
-        s = self.support(pose, xy)
         opt = self.options
         return (
             s.conflict <= opt.max_conflict

@@ -227,14 +227,14 @@ class GlobalSearch:
             aligned, agreement = self.matcher.align(xy, guess, prior)
             if agreement < opt.hypothesis_agreement:
                 continue
-            if not self.matcher.admissible(aligned.pose, xy):
+            support = self.matcher.support(aligned.pose, xy)
+            if not self.matcher.admits(support):
                 self.counts["refused_free_space"] += 1
                 continue
             h = Hypothesis(aligned.pose, index)
             if self.window is None:
                 self._credit(h, odo, index)
-            agreement = self._agreement(xy, h.pose, agreement)
-            h.remember(agreement, self.matcher.support(h.pose, xy), opt.recent_scans)
+            h.remember(self._agreement(xy, h.pose, agreement), support, opt.recent_scans)
             fresh.append(h)
         self.hypotheses = merged(self.hypotheses + fresh, opt)
 
