@@ -21,6 +21,7 @@ __all__ = [
     "check_pose",
     "compose",
     "compose_many",
+    "distinct_poses",
     "invert",
     "invert_many",
     "pose_error",
@@ -129,6 +130,28 @@ def poses_apart(a: ArrayLike, b: ArrayLike, xy: float, yaw: float) -> bool:
     """
     dyaw = abs((a[2] - b[2] + math.pi) % (2 * math.pi) - math.pi)
     return bool(math.hypot(a[0] - b[0], a[1] - b[1]) >= xy or dyaw >= yaw)
+
+
+def distinct_poses(
+    poses: ArrayLike, order: ArrayLike, count: int, xy: float, yaw: float
+) -> list[int]:
+    """The best distinct answers of a search: going through ``poses`` (N, 3) in ``order``
+    (best first), the indices of those :func:`poses_apart` from every one taken before, at
+    most ``count``.
+
+    Examples
+    --------
+    >>> distinct_poses([(0, 0, 0), (0.5, 0, 0), (2, 0, 0)], [0, 1, 2], 5, 1.0, 0.3)
+    [0, 2]
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    chosen: list[int] = []
+    for i in np.asarray(order, dtype=np.int64):
+        if all(poses_apart(poses[i], poses[j], xy, yaw) for j in chosen):
+            chosen.append(int(i))
+            if len(chosen) == count:
+                break
+    return chosen
 
 
 def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from laser_corners.localise.freespace import FreeSpace
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.pose import poses_apart
+from laser_corners.pose import distinct_poses
 from laser_corners.registration.align import PointMap
 from laser_corners.registration.correlative import ScoreGrid
 from laser_corners.slam.mapfile import SavedMap
@@ -197,14 +197,9 @@ class MapModel:
     ) -> list[tuple[NDArray[np.float64], float]]:
         """The ``count`` best (position, heading) poses, at least ``apart`` (m, rad) apart."""
         best, arg = self._score(points, positions, yaws)
-        chosen: list[tuple[NDArray[np.float64], float]] = []
-        for p in np.argsort(-best):
-            pose = np.array([*positions[p], yaws[arg[p]]])
-            if all(poses_apart(pose, q, *apart) for q, _ in chosen):
-                chosen.append((pose, float(best[p])))
-                if len(chosen) == count:
-                    break
-        return chosen
+        poses = np.column_stack([positions, yaws[arg]])
+        chosen = distinct_poses(poses, np.argsort(-best), count, *apart)
+        return [(poses[p], float(best[p])) for p in chosen]
 
 
 def _disc(radius: float, step: float) -> NDArray[np.float64]:

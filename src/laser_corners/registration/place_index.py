@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from pydantic import Field
 
 from laser_corners.options import Options
-from laser_corners.pose import between_many, compose_many, invert_many, poses_apart
+from laser_corners.pose import between_many, compose_many, distinct_poses, invert_many
 from laser_corners.registration.corner_grid import CornerGrid
 from laser_corners.registration.corners import (
     Corners,
@@ -247,13 +247,9 @@ class PlaceIndex:
 def _distinct(poses: NDArray, votes: NDArray, opt: PlaceOptions) -> list[Candidate]:
     """The best-voted poses at least 1 m or 0.3 rad apart, at most ``opt.checked``."""
     order = np.argsort(-votes, kind="stable")
-    chosen: list[Candidate] = []
-    for i in order:
-        if votes[i] < opt.min_votes or len(chosen) == opt.checked:
-            break
-        if all(poses_apart(poses[i], c.pose, 1.0, 0.3) for c in chosen):
-            chosen.append(Candidate(poses[i].copy(), int(votes[i])))
-    return chosen
+    order = order[votes[order] >= opt.min_votes]
+    chosen = distinct_poses(poses, order, opt.checked, 1.0, 0.3)
+    return [Candidate(poses[i].copy(), int(votes[i])) for i in chosen]
 
 
 def dense_check(

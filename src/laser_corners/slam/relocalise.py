@@ -42,7 +42,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.pose import compose, compose_many, invert, poses_apart, relative_pose
+from laser_corners.pose import (
+    compose,
+    compose_many,
+    distinct_poses,
+    invert,
+    poses_apart,
+    relative_pose,
+)
 from laser_corners.registration.align import PointMap, match_share
 from laser_corners.registration.correlative import ScoreGrid, search
 from laser_corners.registration.place_index import PlaceIndex, dense_check
@@ -152,14 +159,11 @@ class OldMap:
             )
             for c in self.centres
         ]
-        found.sort(key=lambda item: -item[0])
-        chosen: list[tuple[float, NDArray[np.float64]]] = []
-        for score, pose in found:
-            if all(poses_apart(pose, q, DISTINCT_XY, DISTINCT_YAW) for _, q in chosen):
-                chosen.append((score, pose))
-            if len(chosen) == CANDIDATES:
-                break
-        return chosen
+        order = sorted(range(len(found)), key=lambda i: -found[i][0])
+        poses = [pose for _, pose in found]
+        return [
+            found[i] for i in distinct_poses(poses, order, CANDIDATES, DISTINCT_XY, DISTINCT_YAW)
+        ]
 
 
 OCCUPANCY_CELL = 0.05
