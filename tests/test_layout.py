@@ -22,6 +22,8 @@ SRC = ROOT / "src" / "laser_corners"
 TESTS = ROOT / "tests"
 MIN_MIRRORED = 0.60
 MAX_CLASS_LINES = 250
+
+
 def modules_with_logic(src: Path = SRC) -> list[Path]:
     """Modules below ``src`` (relative paths) that define a function or a class."""
     found = []
