@@ -53,3 +53,20 @@ def test_local_map_moves_each_keyframes_points_to_its_estimate() -> None:
     assert len(whole) == 6  # n beyond the keyframes: all of them
     span, _ = store.span_map(0, 1)
     np.testing.assert_allclose(span.xy, [[1.0, 0.0], [2.0, 0.0]])
+
+
+def test_a_frozen_maps_keyframes_near_the_pose_join_the_local_map() -> None:
+    # keyframes 0 and 1 are a prior map's (at x = 0 and 5), 2 and 3 the session's (x = 30, 31)
+    store = store_of([(0.0, 0.0, 0.0), (5.0, 0.0, 0.0), (30.0, 0.0, 0.0), (31.0, 0.0, 0.0)])
+    store.first = 2
+    _, every = store.local_map(5)
+    assert len(every) == 6  # the session's keyframes only
+    _, every = store.local_map(5, around=np.array([4.0, 0.0, 0.0]), reach=10.0)
+    assert len(every) == 12  # both of the map's, within 10 m
+    _, every = store.local_map(5, around=np.array([100.0, 0.0, 0.0]), reach=10.0)
+    assert len(every) == 6  # none of the map's near
+    # the n nearest of the map's: keyframe 1 (its point (1, 0) lands at x = 6), not 0
+    _, every = store.local_map(1, around=np.array([4.0, 0.0, 0.0]), reach=10.0)
+    assert len(every) == 6
+    assert np.any(np.all(np.isclose(every.xy, [6.0, 0.0]), axis=1))
+    assert not np.any(np.all(np.isclose(every.xy, [1.0, 0.0]), axis=1))

@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from laser_corners.localise.engine import EngineTrack
 from laser_corners.localise.estimate import Fix, LocaliserEstimate
 from laser_corners.localise.hypotheses import Hypothesis
 from laser_corners.localise.local import LocalMap
@@ -147,6 +148,10 @@ class Localiser:
         self.tracker = Tracker(matcher, self.local, self.counts)
         self.search = GlobalSearch(matcher, places, self.local, self.counts)
         self.state = State.GLOBAL
+        self.engine: EngineTrack | None = None
+        """The engine giving the online poses (``engine``; None for a ``map_server`` map)."""
+        if self.options.engine and saved.virtual_scans is None:
+            self.engine = EngineTrack(saved, self.options, self.mount, self.counts)
         self._last_odom: NDArray | None = None
         self._last_stamp = -math.inf
 
@@ -187,6 +192,8 @@ class Localiser:
         self.tracker.start(np.asarray(pose, dtype=np.float64), cov)
         self.search.stop()
         self.state = State.TRACKING
+        if self.engine is not None:
+            self.engine.place(self.tracker.pose, self.tracker.covariance)
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -212,16 +219,48 @@ class Localiser:
         pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
         index = self.counts["scans"]
         self.counts["scans"] += 1
+        if self.engine is not None:
+            if jump:  # the odometry or the stamps jumped: the engine's segment ends here
+                self.engine.cut()
+            self.engine.add(scan, odo, float(stamp))
         if self.state is State.TRACKING:
             estimate = self.tracker.step(pts, delta, jump, odo, index, float(stamp))
+            if estimate is None and self._engine_holds(pts.xy):
+                assert self.engine is not None
+                estimate = self.engine.alone(odo, index, float(stamp))
+                self.tracker.follow(self.engine.pose)
             if self.tracker.lost:
                 self._lose(index)
         else:
             estimate = self._search(scan, pts, delta, jump, odo, index, float(stamp))
+        if self.engine is not None and estimate is not None:
+            estimate = self._engine(odo, estimate)
         self.ms_per_scan.append((time.perf_counter() - start) * 1e3)
         if estimate is not None:
             self.counts["estimates"] += 1
         return estimate
+
+    def _engine_holds(self, xy: NDArray) -> bool:
+        """Whether the engine holds a scan the map gave no estimate for (:meth:`.EngineTrack.holds`)
+        and the scan, at the engine's pose, does not contradict the map's free space (a kidnap
+        to a look-alike place inside the map does; driving out of the map does not)."""
+        if self.engine is None or not self.engine.holds():
+            return False
+        support = self.tracker.matcher.support(self.engine.pose, xy)
+        return support.conflict <= self.options.track_conflict and not self.engine.jumped
+
+    def _engine(self, odo: NDArray, estimate: LocaliserEstimate) -> LocaliserEstimate:
+        """This scan's estimate with the engine's pose (:mod:`.engine`); where the tracker,
+        anchored in the map, disagrees (a fix, or the engine went astray), the tracker's
+        pose, and the engine is placed there from the next scan on."""
+        assert self.engine is not None
+        if estimate.status == "local":  # mostly unmapped: the engine's own
+            return self.engine.estimate(estimate, odo)
+        if self.engine.disagrees(estimate.pose):
+            self.counts["engine_replaced"] += estimate.status == "tracking"
+            self.engine.place(estimate.pose, self.tracker.covariance)
+            return estimate
+        return self.engine.estimate(estimate, odo)
 
     def _lose(self, index: int) -> None:
         """Drop the fix: back to the search, with the predicted pose as the first hypothesis.
@@ -233,6 +272,8 @@ class Localiser:
         window = None if recent_jump else Window.from_covariance(pose, covariance)
         self.search.restart(pose, index, window)
         self.state = State.LOST
+        if self.engine is not None and recent_jump:
+            self.engine.cut()
         self.counts["lost"] += 1
 
     def _search(

@@ -154,6 +154,18 @@ class LocaliseOptions(Options):
     """Odometry travel (m) without any estimate (no fix, no accepted initial pose) after which
     :func:`~laser_corners.localise.run_localise` stops with "never found itself in this map"
     (a recording of another place); 0: never give up."""
+    engine: bool = True
+    """The online estimates come from the engine (:class:`~laser_corners.slam.Slam` in its
+    frozen-map mode, ``localise.engine``): it tracks every scan against the map's keyframes
+    near the pose and its own recent ones, closes loops into the map, and is placed by the
+    fixes of the global search; the tracker here decides when there is an estimate and
+    re-places the engine where the two disagree by more than ``engine_gate``. Off: the
+    tracker's own poses (and for a ``map_server`` map, which has no keyframe scans)."""
+    engine_gate_xy: float = Field(0.3, ge=0.0, le=100.0)
+    """The engine is re-placed at the tracker's pose when they differ by more than this (m)
+    on a scan the map explains ("tracking")..."""
+    engine_gate_yaw: float = Field(0.05, ge=0.0, le=3.2)
+    """... or by more than this (rad)."""
     smooth: bool = True
     """:func:`~laser_corners.localise.run_localise` also runs the SLAM front end over the
     scans and places every scan (before the first fix too) in one pose graph: the localiser's

@@ -112,6 +112,12 @@ class Tracker:
         self.conflicts.clear()
         self.local.clear()
 
+    def follow(self, pose: NDArray) -> None:
+        """The scan gave no estimate here, but ``pose`` holds it (the engine, where the map
+        does not explain the scan): track on from there, the failure not counted."""
+        self.pose = np.asarray(pose, dtype=np.float64).reshape(3).copy()
+        self.failed = 0
+
     def stop(self) -> NDArray[np.float64]:
         """Drop the track; its last (predicted) pose."""
         assert self.pose is not None

@@ -152,16 +152,19 @@ class Keyframer:
         aligned: bool,
         kp: Keypoints | None,
         cov: NDArray,
+        placed: tuple[float, float, float] | None = None,
     ) -> tuple[int, float]:
         """Keyframe ``k`` from scan number ``index`` (``scan``, its points ``pts``, odometry
         ``odo``) at its tracked ``pose``; the last keyframe was at ``anchor``. ``cut``: it
         starts a new segment; ``aligned``: every scan since the last keyframe aligned;
         ``kp``: its keypoints, when detected already; ``cov``: the last keyframe's marginal
-        (the landmark observations' pose noise). Returns ``k`` and the distance (m) from the
-        last keyframe."""
+        (the landmark observations' pose noise); ``placed``: the standard deviations of a
+        prior at ``pose`` (a fix given by the caller, :meth:`.Slam.place`: it starts a new
+        segment there). Returns ``k`` and the distance (m) from the last keyframe."""
         start = len(self.store) == self.store.first
-        sigmas = None
-        if start and self.store.first:  # a session's first keyframe on a prior map
+        sigmas = placed
+        cut = cut or placed is not None
+        if start and self.store.first and placed is None:  # a session's first on a prior map
             sigmas = LOST_SIGMAS if cut else self.start_sigmas
         k = self.backend.add_keyframe(pose, prior=cut, sigmas=sigmas)
         dist = 0.0

@@ -67,19 +67,35 @@ class KeyframeStore:
         """Travelled distance (m) at each keyframe."""
         return np.asarray(self.travelled, dtype=np.float64)
 
-    def local_map(self, n: int) -> tuple[PointMap, PointMap]:
+    def local_map(
+        self, n: int, around: NDArray[np.float64] | None = None, reach: float = 0.0
+    ) -> tuple[PointMap, PointMap]:
         """The last ``n`` keyframes at their estimates: line points with normals (for ICP)
-        and every point (for the overlap); of this session's keyframes only (:attr:`first`)."""
-        return self.span_map(max(self.first, len(self.points) - n), len(self.points))
+        and every point (for the overlap); of this session's keyframes only (:attr:`first`).
+        ``around``: a pose in the map frame; the prior map's keyframes within ``reach`` (m)
+        of it join them, the ``n`` nearest (a run localising in a frozen map tracks against
+        the map where it is, and against its own keyframes where the map is not)."""
+        chosen = np.arange(max(self.first, len(self.points) - n), len(self.points))
+        if around is not None and self.first:
+            prior = self.estimate[: self.first, :2]
+            dist = np.hypot(*(prior - np.asarray(around)[:2]).T)
+            near = np.flatnonzero(dist <= reach)
+            near = near[np.argsort(dist[near], kind="stable")[:n]]
+            chosen = np.r_[np.sort(near), chosen]
+        return self.points_map(chosen)
 
     def span_map(self, first: int, stop: int) -> tuple[PointMap, PointMap]:
         """Keyframes ``first`` to ``stop`` (excluded) at their estimates, as
         :meth:`local_map`."""
-        chosen = self.points[first:stop]
-        xy = np.concatenate([p.xy for p in chosen])
-        normals = np.concatenate([p.normals for p in chosen])
-        line = np.concatenate([p.has_normal for p in chosen])
-        owner = np.repeat(np.arange(first, first + len(chosen)), [len(p.xy) for p in chosen])
+        return self.points_map(np.arange(first, stop))
+
+    def points_map(self, chosen: NDArray[np.int64]) -> tuple[PointMap, PointMap]:
+        """The keyframes ``chosen`` at their estimates, as :meth:`local_map`."""
+        parts = [self.points[k] for k in chosen]
+        xy = np.concatenate([p.xy for p in parts])
+        normals = np.concatenate([p.normals for p in parts])
+        line = np.concatenate([p.has_normal for p in parts])
+        owner = np.repeat(chosen, [len(p.xy) for p in parts])
         pose = self.estimate[owner]
         c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
         moved = np.column_stack(

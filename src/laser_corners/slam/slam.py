@@ -41,6 +41,9 @@ from laser_corners.slam.tracking import Tracking
 
 __all__ = ["Slam"]
 
+FROZEN_REACH = 10.0
+"""A run localising in a frozen map (``frozen``) tracks against the map's keyframes within
+this distance (m) of its pose, besides its own recent keyframes."""
 FULL_ESTIMATE_EVERY = 50
 """Every this many keyframes (and after every loop closure) all keyframe estimates are read
 back from iSAM2; in between only the recent ones."""
@@ -64,6 +67,13 @@ class Slam:
     initial_pose : array_like, optional
         With ``prior_map``: the base pose ``(x, y, yaw)`` of the first scan in the map's frame
         (default: none, a global search of the map).
+    frozen : bool
+        With ``prior_map``: localisation, the engine's other mode. The map is a frozen
+        reference (held by its priors, never written): the scans are tracked against its
+        keyframes near the pose as well as the run's own recent ones, loop closures join the
+        run's keyframes to it, and the run's segments are placed by the caller
+        (:meth:`place`, a fix of the localiser's global search; :meth:`cut` after a lost
+        track), not by the engine's own relocalisation (``relocalisation`` is not used).
 
     Attributes
     ----------
@@ -85,8 +95,13 @@ class Slam:
         backend: Backend | None = None,
         prior_map: SavedMap | None = None,
         initial_pose: ArrayLike | None = None,
+        frozen: bool = False,
     ) -> None:
-        self.options = opt = options or SlamOptions()
+        opt = options or SlamOptions()
+        self.frozen = frozen and prior_map is not None
+        if self.frozen and opt.relocalisation:
+            opt = opt.model_copy(update={"relocalisation": False})
+        self.options = opt
         chosen = opt.mount if opt.mount is not None else mount
         self.mount = np.asarray(chosen, dtype=np.float64).reshape(3)
         self.backend = backend if backend is not None else Backend()
@@ -115,6 +130,28 @@ class Slam:
         self._last_stamp = -np.inf
         self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
         self._cov = np.diag([1e-6, 1e-6, 1e-8])  # the last keyframe's marginal
+        self._place: tuple[NDArray, tuple[float, float, float]] | None = None  # place() next
+        self._cut = False  # cut() asked for the next scan
+
+    # ------------------------------------------------------------------ placing (frozen)
+    def place(self, pose: ArrayLike, sigmas: tuple[float, float, float]) -> None:
+        """The last scan's base pose (or, before the first scan, the first's) is ``pose``
+        (map frame) with these standard deviations (m, m, rad): the next scan, placed by the
+        odometry step from it, becomes a keyframe starting a new segment there under that
+        prior (a fix of a localiser searching the map; loop closures then join the segment
+        to the map)."""
+        self._place = (np.asarray(pose, dtype=np.float64).reshape(3).copy(), sigmas)
+
+    def cut(self) -> None:
+        """The next scan starts a new segment, not placed in the map (a localiser lost its
+        track: until :meth:`place`, loop closure keeps to the segment's own keyframes)."""
+        self._cut = True
+
+    @property
+    def placed(self) -> bool:
+        """Whether the current segment is placed in the map's frame (always, without a prior
+        map; with one, after a fix: an initial pose, a relocalisation or :meth:`place`)."""
+        return self.closing.unplaced is None
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -134,9 +171,18 @@ class Slam:
         odo = np.asarray(odometry_pose, dtype=np.float64).reshape(3)
         pts = scan_points(scan, self.mount, opt.min_range, opt.max_range, opt.point_spacing)
         kp = self.keyframer.keypoints(scan) if tracking.corners is not None else None
-        if self.pose is None:
-            self.pose = odo.copy() if self._start is None else self._start.copy()
-            self._keyframe(scan, pts, odo, stamp, kp, first=True)
+        if self.pose is None or self._place is not None or self._cut:
+            first, placed = self.pose is None, self._place
+            self._place, self._cut = None, False
+            step = np.zeros(3) if first else np.array(relative_pose(self._last_odom, odo))
+            if placed is not None:
+                self.pose = np.array(compose(placed[0], step))
+            elif first:
+                self.pose = odo.copy() if self._start is None else self._start.copy()
+            else:
+                self.pose = np.array(compose(self.pose, step))
+            self._step = np.zeros(3)
+            self._keyframe(scan, pts, odo, stamp, kp, first=first, placed=placed, cut=not first)
         else:
             jump = abs(stamp - self._last_stamp) > opt.time_jump
             delta = np.array(relative_pose(self._last_odom, odo))
@@ -175,14 +221,17 @@ class Slam:
         stamp: float,
         kp: Keypoints | None,
         first: bool = False,
+        placed: tuple[NDArray, tuple[float, float, float]] | None = None,
+        cut: bool = False,
     ) -> None:
         """The scan at the tracked pose becomes keyframe ``k``: into the graph, loop closure
-        and relocalisation, an iSAM2 update, the new local map."""
+        and relocalisation, an iSAM2 update, the new local map. ``placed``: a pose and its
+        prior's sigmas (:meth:`place`); ``cut``: a new segment (:meth:`cut`)."""
         opt, tracking = self.options, self.tracking
         assert self.pose is not None
         # a gap the alignment did not bridge, or a scan that fit nothing: a new segment; on a
         # prior map without an initial pose, the session starts lost
-        cut = (tracking.jumped or tracking.lost) and not tracking.aligned and not first
+        cut = cut or ((tracking.jumped or tracking.lost) and not tracking.aligned and not first)
         cut = cut or (first and self.kf.first > 0 and self._start is None)
         k, dist = self.keyframer.add(
             scan,
@@ -196,9 +245,12 @@ class Slam:
             aligned=tracking.aligned,
             kp=kp,
             cov=self._cov,
+            placed=None if placed is None else placed[1],
         )
-        if cut:
-            self.closing.lost_from(k, unplaced=first)
+        if placed is not None:
+            self.closing.unplaced = None
+        elif cut:
+            self.closing.lost_from(k, unplaced=first or self.frozen)
         self.closing.travelled(dist)
         closed, relocalised = self.closing.keyframe(k, self.kf, self.pose, k == 0)
         full = closed or relocalised or k % FULL_ESTIMATE_EVERY == 0
@@ -214,7 +266,8 @@ class Slam:
             self.landmarks.refresh()
         self.pose = estimate[k].copy()
         self._anchor = self.pose.copy()
-        tracking.new_local_map(*self.kf.local_map(opt.local_map_keyframes))
+        around = self.pose if self.frozen and self.placed else None
+        tracking.new_local_map(*self.kf.local_map(opt.local_map_keyframes, around, FROZEN_REACH))
         self.counts.keyframes = len(self.kf)
         self._cov = self.backend.covariance(k)
 

@@ -111,6 +111,8 @@ class Tracking:
         self._occupied: NDArray[np.int64] | None = None  # cells of local_all
         self._usual_share = 1.0  # recent scans' share on the local map (_rescue)
         self.aligned, self.jumped, self.lost = True, False, False
+        self.scan_aligned = True
+        """Whether the last scan aligned (:attr:`aligned`: every scan since the keyframe)."""
 
     def new_local_map(self, local: PointMap, local_all: PointMap) -> None:
         """A keyframe was made: track against ``local`` (line points with normals) and
@@ -155,6 +157,7 @@ class Tracking:
         the odometry looks wrong (:meth:`_second_guess`), then a correlative search around
         the prediction when the scan still does not fit (:meth:`_rescue`)."""
         opt, xy = self.options, pts.xy
+        self.scan_aligned = True
         if jump:
             self.counts.time_jumps += 1
             self.jumped = True
@@ -251,7 +254,7 @@ class Tracking:
         """Count a failed alignment and keep the prediction (the keyframe link gets the
         odometry's noise)."""
         self.counts.alignment_failures += 1
-        self.aligned = False
+        self.aligned = self.scan_aligned = False
         return pred
 
     def _icp(self, xy: NDArray, guess: NDArray, prior: NDArray) -> Alignment:

@@ -1,0 +1,142 @@
+"""Localisation as the engine's other mode: :class:`EngineTrack`.
+
+The SLAM engine (:class:`~laser_corners.slam.Slam`) runs on the localiser's scans with the map
+as its frozen prior (``frozen=True``): it tracks each scan against the map's keyframes near
+its pose and its own recent keyframes, makes keyframes, closes loops into the map and
+optimises; its pose is the online estimate. The localiser places it: at every fix of the
+global search (:meth:`EngineTrack.place`), after a lost track (:meth:`EngineTrack.cut`: a new
+segment, unplaced), and wherever the tracker, anchored in the map, disagrees with it by more
+than the gate (``engine_gate_xy`` / ``engine_gate_yaw``; counted ``engine_replaced``).
+
+Cost per scan: the engine's front end (an ICP against a local map of a bounded number of
+keyframes) and, per keyframe, an iSAM2 update and a loop-closure check; it does not grow with
+the map except through iSAM2's update (the prior map's keyframes are held by priors).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from laser_corners.localise.estimate import LocaliserEstimate
+from laser_corners.localise.options import LocaliseOptions
+from laser_corners.pose import between_many, compose_many, invert_many
+from laser_corners.scan import LaserScan
+from laser_corners.slam.mapfile import SavedMap
+from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.slam import Slam
+
+__all__ = ["EngineTrack", "engine_options"]
+
+SHARED = ("min_range", "max_range", "odometry_sigma_xy", "odometry_sigma_yaw", "time_jump")
+"""Options the engine takes from the localiser's (facts of the scanner and the odometry);
+the rest are the SLAM's defaults, which track and close loops as the map was made."""
+
+
+def engine_options(options: LocaliseOptions) -> SlamOptions:
+    """The engine's options for a localiser with ``options`` (see :data:`SHARED`)."""
+    return SlamOptions(
+        relocalisation=False,
+        mount=options.mount,
+        **{name: getattr(options, name) for name in SHARED},
+    )
+
+
+def _sigmas(covariance: NDArray[np.float64]) -> tuple[float, float, float]:
+    """Standard deviations (x, y, yaw) of a pose covariance (its diagonal, bounded below)."""
+    d = np.sqrt(np.maximum(np.diag(covariance), 1e-8))
+    return (max(float(d[0]), 0.01), max(float(d[1]), 0.01), max(float(d[2]), 0.002))
+
+
+class EngineTrack:
+    """The engine under a localiser (see the module notes).
+
+    Parameters
+    ----------
+    saved : SavedMap
+        The map (a map folder: its keyframes' points become the engine's frozen prior).
+    options : LocaliseOptions
+    mount : ndarray, shape (3,)
+    counts : dict
+        The localiser's counters (``engine_replaced`` is added).
+    """
+
+    def __init__(
+        self, saved: SavedMap, options: LocaliseOptions, mount: NDArray, counts: dict
+    ) -> None:
+        self.options = options
+        self.slam = Slam(engine_options(options), mount, prior_map=saved, frozen=True)
+        self.counts = counts
+        counts.setdefault("engine_replaced", 0)
+        self.pose: NDArray[np.float64] | None = None
+        self.covariance: NDArray[np.float64] | None = None
+        self.confirmed = False
+        """Whether the map confirmed the engine since it was last placed (a scan the tracker
+        anchored in the map, within the gate): only then does it hold the pose alone."""
+
+    def place(self, pose: NDArray, covariance: NDArray) -> None:
+        """The scan about to be added is at ``pose`` (a fix, or the tracker where the engine
+        disagrees): a new segment starts there."""
+        self.slam.place(pose, _sigmas(covariance))
+        self.confirmed = False
+
+    def cut(self) -> None:
+        """The localiser lost its track: a new, unplaced segment from the next scan."""
+        self.slam.cut()
+
+    def add(self, scan: LaserScan, odometry: NDArray, stamp: float) -> None:
+        """One scan: the engine's pose and covariance (:attr:`pose`, :attr:`covariance`)."""
+        self.pose, self.covariance = self.slam.add(scan, odometry, stamp)
+
+    def disagrees(self, pose: NDArray) -> bool:
+        """Whether the engine, placed, is farther than the gate from ``pose`` (or unplaced);
+        agreeing with a pose anchored in the map confirms it."""
+        if not self.slam.placed or self.pose is None:
+            return True
+        d = between_many(pose, self.pose)
+        opt = self.options
+        far = math.hypot(d[0], d[1]) > opt.engine_gate_xy or abs(d[2]) > opt.engine_gate_yaw
+        self.confirmed |= not far
+        return bool(far)
+
+    @property
+    def jumped(self) -> bool:
+        """Whether the stamps jumped since the engine's last keyframe."""
+        return bool(self.slam.tracking.jumped)
+
+    def holds(self) -> bool:
+        """Whether the engine alone may give this scan's pose: placed, confirmed by the map
+        since, and the scan aligned to its keyframes."""
+        return self.slam.placed and self.confirmed and self.slam.tracking.scan_aligned
+
+    def alone(self, odometry: NDArray, index: int, stamp: float) -> LocaliserEstimate | None:
+        """The engine's estimate of scan ``index`` where the map gives none (``"local"``: the
+        scan is placed by the engine's own keyframes), None while it is not placed."""
+        if not self.slam.placed or self.pose is None or self.covariance is None:
+            return None
+        return LocaliserEstimate(
+            pose=self.pose.copy(),
+            covariance=self.covariance,
+            status="local",
+            map_to_odom=compose_many(self.pose, invert_many(odometry)),
+            scan_index=index,
+            stamp=stamp,
+        )
+
+    def estimate(self, tracked: LocaliserEstimate, odometry: NDArray) -> LocaliserEstimate:
+        """The tracker's estimate of this scan with the engine's pose and covariance (once the
+        map confirmed the engine; before, the tracker's own)."""
+        if not (self.slam.placed and self.confirmed) or self.pose is None:
+            return tracked
+        assert self.covariance is not None
+        return LocaliserEstimate(
+            pose=self.pose.copy(),
+            covariance=self.covariance,
+            status=tracked.status,
+            map_to_odom=compose_many(self.pose, invert_many(odometry)),
+            scan_index=tracked.scan_index,
+            stamp=tracked.stamp,
+            agreement=tracked.agreement,
+        )

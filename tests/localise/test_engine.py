@@ -1,0 +1,99 @@
+"""Localisation as the engine's other mode (:mod:`laser_corners.localise.engine`): the SLAM
+engine on the frozen map gives the online poses, placed by the localiser's fixes; it holds the
+pose where the map has nothing, never where the scan contradicts the map."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_localiser import (
+    BUILDING_PATH,
+    RATE,
+    building,
+    errors,
+    loop_path,
+    map_folder,
+    noisy_odometry,
+    scans_along,
+)
+
+from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.pose import between_many
+from laser_corners.slam import Slam, SlamOptions
+from laser_corners.slam.mapfile import load_map
+
+
+@pytest.fixture(scope="module")
+def engine_map(tmp_path_factory) -> tuple:
+    truth = loop_path(BUILDING_PATH)
+    return map_folder(tmp_path_factory.mktemp("map"), building(), truth), truth
+
+
+def test_the_engine_gives_the_tracked_estimates(engine_map) -> None:
+    folder, truth = engine_map
+    loc = Localiser(folder)
+    assert loc.engine is not None and loc.engine.slam.frozen
+    loc.set_pose(truth[0])
+    odo = noisy_odometry(truth, 11)
+    estimates = []
+    for i, (s, o) in enumerate(zip(scans_along(building(), truth, 11), odo, strict=True)):
+        estimates.append(loc.add(s, o, i / RATE))
+    assert loc.engine.confirmed and loc.counts["engine_replaced"] == 0
+    last = estimates[-1]
+    assert last is not None
+    np.testing.assert_allclose(last.pose, loc.engine.pose)  # the engine's pose, not the tracker's
+    d, yaw = errors(estimates, truth)
+    assert len(d) >= 0.98 * len(truth)
+    assert np.mean(d) < 0.03 and d.max() < 0.1 and yaw.max() < math.radians(1.5)
+    # off: the tracker's poses, as before the engine
+    assert Localiser(folder, LocaliseOptions(engine=False)).engine is None
+
+
+def test_a_placed_engine_starts_a_segment_at_the_given_pose(engine_map) -> None:
+    folder, truth = engine_map
+    slam = Slam(SlamOptions(), prior_map=load_map(folder), frozen=True)
+    assert not slam.options.relocalisation  # the localiser places it, not its own search
+    odo = noisy_odometry(truth, 12)
+    scans = scans_along(building(), truth, 12)
+    for i in range(5):
+        slam.add(scans[i], odo[i], i / RATE)
+    assert not slam.placed  # no fix yet: the session's frame is the odometry's
+    slam.place(truth[4], (0.05, 0.05, 0.02))
+    pose, _ = slam.add(scans[5], odo[5], 0.5)
+    assert slam.placed
+    d = between_many(truth[5], pose)
+    assert math.hypot(d[0], d[1]) < 0.05 and abs(d[2]) < 0.02
+    for i in range(6, 60):
+        pose, _ = slam.add(scans[i], odo[i], i / RATE)
+    d = between_many(truth[59], pose)
+    assert math.hypot(d[0], d[1]) < 0.1  # tracked against the map from there
+    slam.cut()
+    slam.add(scans[60], odo[60], 6.0)
+    assert not slam.placed  # a new segment, unplaced until the next place()
+
+
+def test_the_engine_holds_a_pose_only_once_the_map_confirmed_it(engine_map) -> None:
+    # a wrong initial pose places the engine too: until a scan the map explains agrees with
+    # it, it may not hold a scan the map gives no estimate for (tests/localise/
+    # test_localiser.py: the wrong pose is replaced, no wrong estimate meanwhile)
+    folder, truth = engine_map
+    loc = Localiser(folder)
+    engine = loc.engine
+    assert engine is not None
+    scans, odo = scans_along(building(), truth, 14), noisy_odometry(truth, 14)
+    engine.place(truth[0], np.diag([0.05, 0.05, 0.02]) ** 2)
+    engine.add(scans[1], odo[1], 0.1)
+    assert engine.slam.placed and not engine.confirmed and not engine.holds()
+    assert engine.disagrees(truth[1] + np.array([0.5, 0.0, 0.0]))  # beyond the gate: no
+    assert not engine.confirmed
+    assert not engine.disagrees(truth[1] + np.array([0.05, 0.0, 0.01]))  # within: confirmed
+    assert engine.confirmed and engine.holds()
+    alone = engine.alone(odo[1], 1, 0.1)
+    assert alone is not None and alone.status == "local"
+    engine.cut()  # a lost track after a jump: a new segment, unplaced
+    engine.add(scans[2], odo[2], 0.2)
+    assert not engine.holds() and engine.alone(odo[2], 2, 0.2) is None
+    engine.place(truth[2], np.diag([0.05, 0.05, 0.02]) ** 2)
+    assert not engine.confirmed  # placed again: confirmed again by the map first
