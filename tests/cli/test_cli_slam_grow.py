@@ -72,8 +72,10 @@ def test_slam_map_grows_the_old_map_into_a_new_one(sessions, tmp_path) -> None:
     summary = json.loads((new / "summary.json").read_text())
     counts = summary["counts"]
     assert counts["prior_keyframes"] == n_old and counts["grow_unjoined"] == 0
+    assert summary["prior_map"] == {"folder": str(old), "keyframes": n_old}
     assert len(grown) == counts["keyframes"] > n_old
-    np.testing.assert_allclose(grown.poses[:n_old], load_map(old).poses, atol=0.02)
+    # OLD's keyframes bent by the new closures (OLD's own graph, not fixed), not moved away
+    np.testing.assert_allclose(grown.poses[:n_old], load_map(old).poses, atol=0.1)
     # the second session's trajectory, in the map's frame (the truth's)
     stamps, poses = read_tum(new / "trajectory.tum")
     truth = legs(SESSION_2)[5:]
@@ -96,7 +98,9 @@ def test_an_initial_pose_places_the_first_scan(sessions, tmp_path) -> None:
     )
     assert result.exit_code == 0, result.output
     counts = json.loads((new / "summary.json").read_text())["counts"]
-    assert counts["relocalisations_attempted"] == 0 and counts["grow_unjoined"] == 0
+    # placed from the first scan: a relocalisation only after the tracking lost a scan
+    assert counts["relocalisations_attempted"] == 0 or counts["alignment_failures"] >= 1
+    assert counts["grow_unjoined"] == 0
     _, poses = read_tum(new / "trajectory.tum")
     assert np.hypot(*(poses[:, :2] - truth[:, :2]).T).max() < 0.15
 

@@ -50,9 +50,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.errors import InputError, InvalidParamsError
+from laser_corners.errors import InputError, InvalidParamsError, first_line
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.registration.graph import require_gtsam
 from laser_corners.registration.place_index import (
     PlaceIndex,
     PlaceOptions,
@@ -65,18 +66,32 @@ from laser_corners.scan import LaserScan
 from laser_corners.slam.gridmap import virtual_keyframes
 from laser_corners.slam.options import SlamOptions
 
+try:
+    import gtsam
+except ImportError:  # pragma: no cover - the "slam" extra is missing
+    gtsam = None
+
 __all__ = [
     "FORMAT_VERSION",
+    "GRAPH_FILE",
     "KEYFRAMES_FILE",
+    "PoseGraph",
     "SavedMap",
     "load_map",
     "map_options",
+    "read_pose_graph",
     "save_map_data",
 ]
 
 FORMAT_VERSION = 1
 """Version of ``keyframes.npz``; :func:`load_map` refuses other versions."""
 KEYFRAMES_FILE = "keyframes.npz"
+GRAPH_FILE = "graph.g2o"
+"""The final pose graph of the run (g2o ``VERTEX_SE2`` / ``EDGE_SE2``, vertex ``k`` keyframe
+``k``); :func:`read_pose_graph` reads its edges."""
+GRAPH_TOLERANCE = 0.01
+"""Largest difference (m, rad) between a ``graph.g2o`` vertex and its keyframe's pose in
+``keyframes.npz`` (the g2o text keeps 6 significant digits); more: files of two runs."""
 _ARRAYS = ("poses", "stamps", "scan_index", "offsets", "points", "normals", "has_normal", "mount")
 
 
@@ -110,6 +125,9 @@ class SavedMap:
     virtual_scans : list of LaserScan or None
         A foreign map's (a ``map_server`` YAML): keyframe ``k``'s virtual 360° scan, taken at
         ``poses[k]`` (:mod:`laser_corners.slam.gridmap`); None for a map folder.
+    graph : PoseGraph or None
+        The edges of ``graph.g2o`` (:func:`read_pose_graph`), read by a run that grows the
+        map; None until then, or when the folder has no graph.
     """
 
     folder: Path
@@ -126,6 +144,7 @@ class SavedMap:
     places: PlaceIndex | None = None
     partial_reason: str | None = None
     virtual_scans: list[LaserScan] | None = None
+    graph: PoseGraph | None = None
 
     def __len__(self) -> int:
         return int(self.poses.shape[0])
@@ -141,6 +160,89 @@ class SavedMap:
         )
         nrm = np.column_stack([c * n[:, 0] - s * n[:, 1], s * n[:, 0] + c * n[:, 1]])
         return xy, nrm, self.has_normal
+
+
+@dataclass(frozen=True)
+class PoseGraph:
+    """The relative-pose factors between a map's keyframes (its ``graph.g2o``).
+
+    Attributes
+    ----------
+    pairs : ndarray of int, shape (E, 2)
+        Keyframes ``a, b`` of each edge (``X(a)^-1 X(b) = relative``).
+    relative : ndarray, shape (E, 3)
+        The measured relative poses (x, y, yaw).
+    sigmas : ndarray, shape (E, 3)
+        Their standard deviations (square roots of the covariance's diagonal).
+    """
+
+    pairs: NDArray[np.int64]
+    relative: NDArray[np.float64]
+    sigmas: NDArray[np.float64]
+
+    def chain(self) -> NDArray[np.bool_]:
+        """Which edges link a keyframe to the one before (the first such edge of each
+        keyframe: the odometry / scan-matching chain); the others are loop closures."""
+        out = np.zeros(len(self.pairs), dtype=bool)
+        seen: set[int] = set()
+        for i, (a, b) in enumerate(self.pairs):
+            if b == a + 1 and b not in seen:
+                out[i] = True
+                seen.add(int(b))
+        return out
+
+
+def read_pose_graph(folder: str | Path, poses: NDArray[np.float64]) -> PoseGraph | None:
+    """The edges of a map folder's ``graph.g2o`` between its keyframes ``poses`` (K, 3);
+    None when the folder has no graph (a map written before it, or whose graph the writer
+    refused).
+
+    Raises
+    ------
+    InputError
+        ``graph.g2o`` is unreadable, or its vertices are not the keyframes (another count,
+        a vertex away from its keyframe's pose: files of two runs), one line.
+    """
+    path = Path(folder) / GRAPH_FILE
+    if not path.is_file():
+        return None
+    require_gtsam()
+    try:
+        graph, values = gtsam.readG2o(str(path), False)
+        found = gtsam.utilities.extractPose2(values).reshape(-1, 3)
+    except (RuntimeError, ValueError, IndexError) as exc:
+        raise InputError(f"{path}: unreadable ({first_line(exc)})") from None
+    keys = np.array(sorted(values.keys()), dtype=np.int64)
+    k = len(poses)
+    if len(keys) != k or not np.array_equal(keys, np.arange(k)):
+        raise InputError(f"{path}: {len(keys)} vertices, {KEYFRAMES_FILE} has {k} keyframes")
+    gap = np.abs(found - poses)
+    gap[:, 2] = np.abs(np.angle(np.exp(1j * gap[:, 2])))
+    if gap.size and gap.max() > GRAPH_TOLERANCE:
+        raise InputError(
+            f"{path}: vertex {int(gap.max(axis=1).argmax())} is not at its keyframe's pose "
+            f"in {KEYFRAMES_FILE} (files of two runs?)"
+        )
+    return _edges(graph)
+
+
+def _edges(graph: Any) -> PoseGraph:
+    """The ``BetweenFactorPose2`` edges of a graph ``readG2o`` gave."""
+    pairs, relative, sigmas = [], [], []
+    for i in range(graph.size()):
+        factor = graph.at(i)
+        if not isinstance(factor, gtsam.BetweenFactorPose2):
+            continue
+        rel = factor.measured()
+        cov = np.linalg.inv(factor.noiseModel().R().T @ factor.noiseModel().R())
+        pairs.append(list(factor.keys()))
+        relative.append((rel.x(), rel.y(), rel.theta()))
+        sigmas.append(np.sqrt(np.diag(cov)))
+    return PoseGraph(
+        np.asarray(pairs, dtype=np.int64).reshape(-1, 2),
+        np.asarray(relative, dtype=np.float64).reshape(-1, 3),
+        np.asarray(sigmas, dtype=np.float64).reshape(-1, 3),
+    )
 
 
 def keyframe_arrays(result: Any) -> dict[str, NDArray]:

@@ -99,6 +99,7 @@ class Slam:
         )
         self.kf = self.keyframer.store
         self._start = None if initial_pose is None else np.asarray(initial_pose, float).reshape(3)
+        self._prior_folder = None if prior_map is None else str(prior_map.folder)
         if prior_map is not None:
             self.keyframer.seed(prior_map, initial_pose=self._start is not None)
             self.counts.prior_keyframes = len(prior_map)
@@ -260,6 +261,7 @@ class Slam:
             places=self.places if opt.places.enabled else None,
             cuts=keyframes[starts],
             prior_keyframes=self.kf.first,
+            prior_map=self._prior_folder,
             keyframe_stamps=np.asarray(self.kf.stamps, dtype=np.float64),
             keyframe_points=list(self.kf.points),
         )

@@ -213,6 +213,7 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
             **{k: int(v) for k, v in dict(result.counts).items()},
             **{f"closures_{k}": closures[k] for k in ("proposed", "accepted", "rejected")},
         },
+        "prior_map": _prior_map(result),
         "skipped": dict(getattr(result, "skipped", {})),
         "closures": closures,
         "closure_consistency": info.closure_consistency,
@@ -229,6 +230,14 @@ def slam_summary(result: Any, info: SlamRunInfo) -> dict[str, Any]:
         "options": _options_record(result.options),
         "citation": CITATION,
     }
+
+
+def _prior_map(result: Any) -> dict[str, Any] | None:
+    """The map a grown map grew from: its folder and keyframe count (None: a map of its own)."""
+    folder = getattr(result, "prior_map", None)
+    if folder is None:
+        return None
+    return {"folder": folder, "keyframes": int(getattr(result, "prior_keyframes", 0))}
 
 
 def relation_cells(metrics: dict[str, float]) -> list[str]:
