@@ -15,11 +15,12 @@ LOG defaults to ``fr079``, ``aces`` and ``intel`` (``../shared/data/real/LOG.bag
    global fix by the place index), timed.
 
 The grown trajectory (the first half's scans where the grown map has OLD's keyframes now:
-each scan's pose relative to its keyframe in OLD, on that keyframe as grown; the grown run's
-for the second half) and the one-run SLAM's are scored with the relation metric on the
-relations with a stamp in the second half (the ones that reach it); *ratio* = grown /
-one-run mean translation error (and rotation). The real-time factor is the second half's
-duration over the grow run's wall time (this machine, 2 cores shared with other work).
+each keyframe's correction, blended between the keyframes around a scan, on the scan's pose
+in OLD; the grown run's for the second half) and the one-run SLAM's are scored with the
+relation metric on the relations with a stamp in the second half (the ones that reach it);
+*ratio* = grown / one-run mean translation error (and rotation). The real-time factor is the
+second half's duration over the grow run's wall time (this machine, 2 cores shared with
+other work).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from laser_corners.eval.relations import read_relations, relation_metrics
-from laser_corners.pose import between_many, compose_many
+from laser_corners.pose import compose_many, invert_many
 from laser_corners.slam import SlamOptions, SlamResult, run_slam
 from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
 
@@ -105,12 +106,20 @@ def grow_log(name: str, out: Path, split: float) -> dict:
 
 
 def old_as_grown(old: SlamResult, grown: SlamResult) -> np.ndarray:
-    """OLD's scan poses where the grown map put OLD's keyframes: each scan's pose relative to
-    the last keyframe at or before it (in OLD), composed with that keyframe's grown pose."""
-    kf = np.searchsorted(old.keyframes, np.arange(len(old.stamps)), side="right") - 1
-    kf = np.clip(kf, 0, len(old.keyframes) - 1)
-    local = between_many(old.keyframe_poses[kf], old.poses)
-    return compose_many(grown.keyframe_poses[kf], local)
+    """OLD's scan poses where the grown map put OLD's keyframes: each keyframe's correction
+    (its grown pose after its pose in OLD, in the map frame) blended by time between the
+    keyframes before and after a scan (as the SLAM blends its scans between keyframes),
+    applied to the scan's pose in OLD."""
+    n = len(old.keyframes)
+    fix = compose_many(grown.keyframe_poses[:n], invert_many(old.keyframe_poses))
+    t_kf = old.stamps[old.keyframes]
+    after = np.clip(np.searchsorted(t_kf, old.stamps, side="right"), 1, max(n - 1, 1))
+    before = after - 1
+    span = np.maximum(t_kf[after] - t_kf[before], 1e-9)
+    w = np.clip((old.stamps - t_kf[before]) / span, 0.0, 1.0)[:, None]
+    turn = np.angle(np.exp(1j * (fix[after, 2] - fix[before, 2])))
+    blend = fix[before] + w * np.column_stack([fix[after, :2] - fix[before, :2], turn])
+    return compose_many(blend, old.poses)
 
 
 def table(rows: list[dict]) -> list[str]:
@@ -172,9 +181,9 @@ def main() -> None:
             "Grown: the first half mapped, then grown with the second half (no initial pose); "
             "scored on the relations with a stamp in the second half, beside the one-run SLAM "
             "of the whole log. Ratio = grown / one-run mean error (the bar: 1.1x). OLD's scans "
-            "are scored where the grown map put OLD's keyframes (each scan's pose relative to "
-            "its keyframe in OLD); the second table splits the relations into those reaching "
-            "back into OLD (across the split) and those of the second half alone.",
+            "are scored where the grown map put OLD's keyframes (their corrections blended "
+            "between the keyframes around a scan); the second table splits the relations into "
+            "those reaching back into OLD (across the split) and those of the second half alone.",
         ]
         write_table(args.table, "Maps that grow (slam --map)", lines + notes)
 

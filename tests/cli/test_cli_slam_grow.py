@@ -15,8 +15,8 @@ pytest.importorskip("gtsam")
 
 from laser_corners.cli import app
 from laser_corners.io.trajectory import read_tum
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.sim import World
-from laser_corners.slam.mapfile import load_map
 from sim_drives import TF, legs, marked_building, write_drive_bag
 
 runner = CliRunner()

@@ -709,7 +709,7 @@ def test_slam_services_write_the_map_while_running(ros2: Ros2, tmp_path: Path) -
     """save_map writes map_server's files, serialize_map the folder `localise` reads, while
     the node runs; reinitialize_global_localization is refused in slam mode."""
     from laser_corners.io.occupancy import read_map
-    from laser_corners.slam.mapfile import load_map
+    from laser_corners.registration.mapfolder import load_map
 
     n = 60
     scans, odometry, mount = _fr079(n)

@@ -18,6 +18,7 @@ pytest.importorskip("gtsam")
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.ros.nav_convert import (
     fill_occupancy_grid,
     fill_pose_with_covariance,
@@ -29,7 +30,6 @@ from laser_corners.ros.nav_convert import (
 )
 from laser_corners.ros.slam_core import MappingConfig, MappingCore, OdometryBook, map_to_odom
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam.mapfile import load_map
 
 RATE = 10.0
 MOUNT = (0.2, -0.05, 0.1)

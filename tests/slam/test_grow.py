@@ -13,6 +13,7 @@ pytest.importorskip("gtsam")
 from laser_corners.errors import InputError
 from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.mapfolder import GRAPH_FILE, load_map, save_map_data
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import World
 from laser_corners.slam import Slam, SlamOptions, run_slam
@@ -23,7 +24,6 @@ from laser_corners.slam.grow import (
     prior_points,
     prior_scans,
 )
-from laser_corners.slam.mapfile import GRAPH_FILE, load_map, save_map_data
 from laser_corners.slam.result import LoopClosure
 from sim_drives import drive_slam, legs, marked_building, noisy_odometry
 

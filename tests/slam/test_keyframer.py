@@ -13,13 +13,13 @@ pytest.importorskip("gtsam")
 import gtsam
 
 from laser_corners.pose import relative_pose
+from laser_corners.registration.mapfolder import PoseGraph, SavedMap
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.grow import INITIAL_SIGMAS, LOST_SIGMAS, PRIOR_SIGMAS
 from laser_corners.slam.keyframer import CUT_SIGMAS, Keyframer
 from laser_corners.slam.keyframes import SESSION_GAP
-from laser_corners.slam.mapfile import PoseGraph, SavedMap
 from laser_corners.slam.options import SlamOptions
 from sim_drives import two_rooms
 

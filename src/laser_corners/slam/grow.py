@@ -30,9 +30,9 @@ from numpy.typing import NDArray
 from laser_corners.errors import InputError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.pose import invert_many
+from laser_corners.registration.mapfolder import SavedMap, load_map, read_pose_graph
 from laser_corners.registration.points import ScanPoints, transform
 from laser_corners.scan import LaserScan
-from laser_corners.slam.mapfile import SavedMap, load_map, read_pose_graph
 from laser_corners.slam.relocalise import occupancy_keys
 from laser_corners.slam.result import LoopClosure
 
@@ -70,16 +70,17 @@ FRAME = "prior_map"
 
 
 def load_prior_map(path: str | Path | SavedMap) -> SavedMap:
-    """The map folder a run grows (:func:`~.mapfile.load_map`) with its pose graph
-    (:attr:`~.mapfile.SavedMap.graph`, :func:`~.mapfile.read_pose_graph`; None without
+    """The map folder a run grows (:func:`~laser_corners.registration.mapfolder.load_map`)
+    with its pose graph (``SavedMap.graph``,
+    :func:`~laser_corners.registration.mapfolder.read_pose_graph`; None without
     ``graph.g2o``), refusing a map of another package (a ``map_server`` YAML has no keyframe
     points to keep).
 
     Raises
     ------
     InputError
-        As :func:`~.mapfile.load_map`, a ``map_server`` map, or a ``graph.g2o`` that is
-        unreadable or not of the folder's keyframes (one line saying so).
+        As ``load_map``, a ``map_server`` map, or a ``graph.g2o`` that is unreadable or not
+        of the folder's keyframes (one line saying so).
     """
     saved = path if isinstance(path, SavedMap) else load_map(path)
     if saved.virtual_scans is not None:

@@ -18,6 +18,7 @@ from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import relative_pose
 from laser_corners.registration.corners import corner_detector, scan_corners
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.registration.odometry import odometry_sigmas
 from laser_corners.registration.place_index import PlaceIndex, index_arrays, index_from_arrays
 from laser_corners.registration.points import ScanPoints
@@ -34,7 +35,6 @@ from laser_corners.slam.grow import (
 )
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.landmarks import LandmarkTracker
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 
 __all__ = ["CUT_SIGMAS", "Keyframer"]

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import compose, relative_pose, rotate_covariance
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.registration.points import ScanPoints, scan_points
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
@@ -33,7 +34,6 @@ from laser_corners.slam.finish import ScanLog, final_graph
 from laser_corners.slam.grow import grid_occupancy, join_warning
 from laser_corners.slam.keyframer import Keyframer
 from laser_corners.slam.landmarks import LandmarkTracker
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.relocalise import Relocaliser
 from laser_corners.slam.result import Landmarks, SlamResult

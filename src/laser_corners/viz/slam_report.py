@@ -7,7 +7,7 @@
 ``graph.g2o``      the pose graph (``SlamResult.write_g2o``)
 ``landmarks.csv``  ``x, y, cov_xx, cov_xy, cov_yy, observations, first_stamp, last_stamp``
 ``keyframes.npz`` keyframe poses and scan points, what ``localise`` reads
-                   (:mod:`laser_corners.slam.mapfile`)
+                   (:mod:`laser_corners.registration.mapfolder`)
 ``map.pgm``        occupancy grid, ROS map_server format (see :mod:`laser_corners.io.occupancy`)
 ``map.yaml``       its map_server metadata
 ``map.png``        grid, trajectory, landmarks, loop closures
@@ -49,8 +49,8 @@ from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import write_map
 from laser_corners.io.partial import PARTIAL_SUFFIX, publish_folder, staging_folder
 from laser_corners.io.trajectory import write_tum
+from laser_corners.registration.mapfolder import save_map_data
 from laser_corners.slam.grid import result_grid
-from laser_corners.slam.mapfile import save_map_data
 from laser_corners.viz.slam import save_slam_map
 
 __all__ = [

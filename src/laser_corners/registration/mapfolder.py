@@ -35,8 +35,8 @@ in its summary), is complete as far as it goes: it loads, and says so in
 
 :func:`load_map` also reads a map made by another package: a ``map_server`` YAML (``.yaml`` /
 ``.yml`` path) becomes a :class:`SavedMap` of *virtual keyframes* placed over the grid's
-free space (:mod:`laser_corners.slam.gridmap`), their points made as a real keyframe's, their
-360° scans kept in :attr:`SavedMap.virtual_scans`, a zero mount.
+free space (:mod:`laser_corners.registration.gridmap`), their points made as a real
+keyframe's, their 360° scans kept in :attr:`SavedMap.virtual_scans`, a zero mount.
 """
 
 from __future__ import annotations
@@ -50,10 +50,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.errors import InputError, InvalidParamsError, first_line
+from laser_corners.errors import InputError, first_line
 from laser_corners.io.base import PartialOutput
 from laser_corners.io.occupancy import OccupancyGrid, read_map
 from laser_corners.registration.graph import require_gtsam
+from laser_corners.registration.gridmap import virtual_keyframes
 from laser_corners.registration.place_index import (
     PlaceIndex,
     PlaceOptions,
@@ -63,8 +64,6 @@ from laser_corners.registration.place_index import (
 )
 from laser_corners.registration.points import scan_points
 from laser_corners.scan import LaserScan
-from laser_corners.slam.gridmap import virtual_keyframes
-from laser_corners.slam.options import SlamOptions
 
 try:
     import gtsam
@@ -78,7 +77,6 @@ __all__ = [
     "PoseGraph",
     "SavedMap",
     "load_map",
-    "map_options",
     "read_pose_graph",
     "save_map_data",
 ]
@@ -124,7 +122,7 @@ class SavedMap:
         of the whole recording, or a folder without a summary.
     virtual_scans : list of LaserScan or None
         A foreign map's (a ``map_server`` YAML): keyframe ``k``'s virtual 360° scan, taken at
-        ``poses[k]`` (:mod:`laser_corners.slam.gridmap`); None for a map folder.
+        ``poses[k]`` (:mod:`laser_corners.registration.gridmap`); None for a map folder.
     graph : PoseGraph or None
         The edges of ``graph.g2o`` (:func:`read_pose_graph`), read by a run that grows the
         map; None until then, or when the folder has no graph.
@@ -447,21 +445,3 @@ def _grid_map(path: Path) -> SavedMap:
         places=index_from_arrays(a, PlaceOptions()),
         **{k: a[k] for k in _ARRAYS},
     )
-
-
-def map_options(folder: str | Path) -> SlamOptions:
-    """The :class:`~laser_corners.slam.SlamOptions` a map folder was made with (its
-    ``options.yaml``, which ``slam`` writes), or the defaults when the folder has none.
-
-    Raises
-    ------
-    InputError
-        ``options.yaml`` is there but unreadable or not valid options (named, one line).
-    """
-    path = Path(folder) / "options.yaml"
-    if not path.is_file():
-        return SlamOptions()
-    try:
-        return SlamOptions.from_file(path)
-    except InvalidParamsError as exc:
-        raise InputError(f"{exc} (the map's SLAM options)") from None

@@ -1,4 +1,5 @@
-"""Complete, partial and incomplete map folders (laser_corners.slam.mapfile.load_map)."""
+"""The map folder (laser_corners.registration.mapfolder): complete, partial and incomplete
+folders, the pose graph read back."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import pytest
 
 from fake_slam import fake_result
 from laser_corners.errors import InputError
-from laser_corners.slam.mapfile import load_map
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
 
 
