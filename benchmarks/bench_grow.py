@@ -36,7 +36,8 @@ import numpy as np
 from laser_corners.eval.relations import read_relations, relation_metrics
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.slam import SlamOptions, SlamResult, run_slam
-from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+from laser_corners.slam.output import SlamRunInfo
+from laser_corners.viz.slam_report import write_slam_outputs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from report import write_table

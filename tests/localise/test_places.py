@@ -19,7 +19,8 @@ from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.mapfolder import load_map
 from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.slam import run_slam
-from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+from laser_corners.slam.output import SlamRunInfo
+from laser_corners.viz.slam_report import write_slam_outputs
 
 MAPPED = 1500
 

@@ -443,8 +443,9 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
 
 def _offline_map(scans, folder: Path) -> np.ndarray:
     """The map of these scans, written by `laser-corners slam`'s writer; its scan poses."""
+    from laser_corners.slam.output import SlamRunInfo
     from laser_corners.slam.run import run_slam
-    from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+    from laser_corners.viz.slam_report import write_slam_outputs
 
     result = run_slam(FR079, stop_scan=len(scans))
     assert len(result.poses) == len(scans)

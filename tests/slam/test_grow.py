@@ -220,7 +220,7 @@ def test_a_graph_of_another_map_is_refused_in_one_line(old, tmp_path) -> None:
     other = _copy(folder, tmp_path / "other")
     lines = (other / GRAPH_FILE).read_text().splitlines()
     (other / GRAPH_FILE).write_text("\n".join(line for line in lines if " 3 " not in line[:13]))
-    with pytest.raises(InputError, match=r"graph.g2o: \d+ vertices, keyframes.npz has \d+"):
+    with pytest.raises(InputError, match=r"graph.g2o: \d+ vertices, the map has \d+ keyframes"):
         load_prior_map(other)
     moved = _copy(folder, tmp_path / "moved")
     text = (moved / GRAPH_FILE).read_text().replace("VERTEX_SE2 2 ", "VERTEX_SE2 2 5", 1)

@@ -13,7 +13,8 @@ pytest.importorskip("gtsam")
 import gtsam
 
 from laser_corners.pose import relative_pose
-from laser_corners.registration.mapfolder import PoseGraph, SavedMap
+from laser_corners.registration.graph import PoseGraph
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam.backend import Backend
