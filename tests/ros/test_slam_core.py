@@ -305,7 +305,7 @@ def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) ->
 
 def test_localise_in_a_map_server_yaml(saved_map) -> None:
     """``-p map:=.../map.yaml``: a map_server map (here the slam folder's own map.yaml) is
-    localised in through virtual keyframes (``slam.gridmap``); its grid is published."""
+    localised in through virtual keyframes (``registration.gridmap``); its grid is published."""
     folder, truth, scans = saved_map
     config = {"mode": "localise", "map": str(folder / "map.yaml"), "mount": list(MOUNT)}
     core = MappingCore(MappingConfig.from_mapping(config))

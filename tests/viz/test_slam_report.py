@@ -18,8 +18,7 @@ from laser_corners.citation import CITATION
 from laser_corners.errors import OutputError
 from laser_corners.io.occupancy import read_map
 from laser_corners.io.trajectory import read_tum
-from laser_corners.registration.mapfolder import LANDMARK_COLUMNS
-from laser_corners.registration.mapfolder import check_map_folder as check_slam_folder
+from laser_corners.registration.mapfolder import LANDMARK_COLUMNS, check_map_folder
 from laser_corners.slam.output import SlamRunInfo, slam_summary
 from laser_corners.viz.slam import plot_ms_per_scan, plot_slam_map
 from laser_corners.viz.slam_report import relation_cells, write_slam_outputs
@@ -240,7 +239,7 @@ def test_a_folder_that_cannot_be_replaced_whole_is_refused(tmp_path: Path) -> No
     out.mkdir()
     (out / "notes.txt").write_text("mine\n")
     with pytest.raises(OutputError, match=r"mixed: holds files that are not a slam result \(notes"):
-        check_slam_folder(out)
+        check_map_folder(out)
     with pytest.raises(OutputError, match="not a slam result"):
         write_slam_outputs(fake_result(n_scans=20), out, _info())
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
@@ -249,7 +248,7 @@ def test_a_folder_that_cannot_be_replaced_whole_is_refused(tmp_path: Path) -> No
     locked.chmod(0o555)
     try:  # refused by its mode, also for root (whom os.access lets write anywhere)
         with pytest.raises(OutputError, match="locked: cannot write into the folder"):
-            check_slam_folder(locked)
+            check_map_folder(locked)
     finally:
         locked.chmod(0o755)
     assert _scans_in(locked) == 20
