@@ -125,6 +125,12 @@ def test_bad_maps_and_outputs_are_one_line(sessions, tmp_path) -> None:
     arrays["format_version"] = np.int64(9)
     np.savez(other / "keyframes.npz", **arrays)
     _one_line_error(_invoke("slam", two, "--map", other, "-o", tmp_path / "n"), "format version 9")
+    broken = tmp_path / "broken"
+    shutil.copytree(old, broken)
+    (broken / "graph.g2o").write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 garbage\n")
+    _one_line_error(
+        _invoke("slam", two, "--map", broken, "-o", tmp_path / "n"), "graph.g2o: unreadable"
+    )
     assert not (tmp_path / "n").exists()
     assert _hashes(old) == before
 
