@@ -61,9 +61,10 @@ from laser_corners.localise.run import smoothing_slam
 from laser_corners.localise.smooth import smooth
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many, invert_many
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.slam import run_slam
-from laser_corners.slam.mapfile import load_map
-from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+from laser_corners.slam.output import SlamRunInfo
+from laser_corners.viz.slam_report import write_slam_outputs
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 

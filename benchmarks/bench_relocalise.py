@@ -44,7 +44,7 @@ import numpy as np
 from laser_corners.io.trajectory import read_tum
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pose import between_many
-from laser_corners.slam.mapfile import load_map
+from laser_corners.registration.mapfolder import load_map
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_localise import REAL, cached_map, carried, read_log

@@ -15,8 +15,8 @@ pytest.importorskip("gtsam")
 
 from laser_corners.cli import app
 from laser_corners.io.trajectory import read_tum
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.sim import World
-from laser_corners.slam.mapfile import load_map
 from sim_drives import TF, legs, marked_building, write_drive_bag
 
 runner = CliRunner()
@@ -72,8 +72,10 @@ def test_slam_map_grows_the_old_map_into_a_new_one(sessions, tmp_path) -> None:
     summary = json.loads((new / "summary.json").read_text())
     counts = summary["counts"]
     assert counts["prior_keyframes"] == n_old and counts["grow_unjoined"] == 0
+    assert summary["prior_map"] == {"folder": str(old), "keyframes": n_old}
     assert len(grown) == counts["keyframes"] > n_old
-    np.testing.assert_allclose(grown.poses[:n_old], load_map(old).poses, atol=0.02)
+    # OLD's keyframes bent by the new closures (OLD's own graph, not fixed), not moved away
+    np.testing.assert_allclose(grown.poses[:n_old], load_map(old).poses, atol=0.1)
     # the second session's trajectory, in the map's frame (the truth's)
     stamps, poses = read_tum(new / "trajectory.tum")
     truth = legs(SESSION_2)[5:]
@@ -96,7 +98,9 @@ def test_an_initial_pose_places_the_first_scan(sessions, tmp_path) -> None:
     )
     assert result.exit_code == 0, result.output
     counts = json.loads((new / "summary.json").read_text())["counts"]
-    assert counts["relocalisations_attempted"] == 0 and counts["grow_unjoined"] == 0
+    # placed from the first scan: a relocalisation only after the tracking lost a scan
+    assert counts["relocalisations_attempted"] == 0 or counts["alignment_failures"] >= 1
+    assert counts["grow_unjoined"] == 0
     _, poses = read_tum(new / "trajectory.tum")
     assert np.hypot(*(poses[:, :2] - truth[:, :2]).T).max() < 0.15
 
@@ -121,6 +125,12 @@ def test_bad_maps_and_outputs_are_one_line(sessions, tmp_path) -> None:
     arrays["format_version"] = np.int64(9)
     np.savez(other / "keyframes.npz", **arrays)
     _one_line_error(_invoke("slam", two, "--map", other, "-o", tmp_path / "n"), "format version 9")
+    broken = tmp_path / "broken"
+    shutil.copytree(old, broken)
+    (broken / "graph.g2o").write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 garbage\n")
+    _one_line_error(
+        _invoke("slam", two, "--map", broken, "-o", tmp_path / "n"), "graph.g2o: unreadable"
+    )
     assert not (tmp_path / "n").exists()
     assert _hashes(old) == before
 

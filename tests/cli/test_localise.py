@@ -191,7 +191,7 @@ def test_thesmoothing_slam_takes_the_map_options(mapped, tmp_path: Path) -> None
     import shutil
 
     from laser_corners.localise.run import smoothing_slam
-    from laser_corners.slam.mapfile import load_map
+    from laser_corners.registration.mapfolder import load_map
 
     bag, map_dir, _, _ = mapped
     copy = tmp_path / "map"

@@ -24,11 +24,11 @@ from conftest import default_sigint, die_with_parent, real_file
 from fake_slam import fake_result
 from laser_corners.cli import app
 from laser_corners.io.trajectory import read_tum, write_tum
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.scan import LaserScan, relative_pose
 from laser_corners.sim import UST_10LX, World, rectangular_room, trajectory
 from laser_corners.sim.export import simulate_sequence, write_bag
 from laser_corners.slam import Slam
-from laser_corners.slam.mapfile import load_map
 
 runner = CliRunner()
 CLI = [str(Path(sys.executable).with_name("laser-corners"))]

@@ -20,9 +20,9 @@ from test_localiser import RATE, map_folder, noisy_odometry, scans_along
 
 from laser_corners.localise import Localiser
 from laser_corners.localise.freespace import FREE, KNOWN, FreeSpace
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import UST_10LX, World
-from laser_corners.slam.mapfile import load_map
 
 LENGTH, WIDTH = 36.0, 10.0
 LANE = 1.0

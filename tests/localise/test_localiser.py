@@ -11,9 +11,9 @@ import pytest
 from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.mapfolder import FORMAT_VERSION, load_map, save_map_data
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam import SlamOptions
-from laser_corners.slam.mapfile import FORMAT_VERSION, load_map, save_map_data
 
 RATE = 10.0
 

@@ -16,10 +16,11 @@ from conftest import real_file
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.slam import run_slam
-from laser_corners.slam.mapfile import load_map
-from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+from laser_corners.slam.output import SlamRunInfo
+from laser_corners.viz.slam_report import write_slam_outputs
 
 MAPPED = 1500
 

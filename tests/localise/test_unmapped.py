@@ -20,10 +20,10 @@ from test_localiser import RATE, loop_path, noisy_odometry
 
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.localise.freespace import FreeSpace
+from laser_corners.registration.mapfolder import load_map, save_map_data
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import HOKUYO_270_0352, World
 from laser_corners.slam import SlamOptions
-from laser_corners.slam.mapfile import load_map, save_map_data
 
 
 def two_rooms() -> World:

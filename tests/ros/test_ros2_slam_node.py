@@ -443,8 +443,9 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
 
 def _offline_map(scans, folder: Path) -> np.ndarray:
     """The map of these scans, written by `laser-corners slam`'s writer; its scan poses."""
+    from laser_corners.slam.output import SlamRunInfo
     from laser_corners.slam.run import run_slam
-    from laser_corners.viz.slam_report import SlamRunInfo, write_slam_outputs
+    from laser_corners.viz.slam_report import write_slam_outputs
 
     result = run_slam(FR079, stop_scan=len(scans))
     assert len(result.poses) == len(scans)
@@ -709,7 +710,7 @@ def test_slam_services_write_the_map_while_running(ros2: Ros2, tmp_path: Path) -
     """save_map writes map_server's files, serialize_map the folder `localise` reads, while
     the node runs; reinitialize_global_localization is refused in slam mode."""
     from laser_corners.io.occupancy import read_map
-    from laser_corners.slam.mapfile import load_map
+    from laser_corners.registration.mapfolder import load_map
 
     n = 60
     scans, odometry, mount = _fr079(n)

@@ -18,6 +18,7 @@ pytest.importorskip("gtsam")
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.ros.nav_convert import (
     fill_occupancy_grid,
     fill_pose_with_covariance,
@@ -29,7 +30,6 @@ from laser_corners.ros.nav_convert import (
 )
 from laser_corners.ros.slam_core import MappingConfig, MappingCore, OdometryBook, map_to_odom
 from laser_corners.sim import SICK_LMS_1DEG, World
-from laser_corners.slam.mapfile import load_map
 
 RATE = 10.0
 MOUNT = (0.2, -0.05, 0.1)
@@ -305,7 +305,7 @@ def test_localise_from_an_initial_pose_given_before_the_first_scan(saved_map) ->
 
 def test_localise_in_a_map_server_yaml(saved_map) -> None:
     """``-p map:=.../map.yaml``: a map_server map (here the slam folder's own map.yaml) is
-    localised in through virtual keyframes (``slam.gridmap``); its grid is published."""
+    localised in through virtual keyframes (``registration.gridmap``); its grid is published."""
     folder, truth, scans = saved_map
     config = {"mode": "localise", "map": str(folder / "map.yaml"), "mount": list(MOUNT)}
     core = MappingCore(MappingConfig.from_mapping(config))

@@ -122,3 +122,22 @@ def test_a_closure_within_an_unplaced_segment_does_not_end_its_search(monkeypatc
         closer.lost_from(3, unplaced=unplaced)
         assert closer.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))[0]  # closed
         assert closer.relocaliser.lost == still_lost
+
+
+def test_a_prior_maps_closures_in_the_back_end_do_not_shift_the_pruned_ones() -> None:
+    backend = Backend()
+    for k in range(4):
+        backend.add_keyframe(np.array([float(k), 0.0, 0.0]))
+        if k:
+            backend.add_between(k - 1, k, np.array([1.0, 0.0, 0.0]), (0.05, 0.05, 0.01))
+    backend.add_between(0, 2, np.array([2.0, 0.0, 0.0]), (0.05, 0.05, 0.01), robust=True)
+    backend.update()  # a prior map's closure first (slam.grow), then this run's
+    closer = LoopCloser(OPTIONS, backend, backend.counts, Relocaliser(OPTIONS, np.zeros(3), None))
+    ours = LoopClosure(3, 0, (3.0, 0.0, 0.0), False, "ok")
+    closer.closures.append(ours)
+    closer.accept(ours)
+    assert [loop[:2] for loop in backend.loops] == [(0, 2), (0, 3)]
+    closer.prune([0])  # the prior map's: not this run's
+    assert ours.accepted and backend.counts.closures_pruned == 0
+    closer.prune([1])
+    assert not ours.accepted and backend.counts.closures_pruned == 1

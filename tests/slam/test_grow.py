@@ -13,6 +13,7 @@ pytest.importorskip("gtsam")
 from laser_corners.errors import InputError
 from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.pose import between_many, compose_many
+from laser_corners.registration.mapfolder import GRAPH_FILE, load_map, save_map_data
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import World
 from laser_corners.slam import Slam, SlamOptions, run_slam
@@ -23,7 +24,6 @@ from laser_corners.slam.grow import (
     prior_points,
     prior_scans,
 )
-from laser_corners.slam.mapfile import load_map, save_map_data
 from laser_corners.slam.result import LoopClosure
 from sim_drives import drive_slam, legs, marked_building, noisy_odometry
 
@@ -50,7 +50,9 @@ def old(tmp_path_factory) -> tuple[Path, np.ndarray]:
     drive_slam(slam, marked_building(), truth, odo, np.arange(len(truth)) / RATE, rng(3))
     folder = tmp_path_factory.mktemp("grow") / "old"
     folder.mkdir()
-    save_map_data(slam.result(), folder)
+    result = slam.result()
+    save_map_data(result, folder)
+    result.write_g2o(folder / GRAPH_FILE)
     return folder, truth
 
 
@@ -65,7 +67,7 @@ def _keyframe_errors(result, truth: np.ndarray) -> np.ndarray:
 
 
 def test_a_second_session_without_a_pose_is_fixed_into_the_old_frame(old, tmp_path) -> None:
-    folder, _ = old
+    folder, truth_1 = old
     saved = load_prior_map(folder)
     truth = legs(SESSION_2)
     slam = Slam(SlamOptions(), prior_map=saved)
@@ -73,10 +75,15 @@ def test_a_second_session_without_a_pose_is_fixed_into_the_old_frame(old, tmp_pa
     result = slam.result()
     n = len(saved)
     assert result.prior_keyframes == n == result.counts["prior_keyframes"]
+    assert result.prior_map == str(folder)
     assert result.counts["relocalisations_accepted"] >= 1
     assert result.counts["grow_unjoined"] == 0 and result.warnings == []
-    # the old keyframes stay where they were, the new ones land on the truth
-    assert np.abs(result.keyframe_poses[:n] - saved.poses).max() < 0.02
+    # the old keyframes stay near where they were, bent by the new closures towards the
+    # truth (OLD's graph, not fixed priors); the new ones land on the truth
+    assert np.abs(result.keyframe_poses[:n] - saved.poses).max() < 0.1
+    before = np.hypot(*(saved.poses[:, :2] - truth_1[saved.scan_index, :2]).T)
+    after = np.hypot(*(result.keyframe_poses[:n, :2] - truth_1[saved.scan_index, :2]).T)
+    assert after.max() < before.max() and after.mean() < before.mean()
     assert np.all(result.keyframes[:n] == -1) and np.all(result.keyframes[n:] >= 0)
     assert _keyframe_errors(result, truth).max() < 0.15
     assert np.hypot(*(result.poses[:, :2] - truth[:, :2]).T).max() < 0.15
@@ -177,3 +184,46 @@ def test_join_warning_asks_for_a_closure_between_the_sessions() -> None:
     assert join_warning([inside, across], 10, placed=True) is None
     across.accepted = True
     assert join_warning([inside, across], 10, placed=False) is None
+
+
+def _copy(folder: Path, to: Path, without: tuple[str, ...] = ()) -> Path:
+    to.mkdir()
+    for p in folder.iterdir():
+        if p.name not in without:
+            (to / p.name).write_bytes(p.read_bytes())
+    return to
+
+
+def test_the_old_map_is_grown_with_its_own_pose_graph(old, tmp_path) -> None:
+    folder, _ = old
+    saved = load_prior_map(folder)
+    assert saved.graph is not None
+    n = len(saved)
+    chain = saved.graph.chain()
+    assert chain.sum() == n - 1 and (~chain).sum() >= 1  # the links and the old closures
+    slam = Slam(SlamOptions(), prior_map=saved)
+    # one prior (the gauge), every factor of the old graph, its closures robust
+    kinds = [type(slam.backend.graph.at(i)).__name__ for i in range(slam.backend.graph.size())]
+    assert kinds.count("PriorFactorPose2") == 1
+    assert kinds.count("BetweenFactorPose2") == len(saved.graph.pairs)
+    assert len(slam.backend.loops) == (~chain).sum()
+    # without a graph (an older folder) the old keyframes are held by priors, as before
+    bare = load_prior_map(_copy(folder, tmp_path / "bare", without=(GRAPH_FILE,)))
+    assert bare.graph is None
+    held = Slam(SlamOptions(), prior_map=bare)
+    kinds = [type(held.backend.graph.at(i)).__name__ for i in range(held.backend.graph.size())]
+    assert kinds.count("PriorFactorPose2") == n
+
+
+def test_a_graph_of_another_map_is_refused_in_one_line(old, tmp_path) -> None:
+    folder, _ = old
+    other = _copy(folder, tmp_path / "other")
+    lines = (other / GRAPH_FILE).read_text().splitlines()
+    (other / GRAPH_FILE).write_text("\n".join(line for line in lines if " 3 " not in line[:13]))
+    with pytest.raises(InputError, match=r"graph.g2o: \d+ vertices, the map has \d+ keyframes"):
+        load_prior_map(other)
+    moved = _copy(folder, tmp_path / "moved")
+    text = (moved / GRAPH_FILE).read_text().replace("VERTEX_SE2 2 ", "VERTEX_SE2 2 5", 1)
+    (moved / GRAPH_FILE).write_text(text)
+    with pytest.raises(InputError, match="vertex 2 is not at its keyframe's pose"):
+        load_prior_map(moved)

@@ -12,13 +12,15 @@ pytest.importorskip("gtsam")
 
 import gtsam
 
+from laser_corners.pose import relative_pose
+from laser_corners.registration.graph import PoseGraph
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.registration.points import scan_points
 from laser_corners.sim import SICK_LMS_1DEG
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.grow import INITIAL_SIGMAS, LOST_SIGMAS, PRIOR_SIGMAS
 from laser_corners.slam.keyframer import CUT_SIGMAS, Keyframer
 from laser_corners.slam.keyframes import SESSION_GAP
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from sim_drives import two_rooms
 
@@ -148,3 +150,33 @@ def test_a_seeded_keyframer_keeps_the_prior_map_and_starts_a_session_after_it(
     assert store.travelled[3] - store.travelled[2] == SESSION_GAP
     store.estimate = backend.update()
     assert store.local_map(20)[1].xy.shape[0] == len(store.points[3].xy)  # the session's only
+
+
+def _graph(saved: SavedMap, sigmas: tuple[float, float, float]) -> PoseGraph:
+    """A pose graph over :data:`POSES`: the chain 0-1-2 and an old closure 0-2."""
+    pairs = np.array([[0, 1], [1, 2], [0, 2]])
+    relative = np.array([relative_pose(saved.poses[a], saved.poses[b]) for a, b in pairs])
+    return PoseGraph(pairs, relative, np.tile(sigmas, (3, 1)))
+
+
+@pytest.mark.parametrize("with_graph", [True, False])
+def test_a_prior_map_with_its_graph_bends_when_a_closure_pulls_it(with_graph: bool) -> None:
+    first, _ = _keyframer()
+    for i in range(3):
+        _add(first, i)
+    saved = _saved(first)
+    saved.graph = _graph(saved, (0.1, 0.1, 0.02)) if with_graph else None
+    keyframer, backend = _keyframer()
+    keyframer.seed(saved)
+    kinds = [type(backend.graph.at(i)).__name__ for i in range(backend.graph.size())]
+    if with_graph:  # one gauge prior, the map's own factors, its closure robust
+        assert kinds.count("PriorFactorPose2") == 1 and kinds.count("BetweenFactorPose2") == 3
+        assert [(a, b) for a, b, *_ in backend.loops] == [(0, 2)]
+    # a new closure says keyframe 2 is 0.15 m further along from keyframe 0
+    pulled = relative_pose(POSES[0], POSES[2] + np.array([0.15, 0.0, 0.0]))
+    backend.add_between(0, 2, np.asarray(pulled), (0.02, 0.02, 0.005), robust=True)
+    moved = np.hypot(*(backend.update(extra_iterations=3)[2, :2] - POSES[2, :2]))
+    if with_graph:
+        assert moved > 0.1  # the map follows the closure, as a one-run SLAM would
+    else:
+        assert moved < 0.03  # held in place by the per-keyframe priors

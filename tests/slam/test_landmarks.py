@@ -12,9 +12,10 @@ from test_slam_sim import RATE, _loop_path, _relations
 from laser_corners.errors import InvalidParamsError
 from laser_corners.eval.relations import relation_metrics
 from laser_corners.pose import compose_many
+from laser_corners.registration.mapfolder import write_landmarks
 from laser_corners.sim import UST_10LX, World
 from laser_corners.slam import Slam, SlamOptions
-from laser_corners.viz.slam_report import write_landmarks
+from laser_corners.slam.output import landmark_table
 from sim_drives import noisy_odometry, two_rooms
 
 MOUNT = (0.2, 0.0, 0.0)
@@ -76,7 +77,12 @@ def test_landmarks_sit_on_the_known_corners(lap, tmp_path) -> None:
     rel = _relations(truth)[:-10]
     metrics = relation_metrics(result.stamps, result.poses, rel)
     assert metrics.trans_mean < 0.03 and metrics.rot_deg_mean < 0.3
-    rows = write_landmarks(tmp_path / "landmarks.csv", lm).read_text().strip().splitlines()
+    rows = (
+        write_landmarks(tmp_path / "landmarks.csv", landmark_table(lm))
+        .read_text()
+        .strip()
+        .splitlines()
+    )
     assert len(rows) == len(lm) + 1
 
 

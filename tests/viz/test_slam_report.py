@@ -18,14 +18,10 @@ from laser_corners.citation import CITATION
 from laser_corners.errors import OutputError
 from laser_corners.io.occupancy import read_map
 from laser_corners.io.trajectory import read_tum
+from laser_corners.registration.mapfolder import LANDMARK_COLUMNS, check_map_folder
+from laser_corners.slam.output import SlamRunInfo, slam_summary
 from laser_corners.viz.slam import plot_ms_per_scan, plot_slam_map
-from laser_corners.viz.slam_report import (
-    LANDMARK_COLUMNS,
-    SlamRunInfo,
-    check_slam_folder,
-    relation_cells,
-    write_slam_outputs,
-)
+from laser_corners.viz.slam_report import relation_cells, write_slam_outputs
 
 METRICS = {
     "n_total": 10,
@@ -220,12 +216,13 @@ def test_a_run_killed_while_writing_never_mixes_two_results(tmp_path: Path) -> N
         f"sys.path.insert(0, {str(Path(__file__).parents[1])!r})\n"
         "from pathlib import Path\n"
         "import laser_corners.viz.slam_report as report\n"
+        "from laser_corners.slam.output import SlamRunInfo\n"
         "from fake_slam import fake_result\n"
         "def stall(*args, **kwargs):\n"
         "    print('writing', flush=True)\n"
         "    time.sleep(60)\n"
         "report.save_slam_map = stall\n"
-        "info = report.SlamRunInfo('sim.bag', 1.0, 1.0)\n"
+        "info = SlamRunInfo('sim.bag', 1.0, 1.0)\n"
         "report.write_slam_outputs(fake_result(n_scans=60), Path(sys.argv[1]), info)\n"
     )
     assert run_until_killed(script, str(out)) == "writing"
@@ -242,7 +239,7 @@ def test_a_folder_that_cannot_be_replaced_whole_is_refused(tmp_path: Path) -> No
     out.mkdir()
     (out / "notes.txt").write_text("mine\n")
     with pytest.raises(OutputError, match=r"mixed: holds files that are not a slam result \(notes"):
-        check_slam_folder(out)
+        check_map_folder(out)
     with pytest.raises(OutputError, match="not a slam result"):
         write_slam_outputs(fake_result(n_scans=20), out, _info())
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
@@ -251,7 +248,7 @@ def test_a_folder_that_cannot_be_replaced_whole_is_refused(tmp_path: Path) -> No
     locked.chmod(0o555)
     try:  # refused by its mode, also for root (whom os.access lets write anywhere)
         with pytest.raises(OutputError, match="locked: cannot write into the folder"):
-            check_slam_folder(locked)
+            check_map_folder(locked)
     finally:
         locked.chmod(0o755)
     assert _scans_in(locked) == 20
@@ -278,7 +275,7 @@ def test_closure_numbers_and_ms_per_scan_come_from_one_place() -> None:
     """The closure numbers of summary.json's counts, its closures section and report.md are
     one set, from the closures themselves (the front end's counters disagreed with them);
     ms per scan is mean, p95 and max everywhere (one slow scan puts the mean above p95)."""
-    from laser_corners.viz.slam_report import slam_markdown, slam_summary
+    from laser_corners.viz.slam_report import slam_markdown
 
     result = fake_result()
     result.counts.update(closures_proposed=6, closures_accepted=3, closures_rejected=3)

@@ -130,10 +130,10 @@ def warm_slam_kernels() -> None:
     import numpy as np
 
     from laser_corners.localise import Localiser
+    from laser_corners.registration.mapfolder import save_map_data
     from laser_corners.sim import SICK_LMS_1DEG, World
     from laser_corners.slam import Slam, SlamOptions
     from laser_corners.slam.grid import result_grid
-    from laser_corners.slam.mapfile import save_map_data
 
     world = World().add_polygon([[0, 0], [8, 0], [8, 5], [0, 5]])
     world.add_polygon([[3, 2], [3.8, 2], [3.8, 2.7], [3, 2.7]])

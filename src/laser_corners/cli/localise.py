@@ -1,6 +1,6 @@
 """``localise MAP INPUT -o DIR``: the pose of a recording's robot in a map ``slam`` wrote
 (a folder) or another package made (a ``map_server`` ``map.yaml``: virtual keyframes,
-:mod:`laser_corners.slam.gridmap`).
+:mod:`laser_corners.registration.gridmap`).
 
 See docs/localise.md. Parses the options, makes one call (``localise.run_localise``) that
 writes ``online.tum`` as the estimates come (what the robot knew at each scan), then writes
@@ -116,7 +116,7 @@ def localise_command(
 
     from laser_corners.io.trajectory import TumWriter
     from laser_corners.localise import run_localise
-    from laser_corners.slam.mapfile import load_map
+    from laser_corners.registration.mapfolder import load_map
     from laser_corners.viz.localise import localise_summary, write_localise_outputs
 
     options = localise_options(config, set_, mount)

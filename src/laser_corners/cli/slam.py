@@ -221,18 +221,14 @@ def slam_command(
     from laser_corners.errors import InvalidParamsError
     from laser_corners.eval.relations import closure_consistency, no_coverage, read_relations
     from laser_corners.io.base import skip_warning
+    from laser_corners.registration.mapfolder import check_map_folder
     from laser_corners.slam.grid import check_grid_size
-    from laser_corners.viz.slam_report import (
-        SlamRunInfo,
-        check_slam_folder,
-        peak_rss_mb,
-        slam_summary,
-        write_slam_outputs,
-    )
+    from laser_corners.slam.output import SlamRunInfo, peak_rss_mb, slam_summary
+    from laser_corners.viz.slam_report import write_slam_outputs
 
     options = slam_options(config, set_, mount)
     table = read_relations(relations) if relations is not None else None
-    check_slam_folder(output)
+    check_map_folder(output)
     try:
         check_grid_size(resolution, options.max_range)
     except InvalidParamsError as exc:

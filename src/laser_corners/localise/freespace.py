@@ -41,7 +41,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.slam.mapfile import SavedMap
+from laser_corners.registration.mapfolder import SavedMap
 
 __all__ = ["FreeSpace", "Support"]
 

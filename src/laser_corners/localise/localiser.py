@@ -69,9 +69,9 @@ from laser_corners.localise.search import GlobalSearch
 from laser_corners.localise.tracker import FIX_COVARIANCE, Tracker
 from laser_corners.localise.window import Window
 from laser_corners.pose import between_many
+from laser_corners.registration.mapfolder import SavedMap, load_map
 from laser_corners.registration.points import scan_points
 from laser_corners.scan import LaserScan
-from laser_corners.slam.mapfile import SavedMap, load_map
 
 __all__ = ["Fix", "Hypothesis", "Localiser", "LocaliserEstimate", "State"]
 

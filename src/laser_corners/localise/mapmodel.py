@@ -1,7 +1,8 @@
 """The map as localisation uses it, precomputed once at load: point maps and a global search.
 
-:class:`MapModel` moves every keyframe point of a :class:`~laser_corners.slam.mapfile.SavedMap`
-into the map frame, thins them to one point per ``map_spacing`` voxel and keeps
+:class:`MapModel` moves every keyframe point of a
+:class:`~laser_corners.registration.mapfolder.SavedMap` into the map frame, thins them to one
+point per ``map_spacing`` voxel and keeps
 
 * a :class:`~laser_corners.registration.align.PointMap` of the points with a line normal (ICP),
 * one of every point (the agreement: share of scan points within ``inlier_distance``),
@@ -30,7 +31,7 @@ from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import distinct_poses
 from laser_corners.registration.align import PointMap
 from laser_corners.registration.correlative import ScoreGrid
-from laser_corners.slam.mapfile import SavedMap
+from laser_corners.registration.mapfolder import SavedMap
 
 __all__ = ["MapModel"]
 

@@ -26,7 +26,8 @@ from laser_corners.localise.smooth import Smoothed, smooth
 from laser_corners.pipeline.interrupt import STOP_REASONS
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import check_pose
-from laser_corners.slam.mapfile import SavedMap, load_map, map_options
+from laser_corners.registration.mapfolder import SavedMap, load_map
+from laser_corners.slam.options import map_options
 from laser_corners.slam.run import OdometryFeed, odometry_scans, require_odometry
 from laser_corners.slam.slam import Slam
 

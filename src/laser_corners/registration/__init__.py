@@ -5,5 +5,7 @@ Modules: :mod:`~.points` (a scan's points and line normals in the base frame), :
 (likelihood grids and the exhaustive correlative search), :mod:`~.corners` (corner keypoints
 with descriptors, queries chained by odometry), :mod:`~.corner_grid` (the map's corners
 bucketed and grouped, the numba passes of a query), :mod:`~.place_index` (the map's corners
-as an index: candidate poses for a query in milliseconds).
+as an index: candidate poses for a query in milliseconds), :mod:`~.graph` (the pose graph's
+gtsam vocabulary, a g2o graph's edges), :mod:`~.mapfolder` (the map folder, written whole and
+read back) and :mod:`~.gridmap` (virtual keyframes of a map made by another package).
 """

@@ -71,8 +71,8 @@ class MappingConfig(Options):
     mode : {"slam", "localise"}
     map : str
         ``localise``: the map folder ``laser-corners slam`` wrote, or a ``map_server`` YAML
-        (a map made by another package: virtual keyframes, :mod:`laser_corners.slam.gridmap`)
-        (required).
+        (a map made by another package: virtual keyframes,
+        :mod:`laser_corners.registration.gridmap`) (required).
     output : str
         Folder for the map ("" = none): slam writes the map folder there at shutdown and on
         ``serialize_map``; ``save_map`` writes map.yaml + map.pgm there. Created and checked

@@ -22,9 +22,9 @@ from types import SimpleNamespace
 from typing import Any
 
 from laser_corners.errors import LaserCornersError, first_line
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.ros.mapping_worker import MappingWorker
 from laser_corners.ros.ros2_outputs import MappingOutputs
-from laser_corners.slam.mapfile import load_map
 
 __all__ = ["NO_OUTPUT", "MappingServices"]
 

@@ -36,13 +36,13 @@ from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import Localiser
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.registration.mapfolder import SavedMap, load_map
 from laser_corners.ros.mapping_config import MAPPING_OPTIONS, MappingConfig, check_output
 from laser_corners.ros.mapping_watch import MappingWatch
 from laser_corners.scan import LaserScan
 from laser_corners.slam.grid import occupancy_grid
-from laser_corners.slam.mapfile import SavedMap, load_map
+from laser_corners.slam.output import SlamRunInfo, peak_rss_mb, write_slam_map
 from laser_corners.slam.slam import Slam
-from laser_corners.viz.slam_report import SlamRunInfo, peak_rss_mb, write_slam_outputs
 
 __all__ = [
     "MAPPING_OPTIONS",
@@ -204,7 +204,7 @@ class MapViews:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise OutputError(f"output {folder}: {exc}") from None
-        write_slam_outputs(result, folder, info)
+        write_slam_map(result, folder, info)  # no pictures: a node renders none
         return folder
 
     def save_grid(self, folder: Path) -> Path:

@@ -6,8 +6,9 @@ Modules: :mod:`~.options`, :mod:`~.slam` (the orchestrator) over its parts :mod:
 (front end), :mod:`~.keyframer` (keyframes), :mod:`~.closing` (loop closure, relocalisation),
 :mod:`~.finish` (final graph and trajectory) and :mod:`~.backend` (gtsam; :mod:`~.factors`,
 :mod:`~.recovery`, :mod:`~.batch`), counting into :mod:`~.counts`; :mod:`~.keyframes` (local
-map), :mod:`~.loops` (closure verification), :mod:`~.run`, :mod:`~.result`, :mod:`~.grow`
-(a run that grows a prior map: ``run_slam(..., prior_map=...)``).
+map), :mod:`~.loops` (closure verification), :mod:`~.run`, :mod:`~.result`, :mod:`~.output`
+(a result as the map folder's contents), :mod:`~.grow` (a run that grows a prior map:
+``run_slam(..., prior_map=...)``).
 """
 
 from laser_corners.slam.options import SlamOptions

@@ -66,6 +66,7 @@ class LoopCloser:
         self.relocaliser = relocaliser
         self.closures: list[LoopClosure] = []
         self._in_graph: list[LoopClosure] = []  # accepted closures, in the back end's order
+        self._seeded = len(backend.loops)  # a prior map's closures (:mod:`.grow`) come first
         self.submaps = SubmapCache()
         self.gate = ClosureGate(
             options.loop_agree_xy, options.loop_agree_yaw, 4 * options.loop_every
@@ -163,9 +164,12 @@ class LoopCloser:
 
     def prune(self, pruned: list[int]) -> None:
         """Mark the accepted closures the final optimisation dropped (``pruned``: indices in
-        the order they went into the graph, :attr:`Backend.pruned`) as dropped (counted)."""
+        the order they went into the graph, :attr:`Backend.pruned`) as dropped (counted). A
+        prior map's closures, which the back end holds first, are not this run's: skipped."""
         for i in pruned:
-            closure = self._in_graph[i]
+            if i < self._seeded:
+                continue
+            closure = self._in_graph[i - self._seeded]
             if closure.accepted:
                 closure.accepted = False
                 closure.reason = "dropped: contradicted by the optimised graph"

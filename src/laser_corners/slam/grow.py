@@ -1,9 +1,13 @@
 """Maps that grow: a SLAM run that starts in a map folder of an earlier run (``prior_map``).
 
 The prior map's keyframes come first in the run's keyframe store, place index and pose graph
-(:meth:`~.keyframer.Keyframer.seed`), each held by a strong prior (:data:`PRIOR_SIGMAS`) and
-linked to the one before as the map has them, so the map's frame and shape stay; the new
-session's keyframes follow. Without an initial pose the first
+(:meth:`~.keyframer.Keyframer.seed`), linked by the map's own pose graph (its ``graph.g2o``:
+the odometry / scan-matching links and the loop closures, these robust as the back end makes
+them) under the one-run SLAM's priors only (the first keyframe's holds the map's frame): the
+new session's closures bend the old map as a one-run SLAM would. A folder without
+``graph.g2o`` (an older map) keeps the map put instead: each keyframe held by a strong prior
+(:data:`PRIOR_SIGMAS`) and linked to the one before as the map has them. The new session's
+keyframes follow. Without an initial pose the first
 new keyframe starts a lost segment (:mod:`.relocalise`), searched for in the prior map with
 its place index until two attempts agree; with one (the first scan's base pose in the map's
 frame) it starts there under a prior of :data:`INITIAL_SIGMAS`. Loop closure then searches
@@ -26,9 +30,9 @@ from numpy.typing import NDArray
 from laser_corners.errors import InputError
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.pose import invert_many
+from laser_corners.registration.mapfolder import SavedMap, load_map, read_pose_graph
 from laser_corners.registration.points import ScanPoints, transform
 from laser_corners.scan import LaserScan
-from laser_corners.slam.mapfile import SavedMap, load_map
 from laser_corners.slam.relocalise import occupancy_keys
 from laser_corners.slam.result import LoopClosure
 
@@ -45,10 +49,11 @@ __all__ = [
 ]
 
 PRIOR_SIGMAS = (0.01, 0.01, 0.001)
-"""Standard deviations (m, m, rad) of the prior holding each keyframe of a prior map (with the
-links between them): the map stays put (its keyframes move by millimetres). Softer, 0.1 m /
-0.01 rad, let a new session's closures move them by up to 5 cm and scored aces 1.11x instead
-of 1.16x the one-run SLAM but intel 1.33x instead of 1.13x (``docs/benchmarks/grow.md``)."""
+"""Standard deviations (m, m, rad) of the prior holding each keyframe of a prior map without
+``graph.g2o`` (with the links between them): the map stays put (its keyframes move by
+millimetres). Such fixed maps scored aces 1.16x and intel 1.13x the one-run SLAM; softer
+priors, 0.1 m / 0.01 rad, aces 1.11x but intel 1.33x; the map's own graph is what bends it
+right (``docs/benchmarks/grow.md``)."""
 INITIAL_SIGMAS = (0.5, 0.5, 0.2)
 """Standard deviations (m, m, rad) of the prior on the first new keyframe at a given initial
 pose (loop closures with the prior map then place it)."""
@@ -65,13 +70,17 @@ FRAME = "prior_map"
 
 
 def load_prior_map(path: str | Path | SavedMap) -> SavedMap:
-    """The map folder a run grows (:func:`~.mapfile.load_map`), refusing a map of another
-    package (a ``map_server`` YAML has no keyframe points to keep).
+    """The map folder a run grows (:func:`~laser_corners.registration.mapfolder.load_map`)
+    with its pose graph (``SavedMap.graph``,
+    :func:`~laser_corners.registration.mapfolder.read_pose_graph`; None without
+    ``graph.g2o``), refusing a map of another package (a ``map_server`` YAML has no keyframe
+    points to keep).
 
     Raises
     ------
     InputError
-        As :func:`~.mapfile.load_map`, or a ``map_server`` map (one line saying so).
+        As ``load_map``, a ``map_server`` map, or a ``graph.g2o`` that is unreadable or not
+        of the folder's keyframes (one line saying so).
     """
     saved = path if isinstance(path, SavedMap) else load_map(path)
     if saved.virtual_scans is not None:
@@ -79,6 +88,8 @@ def load_prior_map(path: str | Path | SavedMap) -> SavedMap:
             f"{saved.folder}: a map_server map has no keyframe scans to grow; give a map "
             "folder written by `laser-corners slam -o`"
         )
+    if saved.graph is None:
+        saved.graph = read_pose_graph(saved.folder, saved.poses)
     return saved
 
 

@@ -18,6 +18,7 @@ from laser_corners.detector import CornerDetector
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import relative_pose
 from laser_corners.registration.corners import corner_detector, scan_corners
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.registration.odometry import odometry_sigmas
 from laser_corners.registration.place_index import PlaceIndex, index_arrays, index_from_arrays
 from laser_corners.registration.points import ScanPoints
@@ -34,7 +35,6 @@ from laser_corners.slam.grow import (
 )
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.landmarks import LandmarkTracker
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 
 __all__ = ["CUT_SIGMAS", "Keyframer"]
@@ -95,20 +95,25 @@ class Keyframer:
 
     def seed(self, saved: SavedMap, initial_pose: bool = False) -> None:
         """Start from a prior map (:mod:`.grow`): its keyframes become keyframes ``0 .. K - 1``
-        (store, place index, and the graph: each under a prior of :data:`~.grow.PRIOR_SIGMAS`,
-        each linked to the one before by their relative pose in the map, with the scan
-        matching's noise);
-        the session's keyframes follow (:attr:`KeyframeStore.first`). ``initial_pose``: the
-        session's first keyframe gets a prior of :data:`~.grow.INITIAL_SIGMAS` at its pose
-        (else it starts a lost segment, ``cut``)."""
+        (store, place index, graph); the session's keyframes follow
+        (:attr:`KeyframeStore.first`). ``initial_pose``: the session's first keyframe gets a
+        prior of :data:`~.grow.INITIAL_SIGMAS` at its pose (else it starts a lost segment,
+        ``cut``).
+
+        With the map's pose graph (``saved.graph``, its ``graph.g2o``) the keyframes are
+        linked by the map's own factors, its loop closures robust as the back end makes them,
+        under the one-run SLAM's priors only (the first keyframe's, which holds the map's
+        frame, and a weak one on a keyframe that started a segment): the session's closures
+        bend the map as a one-run SLAM would. Without it, each keyframe is held by a prior of
+        :data:`~.grow.PRIOR_SIGMAS` and linked to the one before with the scan matching's
+        noise (the map stays put)."""
         points = prior_points(saved)
         scans = prior_scans(points, self.mount, self.options.max_range)
-        opt = self.options
-        link = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
+        if saved.graph is not None:
+            self._seed_graph(saved)
+        else:
+            self._seed_fixed(saved)
         for k, pose in enumerate(saved.poses):
-            self.backend.add_keyframe(pose, sigmas=PRIOR_SIGMAS)
-            if k:  # the map's shape as it was made
-                self.backend.add_between(k - 1, k, relative_pose(saved.poses[k - 1], pose), link)
             self.store.add(scans[k], points[k], -1, saved.stamps[k], pose, pose)
         self.store.first = len(saved)
         self.links = [None] * len(saved)
@@ -118,6 +123,30 @@ class Keyframer:
             if old is not None:
                 self.places.keyframe, self.places.corners = old.keyframe, old.corners
         self.store.estimate = self.backend.update()
+
+    def _seed_graph(self, saved: SavedMap) -> None:
+        """The prior map's keyframes and its pose graph's factors (see :meth:`seed`)."""
+        graph = saved.graph
+        chain = graph.chain()
+        linked = set(graph.pairs[chain, 1].tolist())
+        for k, pose in enumerate(saved.poses):
+            self.backend.add_keyframe(pose, prior=k > 0 and k not in linked)
+        for (a, b), rel, sig, link in zip(
+            graph.pairs, graph.relative, graph.sigmas, chain, strict=True
+        ):
+            sigmas = (float(sig[0]), float(sig[1]), float(sig[2]))
+            self.backend.add_between(int(a), int(b), rel, sigmas, robust=not link)
+
+    def _seed_fixed(self, saved: SavedMap) -> None:
+        """The prior map's keyframes, each under a prior of :data:`~.grow.PRIOR_SIGMAS` and
+        linked to the one before by their relative pose in the map, with the scan matching's
+        noise (a map folder without ``graph.g2o``)."""
+        opt = self.options
+        link = (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
+        for k, pose in enumerate(saved.poses):
+            self.backend.add_keyframe(pose, sigmas=PRIOR_SIGMAS)
+            if k:  # the map's shape as it was made
+                self.backend.add_between(k - 1, k, relative_pose(saved.poses[k - 1], pose), link)
 
     def keypoints(self, scan: LaserScan) -> Keypoints:
         """Corner keypoints of ``scan`` (sensor frame), detector made on the first scan."""

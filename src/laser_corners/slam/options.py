@@ -10,14 +10,16 @@ log; see ``docs/slam.md``.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import ClassVar, Literal
 
 from pydantic import Field
 
+from laser_corners.errors import InputError, InvalidParamsError
 from laser_corners.options import MountValue, Options
 from laser_corners.registration.place_index import PlaceOptions
 
-__all__ = ["SlamOptions"]
+__all__ = ["SlamOptions", "map_options"]
 
 
 class SlamOptions(Options):
@@ -164,3 +166,21 @@ class SlamOptions(Options):
     """The place index: corner keypoints and descriptors of the map's keyframes, which propose
     global (re)localisation candidates in milliseconds (``places.enabled=false``: the
     exhaustive correlative search alone; see ``registration/place_index.py``)."""
+
+
+def map_options(folder: str | Path) -> SlamOptions:
+    """The :class:`SlamOptions` a map folder was made with (its ``options.yaml``, which
+    ``slam`` writes), or the defaults when the folder has none.
+
+    Raises
+    ------
+    InputError
+        ``options.yaml`` is there but unreadable or not valid options (named, one line).
+    """
+    path = Path(folder) / "options.yaml"
+    if not path.is_file():
+        return SlamOptions()
+    try:
+        return SlamOptions.from_file(path)
+    except InvalidParamsError as exc:
+        raise InputError(f"{exc} (the map's SLAM options)") from None

@@ -114,6 +114,8 @@ class SlamResult:
     prior_keyframes : int
         The first this many keyframes are a prior map's (a run that grows a map,
         :mod:`.grow`): no scan of this run; their ``scans`` are remade from their points.
+    prior_map : str or None
+        The map folder the run grew (None: a map of its own).
     keyframe_stamps : ndarray, shape (K,), optional
         Every keyframe's stamp (None: ``stamps[keyframes]``).
     keyframe_points : list of ScanPoints, optional
@@ -141,6 +143,7 @@ class SlamResult:
     places: PlaceIndex | None = None
     skipped: dict[str, int] = field(default_factory=dict)
     prior_keyframes: int = 0
+    prior_map: str | None = None
     keyframe_stamps: NDArray[np.float64] | None = None
     keyframe_points: list[ScanPoints] | None = None
 

@@ -27,9 +27,9 @@ from laser_corners.errors import InputError, first_line
 from laser_corners.pipeline.interrupt import STOP_REASONS, stop_requests
 from laser_corners.pipeline.recording import Recording, open_recording
 from laser_corners.pose import compose_many, invert_many
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.scan import LaserScan
 from laser_corners.slam.grow import load_prior_map
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.result import SlamResult
 from laser_corners.slam.slam import Slam

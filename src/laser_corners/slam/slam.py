@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.keypoints import Keypoints
 from laser_corners.pose import compose, relative_pose, rotate_covariance
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.registration.points import ScanPoints, scan_points
 from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
@@ -33,7 +34,6 @@ from laser_corners.slam.finish import ScanLog, final_graph
 from laser_corners.slam.grow import grid_occupancy, join_warning
 from laser_corners.slam.keyframer import Keyframer
 from laser_corners.slam.landmarks import LandmarkTracker
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.relocalise import Relocaliser
 from laser_corners.slam.result import Landmarks, SlamResult
@@ -114,6 +114,7 @@ class Slam:
         )
         self.kf = self.keyframer.store
         self._start = None if initial_pose is None else np.asarray(initial_pose, float).reshape(3)
+        self._prior_folder = None if prior_map is None else str(prior_map.folder)
         if prior_map is not None:
             self.keyframer.seed(prior_map, initial_pose=self._start is not None)
             self.counts.prior_keyframes = len(prior_map)
@@ -313,6 +314,7 @@ class Slam:
             places=self.places if opt.places.enabled else None,
             cuts=keyframes[starts],
             prior_keyframes=self.kf.first,
+            prior_map=self._prior_folder,
             keyframe_stamps=np.asarray(self.kf.stamps, dtype=np.float64),
             keyframe_points=list(self.kf.points),
         )

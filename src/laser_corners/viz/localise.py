@@ -19,8 +19,8 @@ from matplotlib.figure import Figure
 from laser_corners.io.base import PartialOutput, skip_warning
 from laser_corners.io.occupancy import OccupancyGrid
 from laser_corners.io.trajectory import write_tum
+from laser_corners.slam.output import ms_statistics
 from laser_corners.viz.slam import plot_slam_map, save_figure
-from laser_corners.viz.slam_report import ms_statistics
 
 __all__ = ["initial_text", "localise_summary", "save_localise_map", "write_localise_outputs"]
 

@@ -20,39 +20,44 @@ occupancy grid:
                    ``places_version``; absent in maps made before it (no index then)
 =================  ==========================================================================
 
-:func:`save_map_data` writes it from a :class:`~laser_corners.slam.SlamResult`;
-:func:`load_map` reads a folder (``keyframes.npz``, ``map.yaml`` + ``map.pgm`` and
-``landmarks.csv`` when present) into a :class:`SavedMap`. Every problem of a folder is one
-:class:`~laser_corners.errors.InputError` line naming the folder and what is wrong.
+The whole folder (the table of :data:`MAP_FILES`; ``graph.g2o``: the final pose graph, which
+:func:`read_pose_graph` reads back for a map that grows) is written by :func:`write_map_folder`
+from plain data (:class:`MapContents`; the pictures rendered by the caller, :data:`Render`):
+every file into a staging folder ``.NAME.XXXXXXXX.partial`` renamed into place, so a killed
+run leaves the previous folder or the new one, never a mix. ``summary.json`` lists the files
+and the :data:`FORMAT_VERSION`. :func:`load_map` reads a folder into a :class:`SavedMap`; every
+problem is one :class:`~laser_corners.errors.InputError` line naming the folder: another
+format version, a staging folder (a run still writing, or killed while writing), a file the
+summary lists missing. A *partial* map (its run stopped early: ``"partial": true``) loads,
+and says so in :attr:`SavedMap.partial_reason` (``localise`` warns of it).
 
-Complete and partial folders: ``slam`` writes its folder whole (a staging folder
-``.NAME.XXXXXXXX.partial`` renamed into place), and its ``summary.json`` lists the files
-written. :func:`load_map` refuses a staging folder (a run still writing, or killed while
-writing) and a folder missing a file its summary lists (incomplete: copied or edited by hand).
-A *partial* map, one whose run stopped early (Ctrl-C, SIGTERM, an error; ``"partial": true``
-in its summary), is complete as far as it goes: it loads, and says so in
-:attr:`SavedMap.partial_reason` (``localise`` warns of it).
-
-:func:`load_map` also reads a map made by another package: a ``map_server`` YAML (``.yaml`` /
-``.yml`` path) becomes a :class:`SavedMap` of *virtual keyframes* placed over the grid's
-free space (:mod:`laser_corners.slam.gridmap`), their points made as a real keyframe's, their
-360° scans kept in :attr:`SavedMap.virtual_scans`, a zero mount.
+A ``map_server`` YAML path (a map made by another package) becomes a :class:`SavedMap` of
+*virtual keyframes* over the grid's free space (:mod:`laser_corners.registration.gridmap`),
+their points made as a real keyframe's, their 360° scans kept in
+:attr:`SavedMap.virtual_scans`, a zero mount.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import zipfile
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from laser_corners.errors import InputError, InvalidParamsError
+from laser_corners.errors import InputError, OutputError, first_line
 from laser_corners.io.base import PartialOutput
-from laser_corners.io.occupancy import OccupancyGrid, read_map
+from laser_corners.io.occupancy import OccupancyGrid, read_map, write_map
+from laser_corners.io.partial import PARTIAL_SUFFIX, publish_folder, staging_folder
+from laser_corners.io.trajectory import write_tum
+from laser_corners.registration.graph import PoseGraph, read_g2o_edges
+from laser_corners.registration.gridmap import virtual_keyframes
 from laser_corners.registration.place_index import (
     PlaceIndex,
     PlaceOptions,
@@ -62,21 +67,33 @@ from laser_corners.registration.place_index import (
 )
 from laser_corners.registration.points import scan_points
 from laser_corners.scan import LaserScan
-from laser_corners.slam.gridmap import virtual_keyframes
-from laser_corners.slam.options import SlamOptions
 
 __all__ = [
     "FORMAT_VERSION",
+    "GRAPH_FILE",
     "KEYFRAMES_FILE",
+    "LANDMARK_COLUMNS",
+    "MAP_FILES",
+    "MapContents",
     "SavedMap",
+    "check_map_folder",
     "load_map",
-    "map_options",
+    "read_pose_graph",
     "save_map_data",
+    "write_landmarks",
+    "write_map_folder",
 ]
 
 FORMAT_VERSION = 1
-"""Version of ``keyframes.npz``; :func:`load_map` refuses other versions."""
+"""Version of the map folder (``keyframes.npz``'s ``format_version``, ``summary.json``'s);
+:func:`load_map` refuses other versions."""
 KEYFRAMES_FILE = "keyframes.npz"
+GRAPH_FILE = "graph.g2o"
+"""The final pose graph of the run (g2o ``VERTEX_SE2`` / ``EDGE_SE2``, vertex ``k`` keyframe
+``k``); :func:`read_pose_graph` reads its edges."""
+GRAPH_TOLERANCE = 0.01
+"""Largest difference (m, rad) between a ``graph.g2o`` vertex and its keyframe's pose in
+``keyframes.npz`` (the g2o text keeps 6 significant digits); more: files of two runs."""
 _ARRAYS = ("poses", "stamps", "scan_index", "offsets", "points", "normals", "has_normal", "mount")
 
 
@@ -109,7 +126,10 @@ class SavedMap:
         of the whole recording, or a folder without a summary.
     virtual_scans : list of LaserScan or None
         A foreign map's (a ``map_server`` YAML): keyframe ``k``'s virtual 360° scan, taken at
-        ``poses[k]`` (:mod:`laser_corners.slam.gridmap`); None for a map folder.
+        ``poses[k]`` (:mod:`laser_corners.registration.gridmap`); None for a map folder.
+    graph : PoseGraph or None
+        The edges of ``graph.g2o`` (:func:`read_pose_graph`), read by a run that grows the
+        map; None until then, or when the folder has no graph.
     """
 
     folder: Path
@@ -126,6 +146,7 @@ class SavedMap:
     places: PlaceIndex | None = None
     partial_reason: str | None = None
     virtual_scans: list[LaserScan] | None = None
+    graph: PoseGraph | None = None
 
     def __len__(self) -> int:
         return int(self.poses.shape[0])
@@ -141,6 +162,21 @@ class SavedMap:
         )
         nrm = np.column_stack([c * n[:, 0] - s * n[:, 1], s * n[:, 0] + c * n[:, 1]])
         return xy, nrm, self.has_normal
+
+
+def read_pose_graph(folder: str | Path, poses: NDArray[np.float64]) -> PoseGraph | None:
+    """The edges of a map folder's ``graph.g2o`` between its keyframes ``poses`` (K, 3);
+    None when the folder has no graph (a map written before it, or whose graph the writer
+    refused).
+
+    Raises
+    ------
+    InputError
+        ``graph.g2o`` is unreadable, or its vertices are not the keyframes (another count,
+        a vertex away from its keyframe's pose: files of two runs), one line.
+    """
+    path = Path(folder) / GRAPH_FILE
+    return read_g2o_edges(path, poses, GRAPH_TOLERANCE) if path.is_file() else None
 
 
 def keyframe_arrays(result: Any) -> dict[str, NDArray]:
@@ -213,6 +249,12 @@ def _summary(folder: Path) -> str | None:
         raise InputError(f"{path}: unreadable ({str(exc).splitlines()[0]})") from None
     if not isinstance(summary, dict):
         raise InputError(f"{path}: not a slam summary")
+    version = summary.get("format_version", FORMAT_VERSION)
+    if version != FORMAT_VERSION:
+        raise InputError(
+            f"{path}: format version {version}, this version reads {FORMAT_VERSION}; "
+            "remake the map with `laser-corners slam`"
+        )
     files = summary.get("files")
     missing = sorted(n for n in files.values() if not (folder / n).is_file()) if files else []
     if missing:
@@ -347,19 +389,208 @@ def _grid_map(path: Path) -> SavedMap:
     )
 
 
-def map_options(folder: str | Path) -> SlamOptions:
-    """The :class:`~laser_corners.slam.SlamOptions` a map folder was made with (its
-    ``options.yaml``, which ``slam`` writes), or the defaults when the folder has none.
+LANDMARK_COLUMNS = (
+    "x",
+    "y",
+    "cov_xx",
+    "cov_xy",
+    "cov_yy",
+    "observations",
+    "first_stamp",
+    "last_stamp",
+)
+"""Columns of ``landmarks.csv``."""
+MAP_FILES = (
+    "trajectory.tum",
+    "odometry.tum",
+    GRAPH_FILE,
+    "landmarks.csv",
+    KEYFRAMES_FILE,
+    "map.pgm",
+    "map.yaml",
+    "map.png",
+    "summary.json",
+    "options.yaml",
+    "report.md",
+)
+"""The files of a map folder (``map.png`` and ``report.md``: the pictures a caller renders,
+:data:`Render`)."""
+
+
+@dataclass
+class MapContents:
+    """Everything a map folder holds but its pictures, as plain data (the SLAM makes it from
+    its result: :func:`laser_corners.slam.output.map_contents`).
+
+    Attributes
+    ----------
+    source : str
+        The recording, named in the trajectories' headers.
+    keyframes : dict of str to ndarray
+        The arrays of ``keyframes.npz`` (:func:`keyframe_arrays`).
+    stamps : ndarray, shape (N,)
+    poses, odometry : ndarray, shape (N, 3)
+        Every scan's base pose in the map frame and its odometry (``trajectory.tum``,
+        ``odometry.tum``).
+    landmarks : ndarray, shape (L, 8)
+        ``landmarks.csv``'s rows (:data:`LANDMARK_COLUMNS`).
+    options_yaml : str
+        ``options.yaml``.
+    summary : dict
+        ``summary.json``, JSON-safe (no NaN; the writer adds ``format_version``, ``files``
+        and a warning for a graph it could not write).
+    grid : OccupancyGrid or None
+        ``map.yaml`` + ``map.pgm`` (None: no grid).
+    write_graph : callable or None
+        ``write_graph(path)`` writes ``graph.g2o`` (raising ``ValueError``, ``RuntimeError``
+        or ``OutputError`` when it cannot); None: no graph.
+    """
+
+    source: str
+    keyframes: dict[str, NDArray]
+    stamps: NDArray[np.float64]
+    poses: NDArray[np.float64]
+    odometry: NDArray[np.float64]
+    landmarks: NDArray[np.float64]
+    options_yaml: str
+    summary: dict[str, Any] = field(default_factory=dict)
+    grid: OccupancyGrid | None = None
+    write_graph: Callable[[Path], None] | None = None
+
+
+Render = Callable[[Path, MapContents], dict[str, Path]]
+"""``render(folder, contents)`` writes a map folder's pictures (``map.png``, ``report.md``)
+into the folder being written and returns them by key; called before ``summary.json``."""
+
+
+def write_landmarks(path: Path, table: NDArray[np.float64]) -> Path:
+    """Write ``landmarks.csv`` (:data:`LANDMARK_COLUMNS`, rows of ``table``) atomically."""
+    table = np.asarray(table, dtype=np.float64).reshape(-1, len(LANDMARK_COLUMNS))
+    with PartialOutput(path, overwrite=True).writing() as temporary:
+        np.savetxt(
+            temporary,
+            table,
+            delimiter=",",
+            header=",".join(LANDMARK_COLUMNS),
+            comments="",
+            fmt=["%.6f"] * 5 + ["%d"] + ["%.6f"] * 2,
+        )
+    return path
+
+
+def check_map_folder(folder: Path) -> None:
+    """Refuse an output folder :func:`write_map_folder` cannot replace whole: a file, a folder
+    that cannot be written or is marked read-only (no owner write bit: also for root), or one
+    holding files that are not a map folder's (they would be lost). A missing folder is fine
+    (it is created).
 
     Raises
     ------
-    InputError
-        ``options.yaml`` is there but unreadable or not valid options (named, one line).
+    OutputError
+        Naming the folder and what is wrong, one line.
     """
-    path = Path(folder) / "options.yaml"
-    if not path.is_file():
-        return SlamOptions()
+    if not folder.exists():
+        return
+    if not folder.is_dir():
+        raise OutputError(f"{folder}: is a file; the map output needs a folder")
+    if not os.access(folder, os.W_OK | os.X_OK) or not folder.stat().st_mode & 0o200:
+        raise OutputError(f"{folder}: cannot write into the folder (read-only)")
+    other = sorted(
+        p.name for p in folder.iterdir() if p.name not in MAP_FILES and PARTIAL_SUFFIX not in p.name
+    )
+    if other:
+        shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
+        raise OutputError(
+            f"{folder}: holds files that are not a slam result ({shown}); the map folder is "
+            "replaced whole, so choose a new or empty folder"
+        )
+
+
+def write_map_folder(
+    folder: Path, contents: MapContents, render: Render | None = None
+) -> dict[str, Path]:
+    """Write the map folder ``folder`` whole: every file into a new folder beside it
+    (``.NAME.XXXXXXXX.partial``), which then replaces ``folder`` in one step
+    (:func:`~laser_corners.io.partial.publish_folder`), so a run killed while writing leaves
+    the previous folder (or none) under the name, never a mix of two or a truncated file.
+
+    Returns
+    -------
+    dict of str to Path
+        ``trajectory``, ``odometry``, ``graph``, ``landmarks``, ``keyframes``, ``map_yaml``,
+        ``map_pgm``, what ``render`` wrote (``map_png``, ``report``), ``options``,
+        ``summary``.
+
+    Raises
+    ------
+    OutputError
+        The folder is refused (:func:`check_map_folder`) or a file cannot be written
+        (``graph.g2o`` excepted: a graph that cannot be written is a warning in the summary,
+        the other files are still written); nothing is changed under ``folder`` then.
+    """
+    check_map_folder(folder)
+    staging = staging_folder(folder)
     try:
-        return SlamOptions.from_file(path)
-    except InvalidParamsError as exc:
-        raise InputError(f"{exc} (the map's SLAM options)") from None
+        paths = _write_files(contents, staging, render)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    publish_folder(staging, folder)
+    return {key: folder / path.name for key, path in paths.items()}
+
+
+def _write_files(contents: MapContents, folder: Path, render: Render | None) -> dict[str, Path]:
+    """Every file into the (new, empty) ``folder``."""
+    c = contents
+    paths = {"trajectory": folder / "trajectory.tum", "odometry": folder / "odometry.tum"}
+    write_tum(
+        paths["trajectory"],
+        c.stamps,
+        c.poses,
+        header=f"laser-corners slam {c.source}: base pose in the map frame, one line per scan",
+    )
+    write_tum(
+        paths["odometry"],
+        c.stamps,
+        c.odometry,
+        header=f"laser-corners slam {c.source}: odometry, one line per scan",
+    )
+    if c.write_graph is not None:
+        _write_graph(c, folder / GRAPH_FILE, paths)
+    paths["landmarks"] = write_landmarks(folder / "landmarks.csv", c.landmarks)
+    paths["keyframes"] = folder / KEYFRAMES_FILE
+    with (
+        PartialOutput(paths["keyframes"], overwrite=True).writing() as temporary,
+        temporary.open("wb") as f,
+    ):
+        np.savez_compressed(f, **c.keyframes)
+    if c.grid is not None:
+        paths["map_yaml"], paths["map_pgm"] = write_map(c.grid, folder / "map.yaml")
+    if render is not None:
+        paths.update(render(folder, c))
+    paths["options"] = _write_text(folder / "options.yaml", c.options_yaml)
+    summary = {**c.summary, "format_version": FORMAT_VERSION}
+    summary["files"] = {k: p.name for k, p in paths.items()}
+    text = json.dumps(summary, indent=2, allow_nan=False) + "\n"
+    paths["summary"] = _write_text(folder / "summary.json", text)
+    return paths
+
+
+def _write_graph(contents: MapContents, path: Path, paths: dict[str, Path]) -> None:
+    """``graph.g2o``; a graph the writer refuses is a warning in the summary, not the loss of
+    every other file."""
+    try:
+        with PartialOutput(path, overwrite=True).writing() as temporary:
+            contents.write_graph(temporary)
+    except (ValueError, RuntimeError, OutputError) as exc:
+        warnings = contents.summary.setdefault("warnings", [])
+        warnings.append(f"{path.name} not written: {first_line(exc)}")
+        path.unlink(missing_ok=True)
+    else:
+        paths["graph"] = path
+
+
+def _write_text(path: Path, text: str) -> Path:
+    with PartialOutput(path, overwrite=True).writing() as temporary:
+        temporary.write_text(text, encoding="utf-8")
+    return path

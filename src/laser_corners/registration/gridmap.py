@@ -25,7 +25,7 @@ normals. :func:`virtual_keyframes` makes them from the grid alone:
    the rays of a far, sparse scan), which would otherwise stop the beams and keep keyframes
    out of most of a room.
 3. **Points.** The scans become keyframe points + normals exactly as a real keyframe's do
-   (:func:`~laser_corners.slam.mapfile.keyframe_arrays` ->
+   (:func:`~laser_corners.registration.mapfolder.keyframe_arrays` ->
    :func:`~laser_corners.registration.points.scan_points`, the SLAM's default range limits and
    spacing), with a zero mount (the virtual scanner is at the base).
 
@@ -50,8 +50,8 @@ from numpy.typing import NDArray
 from scipy.ndimage import binary_dilation, binary_opening, distance_transform_edt
 
 from laser_corners.io.occupancy import FREE_PERCENT, OCCUPIED_PERCENT, OccupancyGrid
+from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.scan import LaserScan
-from laser_corners.slam.options import SlamOptions
 
 __all__ = [
     "BEAMS",
@@ -59,6 +59,7 @@ __all__ = [
     "FRAME",
     "RANGE_MAX",
     "SPACING",
+    "PointSettings",
     "VirtualKeyframes",
     "cast_grid",
     "free_poses",
@@ -235,10 +236,21 @@ def cast_grid(
     return out * grid.resolution
 
 
+@dataclass(frozen=True)
+class PointSettings:
+    """Range limits and point spacing of virtual keyframe points: the SLAM's defaults
+    (``SlamOptions`` ``min_range``, ``max_range``, ``point_spacing``), its place index's."""
+
+    min_range: float = 0.1
+    max_range: float = 30.0
+    point_spacing: float = 0.05
+    places: PlaceOptions = field(default_factory=PlaceOptions)
+
+
 @dataclass
 class VirtualKeyframes:
     """Virtual keyframes of a grid, shaped as a SLAM result is for
-    :func:`~laser_corners.slam.mapfile.keyframe_arrays` (``keyframe_poses``, ``scans``,
+    :func:`~laser_corners.registration.mapfolder.keyframe_arrays` (``keyframe_poses``, ``scans``,
     ``keyframes``, ``stamps``, ``mount``, ``options``).
 
     Attributes
@@ -248,13 +260,13 @@ class VirtualKeyframes:
     scans : list of LaserScan
         The virtual 360° scans (``BEAMS`` beams from ``-pi``, ``range_max`` ``RANGE_MAX``,
         ``inf`` where a beam gives no return).
-    options : SlamOptions
+    options : PointSettings
         Range limits and point spacing of the keyframe points (the SLAM's defaults).
     """
 
     keyframe_poses: NDArray[np.float64]
     scans: list[LaserScan]
-    options: SlamOptions = field(default_factory=SlamOptions)
+    options: PointSettings = field(default_factory=PointSettings)
 
     def __len__(self) -> int:
         return len(self.scans)

@@ -15,19 +15,20 @@ from laser_corners.errors import InputError
 from laser_corners.io.occupancy import OccupancyGrid, read_map, write_map
 from laser_corners.localise import LocaliseOptions, Localiser, run_localise
 from laser_corners.pose import between_many, compose_many
-from laser_corners.registration.points import scan_points
-from laser_corners.sim import SICK_LMS_1DEG, World, cast_circles, cast_ranges
-from laser_corners.slam import SlamOptions
-from laser_corners.slam.grid import result_grid
-from laser_corners.slam.gridmap import (
+from laser_corners.registration.gridmap import (
     BEAMS,
     CLEARANCE,
     RANGE_MAX,
     SPACING,
+    PointSettings,
     cast_grid,
     virtual_keyframes,
 )
-from laser_corners.slam.mapfile import load_map
+from laser_corners.registration.mapfolder import load_map
+from laser_corners.registration.points import scan_points
+from laser_corners.sim import SICK_LMS_1DEG, World, cast_circles, cast_ranges
+from laser_corners.slam import SlamOptions
+from laser_corners.slam.grid import result_grid
 from laser_corners.slam.run import run_slam
 
 RATE = 10.0
@@ -404,3 +405,13 @@ def test_fr079_our_map_yaml_as_a_foreign_map(fr079_yaml) -> None:
     d = slam_errors(run, result)
     assert len(d) >= 0.95 * (LATER[1] - LATER[0])
     assert np.mean(d < 0.3) >= 0.98 and np.percentile(d, 95) < 0.1
+
+
+def test_virtual_keyframe_points_take_the_slams_defaults() -> None:
+    settings, slam = PointSettings(), SlamOptions()
+    assert (settings.min_range, settings.max_range, settings.point_spacing) == (
+        slam.min_range,
+        slam.max_range,
+        slam.point_spacing,
+    )
+    assert settings.places == slam.places
