@@ -38,6 +38,13 @@ dead-reckoned in the window*: the interpolated score again, with the scans that 
 estimate while a lost track's search window is open (``Localiser.window``, issue 20) given the
 window's dead-reckoned pose; the localiser does not report these poses (no estimate there).
 
+**Yardstick** (``--yardstick``): the full-log SLAM's own online estimates (each scan's pose as
+:meth:`~laser_corners.slam.Slam.add` returns it, before later loop closures correct it), scored
+on the later visit's relations: the best a causal estimator of this SLAM front end does on them
+with the whole log to map, beside the localiser's online ratio.
+
+``--table FILE`` writes the tables (markdown, with the command, date and machine).
+
 Timings are of this machine under whatever else runs on it (2 cores shared).
 """
 
@@ -47,6 +54,7 @@ import argparse
 import json
 import math
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -62,9 +70,12 @@ from laser_corners.localise.smooth import smooth
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many, invert_many
 from laser_corners.registration.mapfolder import load_map
-from laser_corners.slam import run_slam
+from laser_corners.slam import Slam, SlamOptions, run_slam
 from laser_corners.slam.output import SlamRunInfo
 from laser_corners.viz.slam_report import write_slam_outputs
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import write_table
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 
@@ -457,7 +468,18 @@ def run_log(name: str, args, options) -> dict:
     result["later"] = later_visit(
         path, args.cache, name, scans, odo, stamps, relations, traj, options, args.split
     )
+    if args.yardstick:
+        t_half = stamps[int(len(scans) * args.split)]
+        rel = relations[(relations[:, 0] >= t_half) | (relations[:, 1] >= t_half)]
+        online = slam_online(scans, odo, stamps, saved.mount)
+        result["later"]["slam_online_trans"] = relation_metrics(stamps, online, rel).trans_mean
     return result
+
+
+def slam_online(scans, odo, stamps, mount) -> np.ndarray:
+    """The full-log SLAM's online pose of every scan (the yardstick, module notes)."""
+    slam = Slam(SlamOptions(), mount)
+    return np.array([slam.add(s, o, t)[0] for s, o, t in zip(scans, odo, stamps, strict=True)])
 
 
 def main() -> None:
@@ -474,6 +496,8 @@ def main() -> None:
     parser.add_argument(
         "--split", type=float, default=0.5, help="later visit: share of the scans mapped"
     )
+    parser.add_argument("--yardstick", action="store_true", help="the SLAM's online ratio too")
+    parser.add_argument("--table", type=Path, default=None, help="write the tables here")
     args = parser.parse_args()
     options = LocaliseOptions().with_overrides(args.set) if args.set else LocaliseOptions()
     results = []
@@ -484,7 +508,29 @@ def main() -> None:
         print(json.dumps(results[-1], default=float), flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=1, default=float))
-    print(os.linesep.join(table(results)))
+    lines = table(results) + yardstick_table(results)
+    print(os.linesep.join(lines))
+    if args.table:
+        write_table(args.table, "Localisation on the Freiburg logs (bench_localise)", lines)
+
+
+def yardstick_table(results: list[dict]) -> list[str]:
+    """The later visit's online ratio beside the full-log SLAM's own online estimates'."""
+    rows = [r for r in results if "slam_online_trans" in r.get("later", {})]
+    if not rows:
+        return []
+    lines = [
+        "",
+        "| log | localiser online / full-log SLAM (final) | full-log SLAM online / final |",
+        "|---|---|---|",
+    ]
+    for r in rows:
+        v = r["later"]
+        lines.append(
+            f"| {r['log']} | {v['joined_trans'] / v['full_trans']:.2f} "
+            f"| {v['slam_online_trans'] / v['full_trans']:.2f} |"
+        )
+    return lines
 
 
 def table(results: list[dict]) -> list[str]:

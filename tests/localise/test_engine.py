@@ -21,8 +21,8 @@ from test_localiser import (
 
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pose import between_many
+from laser_corners.registration.mapfolder import load_map
 from laser_corners.slam import Slam, SlamOptions
-from laser_corners.slam.mapfile import load_map
 
 
 @pytest.fixture(scope="module")

@@ -23,8 +23,8 @@ from numpy.typing import NDArray
 from laser_corners.localise.estimate import LocaliserEstimate
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import between_many, compose_many, invert_many
+from laser_corners.registration.mapfolder import SavedMap
 from laser_corners.scan import LaserScan
-from laser_corners.slam.mapfile import SavedMap
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.slam import Slam
 

@@ -6,19 +6,23 @@ and the final pose of every scan (:meth:`ScanLog.poses`: blended between its key
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.closing import LoopCloser
 from laser_corners.slam.counts import SlamCounts
+from laser_corners.slam.grow import join_warning
 from laser_corners.slam.keyframes import KeyframeStore
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.refine import refine
 from laser_corners.slam.rescan import blend_poses, rescan
+from laser_corners.slam.result import Landmarks, SlamResult
 from laser_corners.slam.tracking import SURFACE_SPACINGS
 
-__all__ = ["ScanLog", "final_graph"]
+__all__ = ["ScanLog", "final_graph", "slam_result"]
 
 
 class ScanLog:
@@ -106,3 +110,52 @@ def final_graph(
         graph, values = backend.graph, backend.values
     store.estimate = backend.estimate
     return graph, values
+
+
+def slam_result(
+    slam: Any, interrupted: bool = False, partial_reason: str | None = None
+) -> SlamResult:
+    """The result so far of ``slam``, a :class:`~.slam.Slam` (its :meth:`~.slam.Slam.result`;
+    not imported here: the module is one of its parts)."""
+    opt = slam.options
+    graph, values = final_graph(slam.backend, slam.kf, opt, slam.counts, slam.closing)
+    poses = slam.log.poses(slam.keyframer.links, slam.kf, opt, slam.counts)
+    landmarks = Landmarks()
+    if slam.landmarks is not None and slam.backend.n_landmarks:
+        landmarks = slam.landmarks.landmarks(slam.backend.marginals())
+    slam.counts.landmarks = len(landmarks)
+    slam.closing.tally()
+    warnings = list(slam.backend.warnings)
+    if slam.kf.first:
+        joined = join_warning(slam.closing.closures, slam.kf.first, slam.initial_pose is not None)
+        slam.counts.grow_unjoined = int(joined is not None)
+        warnings += [] if joined is None else [joined]
+    keyframes = np.asarray(slam.kf.scan_index, dtype=np.int64)
+    starts = [
+        k for k in range(slam.kf.first + 1, len(keyframes)) if slam.keyframer.links[k] is None
+    ]
+    return SlamResult(
+        stamps=np.asarray(slam.log.stamps, dtype=np.float64),
+        poses=poses,
+        odometry=np.asarray(slam.log.odometry, dtype=np.float64).reshape(-1, 3),
+        keyframes=keyframes,
+        keyframe_poses=np.asarray(slam.kf.estimate, dtype=np.float64).reshape(-1, 3),
+        scans=list(slam.kf.scans),
+        mount=slam.mount.copy(),
+        landmarks=landmarks,
+        closures=list(slam.closing.closures),
+        ms_per_scan=np.asarray(slam.log.ms, dtype=np.float64),
+        options=opt,
+        counts=slam.counts.as_dict(),
+        interrupted=interrupted or partial_reason is not None,
+        partial_reason=partial_reason,
+        warnings=warnings,
+        graph=graph,
+        values=values,
+        places=slam.places if opt.places.enabled else None,
+        cuts=keyframes[starts],
+        prior_keyframes=slam.kf.first,
+        prior_map=slam.prior_folder,
+        keyframe_stamps=np.asarray(slam.kf.stamps, dtype=np.float64),
+        keyframe_points=list(slam.kf.points),
+    )

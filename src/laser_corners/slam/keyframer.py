@@ -93,7 +93,7 @@ class Keyframer:
         self._detector: CornerDetector | None = None
         self._place_detector: CornerDetector | None = None
 
-    def seed(self, saved: SavedMap, initial_pose: bool = False) -> None:
+    def seed(self, saved: SavedMap, initial_pose: bool = False, frozen: bool = False) -> None:
         """Start from a prior map (:mod:`.grow`): its keyframes become keyframes ``0 .. K - 1``
         (store, place index, graph); the session's keyframes follow
         (:attr:`KeyframeStore.first`). ``initial_pose``: the session's first keyframe gets a
@@ -106,10 +106,11 @@ class Keyframer:
         frame, and a weak one on a keyframe that started a segment): the session's closures
         bend the map as a one-run SLAM would. Without it, each keyframe is held by a prior of
         :data:`~.grow.PRIOR_SIGMAS` and linked to the one before with the scan matching's
-        noise (the map stays put)."""
+        noise (the map stays put), as with ``frozen`` (a localising run: the map is the
+        reference, never bent)."""
         points = prior_points(saved)
         scans = prior_scans(points, self.mount, self.options.max_range)
-        if saved.graph is not None:
+        if saved.graph is not None and not frozen:
             self._seed_graph(saved)
         else:
             self._seed_fixed(saved)

@@ -30,13 +30,13 @@ from laser_corners.scan import LaserScan
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.closing import LoopCloser
 from laser_corners.slam.corners import CornerRegistrar
-from laser_corners.slam.finish import ScanLog, final_graph
-from laser_corners.slam.grow import grid_occupancy, join_warning
+from laser_corners.slam.finish import ScanLog, slam_result
+from laser_corners.slam.grow import grid_occupancy
 from laser_corners.slam.keyframer import Keyframer
 from laser_corners.slam.landmarks import LandmarkTracker
 from laser_corners.slam.options import SlamOptions
 from laser_corners.slam.relocalise import Relocaliser
-from laser_corners.slam.result import Landmarks, SlamResult
+from laser_corners.slam.result import SlamResult
 from laser_corners.slam.tracking import Tracking
 
 __all__ = ["Slam"]
@@ -113,10 +113,12 @@ class Slam:
             opt, self.mount, self.backend, self.counts, corners, self.landmarks
         )
         self.kf = self.keyframer.store
-        self._start = None if initial_pose is None else np.asarray(initial_pose, float).reshape(3)
-        self._prior_folder = None if prior_map is None else str(prior_map.folder)
+        given = None if initial_pose is None else np.asarray(initial_pose, float).reshape(3)
+        self.initial_pose = given
+        """The first scan's given pose in the prior map (None: a global search)."""
+        self.prior_folder = None if prior_map is None else str(prior_map.folder)
         if prior_map is not None:
-            self.keyframer.seed(prior_map, initial_pose=self._start is not None)
+            self.keyframer.seed(prior_map, self.initial_pose is not None, frozen=self.frozen)
             self.counts.prior_keyframes = len(prior_map)
         self.places = self.keyframer.places
         relocaliser = Relocaliser(opt, self.mount, self.places, counts=self.counts)
@@ -179,7 +181,7 @@ class Slam:
             if placed is not None:
                 self.pose = np.array(compose(placed[0], step))
             elif first:
-                self.pose = odo.copy() if self._start is None else self._start.copy()
+                self.pose = odo.copy() if self.initial_pose is None else self.initial_pose.copy()
             else:
                 self.pose = np.array(compose(self.pose, step))
             self._step = np.zeros(3)
@@ -233,7 +235,7 @@ class Slam:
         # a gap the alignment did not bridge, or a scan that fit nothing: a new segment; on a
         # prior map without an initial pose, the session starts lost
         cut = cut or ((tracking.jumped or tracking.lost) and not tracking.aligned and not first)
-        cut = cut or (first and self.kf.first > 0 and self._start is None)
+        cut = cut or (first and self.kf.first > 0 and self.initial_pose is None)
         k, dist = self.keyframer.add(
             scan,
             pts,
@@ -274,47 +276,7 @@ class Slam:
 
     # ------------------------------------------------------------------ result
     def result(self, interrupted: bool = False, partial_reason: str | None = None) -> SlamResult:
-        """The current result; with ``final_optimisation``, a batch optimisation runs first,
-        and with ``refine_final`` the refinement pass after it; ``partial_reason``: why."""
-        opt = self.options
-        graph, values = final_graph(self.backend, self.kf, opt, self.counts, self.closing)
-        poses = self.log.poses(self.keyframer.links, self.kf, opt, self.counts)
-        landmarks = Landmarks()
-        if self.landmarks is not None and self.backend.n_landmarks:
-            landmarks = self.landmarks.landmarks(self.backend.marginals())
-        self.counts.landmarks = len(landmarks)
-        self.closing.tally()
-        warnings = list(self.backend.warnings)
-        if self.kf.first:
-            joined = join_warning(self.closing.closures, self.kf.first, self._start is not None)
-            self.counts.grow_unjoined = int(joined is not None)
-            warnings += [] if joined is None else [joined]
-        keyframes = np.asarray(self.kf.scan_index, dtype=np.int64)
-        starts = [
-            k for k in range(self.kf.first + 1, len(keyframes)) if self.keyframer.links[k] is None
-        ]
-        return SlamResult(
-            stamps=np.asarray(self.log.stamps, dtype=np.float64),
-            poses=poses,
-            odometry=np.asarray(self.log.odometry, dtype=np.float64).reshape(-1, 3),
-            keyframes=keyframes,
-            keyframe_poses=np.asarray(self.kf.estimate, dtype=np.float64).reshape(-1, 3),
-            scans=list(self.kf.scans),
-            mount=self.mount.copy(),
-            landmarks=landmarks,
-            closures=list(self.closing.closures),
-            ms_per_scan=np.asarray(self.log.ms, dtype=np.float64),
-            options=opt,
-            counts=self.counts.as_dict(),
-            interrupted=interrupted or partial_reason is not None,
-            partial_reason=partial_reason,
-            warnings=warnings,
-            graph=graph,
-            values=values,
-            places=self.places if opt.places.enabled else None,
-            cuts=keyframes[starts],
-            prior_keyframes=self.kf.first,
-            prior_map=self._prior_folder,
-            keyframe_stamps=np.asarray(self.kf.stamps, dtype=np.float64),
-            keyframe_points=list(self.kf.points),
-        )
+        """The current result (:func:`~.finish.slam_result`); with ``final_optimisation``, a
+        batch optimisation runs first, and with ``refine_final`` the refinement pass after
+        it; ``partial_reason``: why the run stopped early."""
+        return slam_result(self, interrupted, partial_reason)
