@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numba
 import numpy as np
@@ -105,6 +106,13 @@ class Lattice:
     cells: int
     allowed: NDArray[np.bool_]
 
+    @cached_property
+    def blocks(self) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]]:
+        """The allowed blocks of every depth up to one block covering the lattice
+        (:func:`_masks`), made at the first search (``allowed`` must not change after)."""
+        side = max(self.allowed.shape)
+        return _masks(self.allowed, max(math.ceil(math.log2(max(side, 1))), 0))
+
     def positions(self, resolution: float) -> NDArray[np.float64]:
         """The allowed positions (K, 2) on a grid of ``resolution``, row by row."""
         i, j = np.nonzero(self.allowed)
@@ -112,10 +120,10 @@ class Lattice:
         return np.column_stack([self.origin[0] + step * j, self.origin[1] + step * i])
 
 
-def _depth(lattice: Lattice, levels: int) -> tuple[int, NDArray[np.int64]]:
-    """The top depth of the search and the pooled level bounding a node of each depth: the
-    smallest ``e`` with ``2^e >= (2^d - 1) m + 1``, the top one the deepest below
-    ``levels`` (and no deeper than one block covering the lattice)."""
+def _levels(lattice: Lattice, levels: int) -> NDArray[np.int64]:
+    """The pooled level bounding a node of each depth ``d`` (the last is the top one): the
+    smallest ``e`` with ``2^e >= (2^d - 1) m + 1``, the top depth the deepest below
+    ``levels`` and no deeper than one block covering the lattice."""
     m = lattice.cells
     side = max(lattice.allowed.shape)
     level = [0]
@@ -125,7 +133,7 @@ def _depth(lattice: Lattice, levels: int) -> tuple[int, NDArray[np.int64]]:
         if e >= levels or 2 ** (d - 1) >= side:
             break
         level.append(e)
-    return len(level) - 1, np.array(level, dtype=np.int64)
+    return np.array(level, dtype=np.int64)
 
 
 def _masks(allowed: NDArray[np.bool_], depth: int) -> tuple[NDArray, NDArray, NDArray]:
@@ -348,14 +356,14 @@ def best_poses(
     yaws = np.ascontiguousarray(yaws, dtype=np.float64).ravel()
     if len(points) == 0 or len(yaws) == 0 or count < 1 or not lattice.allowed.any():
         return []
-    depth, level = _depth(lattice, len(pyramid.offsets))
+    level = _levels(lattice, len(pyramid.offsets))
     shift = np.asarray(lattice.origin, dtype=np.float64) - grid.origin
     cy, cx = _cells(points, yaws, shift, grid.resolution)
     step = lattice.cells * grid.resolution
     geometry = np.array([lattice.origin[0], lattice.origin[1], step, lattice.cells], float)
     poses, sums = _search(
         (pyramid.data, pyramid.offsets, pyramid.shapes),
-        _masks(lattice.allowed, depth),
+        lattice.blocks,
         level,
         cy,
         cx,
