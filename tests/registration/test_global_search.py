@@ -69,7 +69,7 @@ def test_branch_and_bound_returns_the_exhaustive_best_distinct_poses(
     rng = np.random.default_rng(seed)
     xy = _room(rng, rng.uniform(4.0, 9.0))
     grid = ScoreGrid.build(xy, resolution, 0.2, 1.0)
-    pyramid = Pyramid.build(grid, levels=int(rng.integers(1, 6)))
+    pyramid = Pyramid.build(grid, int(rng.integers(1, 4)), levels=int(rng.integers(1, 6)))
     step = cells * resolution
     origin = grid.origin + rng.uniform(-0.3, 0.3, 2)
     shape = (np.array(grid.score.shape) * resolution / step).astype(int) + 1
@@ -124,10 +124,10 @@ def test_an_empty_scan_lattice_or_a_scan_off_the_map_gives_no_pose() -> None:
 def test_the_pooled_levels_hold_the_window_maxima() -> None:
     rng = np.random.default_rng(1)
     grid = ScoreGrid.build(rng.uniform(0, 3, (40, 2)), 0.1, 0.2, 0.5)
-    pyramid = Pyramid.build(grid, levels=4)
+    pyramid = Pyramid.build(grid, 3, levels=4)
     ny, nx = grid.score.shape
     for e in range(4):
-        w = 2**e
+        w = (2**e - 1) * 3 + 1
         rows, cols = pyramid.shapes[e]
         level = pyramid.data[pyramid.offsets[e] : pyramid.offsets[e] + rows * cols]
         level = level.reshape(rows, cols)

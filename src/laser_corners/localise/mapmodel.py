@@ -74,8 +74,8 @@ class MapModel:
         self.lines = PointMap.build(xy[line], normals[line])
         self.every = PointMap.build(xy, np.zeros_like(xy))
         self.grid = ScoreGrid.build(xy, GLOBAL_GRID, GLOBAL_SIGMA, margin=1.0)
-        self.pyramid = Pyramid.build(self.grid)
         self.lattice = self._lattice(saved.poses[:, :2], options)
+        self.pyramid = Pyramid.build(self.grid, self.lattice.cells)
         self.space = FreeSpace.build(saved)
 
     def _lattice(self, centres: NDArray, options: LocaliseOptions) -> Lattice:

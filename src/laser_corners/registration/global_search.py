@@ -3,7 +3,8 @@ multi-resolution branch and bound (Hess et al. 2016) over a lattice of allowed p
 
 A :class:`Pyramid` keeps, once per map, max-pooled copies of a
 :class:`~laser_corners.registration.correlative.ScoreGrid`: level ``e`` holds, per cell, the
-largest score of the ``2^e x 2^e`` cells of a sliding window. A :class:`Lattice` is the set of
+largest score of a sliding window of the cells a point moves over in a block of
+``2^e x 2^e`` lattice positions. A :class:`Lattice` is the set of
 positions a caller allows (near its keyframes, clear of walls, a window): ``origin + step *
 (j, i)`` with ``step`` a whole number ``m`` of grid cells where ``allowed[i, j]``. Every pose
 (position, heading) of the lattice is scored by the mean likelihood of the scan's points in
@@ -12,8 +13,8 @@ without scoring them all:
 
 * a node of depth ``d`` is a block of ``2^d x 2^d`` lattice positions at one heading; its
   points' cells move over ``(2^d - 1) m + 1`` cells, so the sum of the pooled scores of the
-  smallest level covering that window bounds every pose of the block from above; a leaf
-  (``d = 0``) is scored exactly;
+  first level covering that window (level ``d`` when the pyramid was made for ``m``)
+  bounds every pose of the block from above; a leaf (``d = 0``) is scored exactly;
 * the nodes are kept in one max-heap by their bound, best first (from every heading's
   top-level blocks that hold an allowed position). A node popped is split into its allowed
   children; a leaf popped is the best pose not yet popped (every other node's bound, hence
@@ -69,27 +70,33 @@ def _window_max(a: NDArray[np.float32], w: int, axis: int) -> NDArray[np.float32
 
 @dataclass
 class Pyramid:
-    """Max-pooled levels of a likelihood grid, flat: level ``e`` is the
-    ``shapes[e]`` block at ``offsets[e]`` of ``data``; its cell ``(r, c)`` holds the largest
-    score of the grid's cells ``r - 2^e + 1 .. r`` x ``c - 2^e + 1 .. c``."""
+    """Max-pooled levels of a likelihood grid, flat: level ``e`` is the ``shapes[e]`` block at
+    ``offsets[e]`` of ``data``; its cell ``(r, c)`` holds the largest score of the grid's cells
+    ``r - w + 1 .. r`` x ``c - w + 1 .. c``, ``w = (2^e - 1) cells + 1``: the cells a point
+    moves over in a block of ``2^e x 2^e`` positions of a lattice of ``cells`` cells."""
 
     grid: ScoreGrid
+    cells: int
     data: NDArray[np.float32]
     offsets: NDArray[np.int64]
     shapes: NDArray[np.int64]
 
     @classmethod
-    def build(cls, grid: ScoreGrid, levels: int = LEVELS) -> Pyramid:
-        """The pyramid of ``grid`` (level 0 is the grid itself)."""
+    def build(cls, grid: ScoreGrid, cells: int = 1, levels: int = LEVELS) -> Pyramid:
+        """The pyramid of ``grid`` for lattices of ``cells`` cells (level 0 is the grid)."""
         parts = []
         for e in range(levels):
-            w = 2**e
+            w = (2**e - 1) * cells + 1
             parts.append(_window_max(_window_max(grid.score, w, 0), w, 1))
         shapes = np.array([p.shape for p in parts], dtype=np.int64)
         sizes = np.array([p.size for p in parts], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
         data = np.concatenate([p.ravel() for p in parts]).astype(np.float32)
-        return cls(grid, data, offsets, shapes)
+        return cls(grid, cells, data, offsets, shapes)
+
+    def width(self, e: int) -> int:
+        """The window (cells) of level ``e``."""
+        return (2**e - 1) * self.cells + 1
 
     @property
     def nbytes(self) -> int:
@@ -120,17 +127,18 @@ class Lattice:
         return np.column_stack([self.origin[0] + step * j, self.origin[1] + step * i])
 
 
-def _levels(lattice: Lattice, levels: int) -> NDArray[np.int64]:
+def _levels(lattice: Lattice, pyramid: Pyramid) -> NDArray[np.int64]:
     """The pooled level bounding a node of each depth ``d`` (the last is the top one): the
-    smallest ``e`` with ``2^e >= (2^d - 1) m + 1``, the top depth the deepest below
-    ``levels`` and no deeper than one block covering the lattice."""
-    m = lattice.cells
+    first whose window covers the ``(2^d - 1) m + 1`` cells a point moves over in the node,
+    the top depth the deepest the pyramid bounds and no deeper than one block covering the
+    lattice."""
     side = max(lattice.allowed.shape)
+    n_levels = len(pyramid.offsets)
     level = [0]
-    while True:
-        d = len(level)
-        e = math.ceil(math.log2((2**d - 1) * m + 1) - 1e-12)
-        if e >= levels or 2 ** (d - 1) >= side:
+    while 2 ** (len(level) - 1) < side:
+        need = (2 ** len(level) - 1) * lattice.cells + 1
+        e = next((e for e in range(n_levels) if pyramid.width(e) >= need), None)
+        if e is None:
             break
         level.append(e)
     return np.array(level, dtype=np.int64)
@@ -288,6 +296,7 @@ def _search(
     scores = np.zeros(count)
     n_chosen = 0
     box = np.empty(5)
+    four = np.empty(4)
     while size > 0 and n_chosen < count:
         key = keys[0]
         d, h, a, b = nodes[0, 0], nodes[0, 1], nodes[0, 2], nodes[0, 3]
@@ -306,18 +315,49 @@ def _search(
             scores[n_chosen] = key
             n_chosen += 1
             continue
+        _children(data, offsets, shapes, level[d - 1], cy[h], cx[h], m * 2 ** (d - 1), a, b, four)
         rows, cols = m_shapes[d - 1, 0], m_shapes[d - 1, 1]
         for u in range(2):
             for v in range(2):
                 ca, cb = 2 * a + u, 2 * b + v
-                if ca < rows and cb < cols and allowed[m_offsets[d - 1] + ca * cols + cb]:
-                    bound = _node_bound(
-                        data, offsets, shapes, level, cy[h], cx[h], m, d - 1, ca, cb
-                    )
-                    if bound > 0.0:
+                bound = four[2 * u + v]
+                if bound > 0.0 and ca < rows and cb < cols:
+                    if allowed[m_offsets[d - 1] + ca * cols + cb]:
                         keys, nodes = _push(keys, nodes, size, bound, d - 1, h, ca, cb)
                         size += 1
     return chosen[:n_chosen], scores[:n_chosen]
+
+
+@numba.njit(cache=True, nogil=True)
+def _children(
+    data: NDArray[np.float32],
+    offsets: NDArray[np.int64],
+    shapes: NDArray[np.int64],
+    e: int,
+    cy: NDArray[np.int64],
+    cx: NDArray[np.int64],
+    span: int,
+    a: int,
+    b: int,
+    out: NDArray[np.float64],
+) -> None:
+    """The bounds (:func:`_bound`, level ``e``) of the four children ``(2a + u, 2b + v)`` of a
+    node, ``span`` cells wide each, in one pass over the points: ``out[2u + v]``."""
+    rows, cols = shapes[e, 0], shapes[e, 1]
+    w = rows - shapes[0, 0] + 1
+    out[:] = 0.0
+    base = offsets[e]
+    for k in range(cy.shape[0]):
+        r0 = cy[k] + span * 2 * a + w - 1
+        c0 = cx[k] + span * 2 * b + w - 1
+        for u in range(2):
+            r = r0 + u * span
+            if 0 <= r < rows:
+                row = base + r * cols
+                for v in range(2):
+                    c = c0 + v * span
+                    if 0 <= c < cols:
+                        out[2 * u + v] += data[row + c]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -336,7 +376,8 @@ def _node_bound(
     """The bound of block ``(a, b)`` of depth ``d`` on its pooled level (:func:`_bound`)."""
     e = level[d]
     span = m * 2**d
-    return _bound(data, offsets[e], shapes[e, 0], shapes[e, 1], 2**e, cy, cx, span * a, span * b)
+    w = shapes[e, 0] - shapes[0, 0] + 1
+    return _bound(data, offsets[e], shapes[e, 0], shapes[e, 1], w, cy, cx, span * a, span * b)
 
 
 def best_poses(
@@ -356,7 +397,7 @@ def best_poses(
     yaws = np.ascontiguousarray(yaws, dtype=np.float64).ravel()
     if len(points) == 0 or len(yaws) == 0 or count < 1 or not lattice.allowed.any():
         return []
-    level = _levels(lattice, len(pyramid.offsets))
+    level = _levels(lattice, pyramid)
     shift = np.asarray(lattice.origin, dtype=np.float64) - grid.origin
     cy, cx = _cells(points, yaws, shift, grid.resolution)
     step = lattice.cells * grid.resolution
