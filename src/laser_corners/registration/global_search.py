@@ -47,7 +47,9 @@ from laser_corners.registration.correlative import ScoreGrid
 __all__ = ["LEVELS", "Lattice", "Pyramid", "best_poses"]
 
 LEVELS = 7
-"""Pooled levels of a :class:`Pyramid` (windows of 1 .. 64 cells)."""
+"""Pooled levels of a :class:`Pyramid` (blocks of 1 .. 64 lattice positions a side)."""
+QUANT = 255
+"""Steps of a pooled score (0 .. 1) in a :class:`Pyramid`'s bytes."""
 
 
 def _window_max(a: NDArray[np.float32], w: int, axis: int) -> NDArray[np.float32]:
@@ -73,11 +75,13 @@ class Pyramid:
     """Max-pooled levels of a likelihood grid, flat: level ``e`` is the ``shapes[e]`` block at
     ``offsets[e]`` of ``data``; its cell ``(r, c)`` holds the largest score of the grid's cells
     ``r - w + 1 .. r`` x ``c - w + 1 .. c``, ``w = (2^e - 1) cells + 1``: the cells a point
-    moves over in a block of ``2^e x 2^e`` positions of a lattice of ``cells`` cells."""
+    moves over in a block of ``2^e x 2^e`` positions of a lattice of ``cells`` cells. Stored
+    in :data:`QUANT` steps rounded up (one byte a cell and level: bounds stay bounds); the
+    leaves are scored on the grid itself."""
 
     grid: ScoreGrid
     cells: int
-    data: NDArray[np.float32]
+    data: NDArray[np.uint8]
     offsets: NDArray[np.int64]
     shapes: NDArray[np.int64]
 
@@ -91,7 +95,8 @@ class Pyramid:
         shapes = np.array([p.shape for p in parts], dtype=np.int64)
         sizes = np.array([p.size for p in parts], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        data = np.concatenate([p.ravel() for p in parts]).astype(np.float32)
+        flat = np.concatenate([p.ravel() for p in parts]).astype(np.float64)
+        data = np.minimum(np.ceil(flat * QUANT), QUANT).astype(np.uint8)  # float32 x 255: exact
         return cls(grid, cells, data, offsets, shapes)
 
     def width(self, e: int) -> int:
@@ -159,7 +164,7 @@ def _masks(allowed: NDArray[np.bool_], depth: int) -> tuple[NDArray, NDArray, ND
 
 @numba.njit(cache=True, nogil=True)
 def _bound(
-    data: NDArray[np.float32],
+    data: NDArray,
     offset: int,
     rows: int,
     cols: int,
@@ -277,7 +282,7 @@ def _search(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The branch and bound (module notes): ``count`` distinct best poses and their score
     sums. ``geometry``: lattice origin x, y, step (m), cells per step."""
-    data, offsets, shapes = pyramid
+    score, data, offsets, shapes = pyramid
     allowed, m_offsets, m_shapes = masks
     top = level.shape[0] - 1
     m = int(geometry[3])
@@ -288,7 +293,9 @@ def _search(
         for a in range(m_shapes[top, 0]):
             for b in range(m_shapes[top, 1]):
                 if allowed[m_offsets[top] + a * m_shapes[top, 1] + b]:
-                    key = _node_bound(data, offsets, shapes, level, cy[h], cx[h], m, top, a, b)
+                    key = _node_bound(
+                        score, data, offsets, shapes, level, cy[h], cx[h], m, top, a, b
+                    )
                     if key > 0.0:
                         keys, nodes = _push(keys, nodes, size, key, top, h, a, b)
                         size += 1
@@ -315,7 +322,8 @@ def _search(
             scores[n_chosen] = key
             n_chosen += 1
             continue
-        _children(data, offsets, shapes, level[d - 1], cy[h], cx[h], m * 2 ** (d - 1), a, b, four)
+        span = m * 2 ** (d - 1)
+        _children(score, data, offsets, shapes, level[d - 1], cy[h], cx[h], span, a, b, four)
         rows, cols = m_shapes[d - 1, 0], m_shapes[d - 1, 1]
         for u in range(2):
             for v in range(2):
@@ -330,7 +338,8 @@ def _search(
 
 @numba.njit(cache=True, nogil=True)
 def _children(
-    data: NDArray[np.float32],
+    score: NDArray[np.float32],
+    data: NDArray[np.uint8],
     offsets: NDArray[np.int64],
     shapes: NDArray[np.int64],
     e: int,
@@ -341,8 +350,9 @@ def _children(
     b: int,
     out: NDArray[np.float64],
 ) -> None:
-    """The bounds (:func:`_bound`, level ``e``) of the four children ``(2a + u, 2b + v)`` of a
-    node, ``span`` cells wide each, in one pass over the points: ``out[2u + v]``."""
+    """The bounds (:func:`_bound`, level ``e``; the exact scores on ``score`` for ``e = 0``)
+    of the four children ``(2a + u, 2b + v)`` of a node, ``span`` cells wide each, in one pass
+    over the points: ``out[2u + v]``."""
     rows, cols = shapes[e, 0], shapes[e, 1]
     w = rows - shapes[0, 0] + 1
     out[:] = 0.0
@@ -353,16 +363,21 @@ def _children(
         for u in range(2):
             r = r0 + u * span
             if 0 <= r < rows:
-                row = base + r * cols
                 for v in range(2):
                     c = c0 + v * span
                     if 0 <= c < cols:
-                        out[2 * u + v] += data[row + c]
+                        if e == 0:
+                            out[2 * u + v] += score[r * cols + c]
+                        else:
+                            out[2 * u + v] += data[base + r * cols + c]
+    if e > 0:
+        out /= QUANT
 
 
 @numba.njit(cache=True, nogil=True)
 def _node_bound(
-    data: NDArray[np.float32],
+    score: NDArray[np.float32],
+    data: NDArray[np.uint8],
     offsets: NDArray[np.int64],
     shapes: NDArray[np.int64],
     level: NDArray[np.int64],
@@ -373,11 +388,15 @@ def _node_bound(
     a: int,
     b: int,
 ) -> float:
-    """The bound of block ``(a, b)`` of depth ``d`` on its pooled level (:func:`_bound`)."""
+    """The bound of block ``(a, b)`` of depth ``d`` on its pooled level (:func:`_bound`;
+    the exact score on ``score`` for ``d = 0``)."""
     e = level[d]
     span = m * 2**d
+    if e == 0:
+        return _bound(score, 0, shapes[0, 0], shapes[0, 1], 1, cy, cx, span * a, span * b)
     w = shapes[e, 0] - shapes[0, 0] + 1
-    return _bound(data, offsets[e], shapes[e, 0], shapes[e, 1], w, cy, cx, span * a, span * b)
+    top = _bound(data, offsets[e], shapes[e, 0], shapes[e, 1], w, cy, cx, span * a, span * b)
+    return top / QUANT
 
 
 def best_poses(
@@ -403,7 +422,7 @@ def best_poses(
     step = lattice.cells * grid.resolution
     geometry = np.array([lattice.origin[0], lattice.origin[1], step, lattice.cells], float)
     poses, sums = _search(
-        (pyramid.data, pyramid.offsets, pyramid.shapes),
+        (grid.score.ravel(), pyramid.data, pyramid.offsets, pyramid.shapes),
         lattice.blocks,
         level,
         cy,
