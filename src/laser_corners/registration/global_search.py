@@ -256,7 +256,8 @@ def _cells(
     pts: NDArray[np.float64], yaws: NDArray[np.float64], shift: NDArray[np.float64], res: float
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """The grid cell (row, col) of every point at every heading, at the lattice's origin
-    (``shift``: lattice origin minus grid origin)."""
+    (``shift``: lattice origin minus grid origin), per heading in row order (the lookups of
+    a block then run through memory in order)."""
     cy = np.empty((yaws.shape[0], pts.shape[0]), dtype=np.int64)
     cx = np.empty_like(cy)
     for h in range(yaws.shape[0]):
@@ -265,6 +266,9 @@ def _cells(
         for k in range(pts.shape[0]):
             cx[h, k] = math.floor((c * pts[k, 0] - s * pts[k, 1] + shift[0]) / res)
             cy[h, k] = math.floor((s * pts[k, 0] + c * pts[k, 1] + shift[1]) / res)
+        order = np.argsort(cy[h] * (1 << 32) + cx[h])
+        cy[h] = cy[h][order]
+        cx[h] = cx[h][order]
     return cy, cx
 
 
