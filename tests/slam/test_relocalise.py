@@ -3,6 +3,7 @@ again, and the trajectory after the kidnap is right."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -10,9 +11,20 @@ import pytest
 
 pytest.importorskip("gtsam")
 
+
+from laser_corners.pose import compose_many, invert, poses_apart
+from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.registration.points import ScanPoints
 from laser_corners.slam import Slam, SlamOptions
-from laser_corners.slam.relocalise import OldMap, free_space_conflict, occupancy_keys
+from laser_corners.slam.relocalise import (
+    CANDIDATES,
+    CENTER_WINDOW,
+    DISTINCT_XY,
+    DISTINCT_YAW,
+    OldMap,
+    free_space_conflict,
+    occupancy_keys,
+)
 from sim_drives import drive_slam, noisy_odometry, straight, two_rooms
 
 RATE = 10.0
@@ -68,6 +80,48 @@ def test_kidnapped_robot_is_relocalised(gap: float) -> None:
     assert len(result.cuts) >= 1 and kidnap <= result.cuts[0] <= kidnap + 10, result.cuts
     assert result.counts["relocalisations_accepted"] >= 1
     assert result.counts["relocalisations_attempted"] >= result.counts["relocalisations_accepted"]
+
+
+def test_the_exhaustive_search_alone_relocalises_the_kidnapped_robot() -> None:
+    options = SlamOptions(places=PlaceOptions(enabled=False))
+    truth, kidnap, result = _run(options, 0.0)
+    after = np.hypot(*(result.poses[kidnap:, :2] - truth[kidnap:, :2]).T)
+    assert np.median(after) < 0.1
+    assert result.counts["relocalisations_exhaustive"] >= 1
+    assert result.counts["relocalisations_accepted"] >= 1
+
+
+def _l_room() -> np.ndarray:
+    """Walls of an L-shaped room (map frame) every 5 cm."""
+    corners = [(0, 0), (10, 0), (10, 4), (4, 4), (4, 9), (0, 9), (0, 0)]
+    walls = []
+    for (x0, y0), (x1, y1) in itertools.pairwise(corners):
+        n = int(math.hypot(x1 - x0, y1 - y0) / 0.05)
+        walls.append(np.column_stack([np.linspace(x0, x1, n), np.linspace(y0, y1, n)]))
+    return np.concatenate([*walls, np.array([[6.0, 2.0], [6.05, 2.0], [2.0, 6.5]])])
+
+
+def _seen(world: np.ndarray, pose: np.ndarray) -> ScanPoints:
+    """The points of ``world`` in the frame of ``pose``."""
+    xy = compose_many(invert(pose), np.column_stack([world, np.zeros(len(world))]))[:, :2]
+    return ScanPoints(xy, np.zeros_like(xy), np.zeros(len(xy), bool))
+
+
+def test_the_old_maps_search_finds_the_pose_among_distinct_candidates() -> None:
+    world = _l_room()
+    estimate = np.array([[1.0, 1.0, 0.0], [3.0, 1.5, 0.5], [7.0, 2.0, 1.0], [2.0, 6.0, -1.0]])
+    old = OldMap.build([_seen(world, p) for p in estimate], estimate, len(estimate))
+    truth = np.array([7.3, 2.4, 2.0])  # near the third keyframe, turned
+    query = _seen(world, truth).xy[::3]
+    found = old.search(query)
+    assert len(found) == CANDIDATES
+    assert [s for s, _ in found] == sorted((s for s, _ in found), reverse=True)
+    pose = found[0][1]
+    assert math.hypot(*(pose[:2] - truth[:2])) < 0.2 and abs(pose[2] - truth[2]) < 0.05
+    for a, (_, p) in enumerate(found):
+        assert all(poses_apart(p, q, DISTINCT_XY, DISTINCT_YAW) for _, q in found[:a])
+        near = np.abs(old.centres - p[:2]).max(axis=1).min()
+        assert near <= CENTER_WINDOW + old.grid.resolution  # in a centre's window
 
 
 def test_without_relocalisation_the_kidnap_stays_wrong() -> None:

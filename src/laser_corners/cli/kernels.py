@@ -124,13 +124,15 @@ class SlamKernelCommand(typer.core.TyperCommand):
 def warm_slam_kernels() -> None:
     """Compile (or load) the kernels of the SLAM, the localiser and the matching: a short
     simulated drive mapped with every front end part on (corner registration, landmarks,
-    loop closure search), its occupancy grid, and the localiser's global search in it."""
+    loop closure search), its occupancy grid, and the localiser's global search in it (the
+    whole-map branch and bound)."""
     import tempfile
 
     import numpy as np
 
     from laser_corners.localise import Localiser
     from laser_corners.registration.mapfolder import save_map_data
+    from laser_corners.registration.points import scan_points
     from laser_corners.sim import SICK_LMS_1DEG, World
     from laser_corners.slam import Slam, SlamOptions
     from laser_corners.slam.grid import result_grid
@@ -154,3 +156,7 @@ def warm_slam_kernels() -> None:
         localiser = Localiser(folder)
         for i, (pose, scan) in enumerate(zip(poses, scans, strict=True)):
             localiser.add(scan, pose, 0.1 * i)
+        # the whole-map search (the index answers above): its branch and bound, as both
+        # the localiser's and the SLAM's exhaustive relocalisation run it
+        points = scan_points(scans[0], np.zeros(3), 0.1, 30.0, 0.2).xy
+        localiser.map.global_search(points, 0.1, 2)

@@ -61,7 +61,8 @@ class LocaliseOptions(Options):
     global_candidates: int = Field(16, ge=1, le=100)
     """Poses kept from one global search (best first, at least 1 m or 0.3 rad apart)."""
     global_resolution: float = Field(0.25, ge=0.05, le=2.0)
-    """Position step (m) of the global search lattice (around the keyframe positions)."""
+    """Position step (m) of the global search lattice (around the keyframe positions), to the
+    nearest whole number of the likelihood grid's 0.1 m cells (0.25: 0.2 m)."""
     global_yaw_step: float = Field(0.035, ge=0.005, le=0.5)
     """Heading step (rad) of the global search."""
     global_reach: float = Field(3.0, ge=0.0, le=10.0)

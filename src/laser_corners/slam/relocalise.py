@@ -15,9 +15,11 @@ back into the map built before it (:class:`Relocaliser`):
    keyframes' points on a likelihood grid of the old map; the :data:`CANDIDATES` best are
    verified. Only when the index has nothing to propose (too few corners), on the first
    :data:`FALLBACK_FIRST` attempts of a segment, the exhaustive search runs instead: the
-   points scored by a correlative search
-   (:func:`~laser_corners.registration.correlative.search`, every heading) around each old
-   keyframe position (thinned to :data:`CENTER_SPACING`); the best distinct poses are kept.
+   best distinct poses of the points on the likelihood grid, every heading, at positions
+   within :data:`CENTER_WINDOW` of an old keyframe (thinned to :data:`CENTER_SPACING`), as
+   scoring them all would find them, by the whole-map branch and bound
+   (:func:`~laser_corners.registration.global_search.best_poses`, its pooled grids made at
+   the old map's first exhaustive search).
 2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
    a narrow correlative search and ICP against the nearest old keyframe's submap, overlap,
    degeneracy), then the share of the query on the whole old map (at least
@@ -45,13 +47,13 @@ from numpy.typing import NDArray
 from laser_corners.pose import (
     compose,
     compose_many,
-    distinct_poses,
     invert,
     poses_apart,
     relative_pose,
 )
 from laser_corners.registration.align import PointMap, match_share
-from laser_corners.registration.correlative import ScoreGrid, search
+from laser_corners.registration.correlative import ScoreGrid
+from laser_corners.registration.global_search import Lattice, Pyramid, best_poses
 from laser_corners.registration.place_index import PlaceIndex, dense_check
 from laser_corners.registration.points import ScanPoints, transform
 from laser_corners.slam.counts import SlamCounts
@@ -117,6 +119,9 @@ class OldMap:
     points: PointMap
     occupied: NDArray[np.int64]
     centres: NDArray[np.float64]
+    index: tuple[Pyramid, Lattice] | None = None
+    """The grid's pooled levels and the search positions (:meth:`lattice`), made at the
+    first :meth:`search`."""
 
     @classmethod
     def build(
@@ -149,21 +154,26 @@ class OldMap:
             np.array(centres),
         )
 
+    def lattice(self) -> Lattice:
+        """The search positions: the grid's cells within :data:`CENTER_WINDOW` (a square) of a
+        search centre."""
+        res = self.grid.resolution
+        rows, cols = self.grid.score.shape
+        n = math.ceil(CENTER_WINDOW / res)
+        allowed = np.zeros((rows, cols), dtype=bool)
+        for i, j in np.floor((self.centres - self.grid.origin) / res).astype(np.int64)[:, ::-1]:
+            allowed[max(i - n, 0) : i + n + 1, max(j - n, 0) : j + n + 1] = True
+        return Lattice(self.grid.origin.copy(), 1, allowed)
+
     def search(self, query: NDArray[np.float64]) -> list[tuple[float, NDArray[np.float64]]]:
         """The :data:`CANDIDATES` best distinct poses of ``query`` (base frame) over the whole
         map, with their mean likelihood, best first."""
         pts = query[np.linspace(0, len(query) - 1, min(len(query), QUERY_POINTS)).astype(int)]
-        found = [
-            search(
-                self.grid, pts, np.array([c[0], c[1], 0.0]), CENTER_WINDOW, math.pi, SEARCH_YAW_STEP
-            )
-            for c in self.centres
-        ]
-        order = sorted(range(len(found)), key=lambda i: -found[i][0])
-        poses = [pose for _, pose in found]
-        return [
-            found[i] for i in distinct_poses(poses, order, CANDIDATES, DISTINCT_XY, DISTINCT_YAW)
-        ]
+        if self.index is None:
+            self.index = (Pyramid.build(self.grid), self.lattice())
+        yaws = np.arange(-math.pi, math.pi, SEARCH_YAW_STEP)
+        found = best_poses(*self.index, pts, yaws, CANDIDATES, (DISTINCT_XY, DISTINCT_YAW))
+        return [(score, pose) for pose, score in found]
 
 
 OCCUPANCY_CELL = 0.05
