@@ -1,7 +1,8 @@
 """Options of :mod:`laser_corners.localise`: one validated, frozen object, one set of defaults.
 
 The field names are the vocabulary of the Python API, of YAML files (a ``localise:`` table)
-and of the CLI's ``--set key=value``. Defaults come from the sensors and robots (range noise
+and of the CLI's ``--set key=value``; a group by a dotted key (``icp.max_distance``,
+``odometry.sigma_xy``, ``places.min_votes``). Defaults come from the sensors and robots (range noise
 of centimetres, walking speed, rooms of a few metres), not from the scores of any log.
 """
 
