@@ -9,7 +9,7 @@ chained from the full-log SLAM pose of that scan (the map of ``bench_localise.py
 and cached under ``--cache``) and compared with the SLAM pose after 1, 2, 3, 5 and 10 m of
 travel: position and heading error (median, 95th percentile), and the share of stretches
 whose two errors are within the 3σ of :class:`laser_corners.localise.window.Window` grown with
-the default ``odometry_sigma_xy`` / ``odometry_sigma_yaw`` (the window of a lost track,
+the default ``odometry.sigma_xy`` / ``odometry.sigma_yaw`` (the window of a lost track,
 issue 20). A check of the model, not a fit: nothing here sets a default.
 """
 
@@ -39,7 +39,7 @@ def stretches(odo: np.ndarray, ref: np.ndarray, every: int) -> dict[float, np.nd
         window = Window(ref[start].copy(), 0.0, 0.0)
         travel, todo = 0.0, list(LENGTHS)
         for j in range(start, len(steps)):
-            window.move(steps[j], opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+            window.move(steps[j], opt.odometry)
             travel += math.hypot(steps[j, 0], steps[j, 1])
             while todo and travel >= todo[0]:
                 err = between_many(ref[j + 1], window.pose)

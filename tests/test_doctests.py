@@ -20,6 +20,8 @@ MODULES = [
     "laser_corners.kernel.merge",
     "laser_corners.noise",
     "laser_corners.presets",
+    "laser_corners.registration.align",
+    "laser_corners.registration.odometry",
 ]
 
 

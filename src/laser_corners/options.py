@@ -27,7 +27,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from laser_corners.errors import InvalidParamsError
 
-__all__ = ["MountValue", "Options", "unknown_keys"]
+__all__ = ["MountValue", "Options", "read_config", "unknown_keys"]
 
 MountValue = Annotated[float, Field(allow_inf_nan=False, ge=-1000.0, le=1000.0)]
 """One number of a base -> laser mount ``(x, y, yaw)``: finite, within a kilometre (radian)."""
@@ -82,20 +82,7 @@ class Options(BaseModel):
     @classmethod
     def from_file(cls, path: str | Path) -> Any:
         """Load from a ``.yaml``/``.yml`` or ``.toml`` file (see :meth:`from_mapping`)."""
-        path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InvalidParamsError(f"{path}: cannot read {cls.what}s ({exc.strerror})") from None
-        try:
-            if path.suffix.lower() == ".toml":
-                data = tomllib.loads(text)
-            else:
-                data = yaml.safe_load(text) or {}
-        except (yaml.YAMLError, tomllib.TOMLDecodeError) as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise InvalidParamsError(f"{path}: not valid YAML/TOML: {first}") from None
-        return cls.from_mapping(data, source=str(path))
+        return cls.from_mapping(read_config(path, cls.what), source=str(path))
 
     def to_yaml(self) -> str:
         """The options as a YAML document (the format :meth:`from_file` reads)."""
@@ -113,6 +100,29 @@ class Options(BaseModel):
         """
         updates = parse_assignments(type(self), assignments)
         return type(self)(**_merged(self, updates))
+
+
+def read_config(path: str | Path, what: str = "parameter") -> Any:
+    """The parsed document of a ``.yaml``/``.yml`` or ``.toml`` file (an empty YAML file:
+    ``{}``).
+
+    Raises
+    ------
+    InvalidParamsError
+        One line naming the file: unreadable (``cannot read <what>s``) or not valid YAML/TOML.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InvalidParamsError(f"{path}: cannot read {what}s ({exc.strerror})") from None
+    try:
+        if path.suffix.lower() == ".toml":
+            return tomllib.loads(text)
+        return yaml.safe_load(text) or {}
+    except (yaml.YAMLError, tomllib.TOMLDecodeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InvalidParamsError(f"{path}: not valid YAML/TOML: {first}") from None
 
 
 def parse_assignments(
@@ -154,7 +164,10 @@ def _merged(options: Options, updates: Mapping[str, Any]) -> dict[str, Any]:
     for key, value in updates.items():
         current = merged[key]
         if isinstance(value, dict) and isinstance(current, Options):
-            merged[key] = type(current)(**_merged(current, value))
+            try:
+                merged[key] = type(current)(**_merged(current, value))
+            except InvalidParamsError as exc:  # as a YAML table says it: ``icp: ...``
+                raise InvalidParamsError(f"{key}: {exc}") from None
         else:
             merged[key] = value
     return merged

@@ -20,6 +20,7 @@ from test_localiser import (
 )
 
 from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise.engine import engine_options
 from laser_corners.pose import between_many
 from laser_corners.registration.mapfolder import load_map
 from laser_corners.slam import Slam, SlamOptions
@@ -97,3 +98,11 @@ def test_the_engine_holds_a_pose_only_once_the_map_confirmed_it(engine_map) -> N
     assert not engine.holds() and engine.alone(odo[2], 2, 0.2) is None
     engine.place(truth[2], np.diag([0.05, 0.05, 0.02]) ** 2)
     assert not engine.confirmed  # placed again: confirmed again by the map first
+
+
+def test_the_engine_takes_the_localisers_odometry_noise_but_keeps_the_slams_icp() -> None:
+    options = LocaliseOptions().with_overrides(["odometry.sigma_xy=0.1", "icp.iterations=5"])
+    engine = engine_options(options)
+    assert engine.odometry == options.odometry  # a fact of the robot: one noise for both
+    assert engine.icp == SlamOptions().icp  # tracks and closes loops as the map was made
+    assert not engine.relocalisation

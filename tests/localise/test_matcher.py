@@ -35,7 +35,7 @@ def test_the_odometry_prior_weakens_with_the_step_and_across_a_jump(matcher_and_
     moved = matcher.prior(np.array([1.0, 0.0, 0.5]), False)
     assert np.all(np.diag(moved) < np.diag(still))
     opt = matcher.options
-    assert still[0, 0] == pytest.approx(1.0 / (opt.odometry_sigma_xy * 0.1) ** 2)
+    assert still[0, 0] == pytest.approx(1.0 / (opt.odometry.sigma_xy * 0.1) ** 2)
     assert np.allclose(matcher.prior(np.zeros(3), True), np.diag(1.0 / JUMP_SIGMAS**2))
 
 

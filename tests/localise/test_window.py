@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 
 from laser_corners.localise.window import MIN_XY, MIN_YAW, Window
+from laser_corners.registration.odometry import OdometryNoise
+
+NOISE = OdometryNoise(sigma_xy=0.05, sigma_yaw=0.02)
 
 
 def test_from_covariance_takes_the_largest_position_axis() -> None:
@@ -22,14 +25,14 @@ def test_from_covariance_takes_the_largest_position_axis() -> None:
 
 def test_move_dead_reckons_and_grows_linearly() -> None:
     window = Window(np.array([1.0, 0.0, math.pi / 2]), 0.1, 0.01)
-    window.move(np.array([2.0, 0.0, 0.5]), per_metre=0.05, per_radian=0.02)
+    window.move(np.array([2.0, 0.0, 0.5]), NOISE)
     # 2 m along the heading (+y in the map), then turned by 0.5 rad
     np.testing.assert_allclose(window.pose, [1.0, 2.0, math.pi / 2 + 0.5], atol=1e-12)
     sigma_yaw = 0.01 + 0.02 * (2.0 + 0.5)
     assert window.sigma_yaw == pytest.approx(sigma_yaw)
     assert window.sigma_xy == pytest.approx(0.1 + 0.05 * 2.0 + sigma_yaw * 2.0)
     before = (window.sigma_xy, window.sigma_yaw)
-    window.move(np.zeros(3), 0.05, 0.02)  # standing still changes nothing
+    window.move(np.zeros(3), NOISE)  # standing still changes nothing
     assert (window.sigma_xy, window.sigma_yaw) == before
 
 

@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from laser_corners.registration.align import PointMap, icp, match_share
+from laser_corners.errors import InvalidParamsError
+from laser_corners.localise.options import LocaliseOptions
+from laser_corners.registration.align import IcpOptions, PointMap, icp, match_share
 from laser_corners.registration.points import rotate, scan_points, transform
 from laser_corners.sim import SICK_LMS_1DEG, World
 from laser_corners.slam.options import SlamOptions
@@ -36,9 +38,8 @@ def _along_errors(surface: float) -> np.ndarray:
             pointmap,
             true,
             np.diag(1.0 / np.array([0.05, 0.05, 0.05]) ** 2),
-            max_distance=opt.icp_max_distance,
+            opt.icp,
             inlier_distance=opt.loop_inlier_distance,
-            iterations=opt.icp_iterations,
             surface=surface,
         )
         out.append(aligned.pose[0] - true[0])
@@ -74,7 +75,14 @@ def test_the_kernel_wrappers_refuse_non_finite_poses() -> None:
         with pytest.raises(ValueError, match="pose"):
             match_share(xy, pointmap, pose, 0.1)
         with pytest.raises(ValueError, match="pose"):
-            icp(xy, pointmap, pose, info, max_distance=0.5, inlier_distance=0.1, iterations=5)
+            icp(
+                xy,
+                pointmap,
+                pose,
+                info,
+                IcpOptions(max_distance=0.5, iterations=5),
+                inlier_distance=0.1,
+            )
         with pytest.raises(ValueError, match="pose"):
             search(grid, xy, pose, 0.5, 0.1)
     bad_points = xy.copy()
@@ -82,3 +90,46 @@ def test_the_kernel_wrappers_refuse_non_finite_poses() -> None:
     with pytest.raises(ValueError, match="finite"):
         PointMap.build(bad_points, normals)
     assert match_share(xy, pointmap, np.zeros(3), 0.1) == 1.0
+
+
+def test_icp_options_refuse_out_of_range_values_in_one_line_naming_the_field() -> None:
+    for bad, field in (({"max_distance": 0.0}, "max_distance"), ({"iterations": 0}, "iterations")):
+        with pytest.raises(InvalidParamsError, match=f"IcpOptions.{field}: input should be"):
+            IcpOptions(**bad)
+    with pytest.raises(InvalidParamsError, match=r"icp: IcpOptions.max_distance") as info:
+        SlamOptions().with_overrides(["icp.max_distance=9"])
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("cls", "gate", "iterations"), [(SlamOptions, 0.15, 20), (LocaliseOptions, 0.3, 15)]
+)
+def test_icp_options_are_one_group_set_by_dotted_keys(
+    cls: type, gate: float, iterations: int
+) -> None:
+    options = cls()
+    assert options.icp == IcpOptions(max_distance=gate, iterations=iterations)
+    changed = options.with_overrides(["icp.max_distance=0.2"])
+    assert changed.icp == IcpOptions(max_distance=0.2, iterations=options.icp.iterations)
+    assert cls.from_mapping({"icp": {"iterations": 7}}).icp.iterations == 7
+    for old in ("icp_max_distance", "icp_iterations"):
+        with pytest.raises(InvalidParamsError, match=f"unknown option '{old}'"):
+            options.with_overrides([f"{old}=0.2"])
+
+
+def test_icp_takes_its_settings_as_one_group() -> None:
+    line = np.array([[x, 0.0] for x in np.arange(-2.0, 2.0, 0.05)])
+    wall = np.array([[0.0, y] for y in np.arange(0.2, 2.0, 0.05)])
+    xy = np.vstack([line, wall])
+    normals = np.vstack([np.tile([0.0, 1.0], (len(line), 1)), np.tile([1.0, 0.0], (len(wall), 1))])
+    pointmap = PointMap.build(xy, normals)
+    start = np.array([0.05, -0.04, 0.02])  # the truth is the identity
+    info = np.eye(3) * 1e-6
+    one = icp(
+        xy, pointmap, start, info, IcpOptions(max_distance=0.3, iterations=1), inlier_distance=0.1
+    )
+    many = icp(
+        xy, pointmap, start, info, IcpOptions(max_distance=0.3, iterations=30), inlier_distance=0.1
+    )
+    assert np.abs(many.pose).max() < 1e-3  # converged to the truth
+    assert np.abs(one.pose).max() > np.abs(many.pose).max()  # the iteration cap is used

@@ -76,6 +76,23 @@ def test_a_non_default_value_of_every_option_is_taken(mode: str, cls: type[Optio
         assert got == value, name  # and the value differs from the default (_other_value)
 
 
+@pytest.mark.parametrize("mode", ["slam", "localise"])
+def test_the_icp_and_odometry_groups_are_dotted_parameters(mode: str) -> None:
+    names = set(estimator_parameters(mode))
+    assert {
+        "icp.max_distance",
+        "icp.iterations",
+        "odometry.sigma_xy",
+        "odometry.sigma_yaw",
+    } <= names
+    assert not {"icp_max_distance", "icp_iterations", "odometry_sigma_xy"} & names
+    config = MappingConfig.from_mapping(
+        {**MAP, "mode": mode, "icp.max_distance": 0.2, "odometry.sigma_yaw": 0.02}
+    )
+    options = config.localise_options() if mode == "localise" else config.slam_options()
+    assert (options.icp.max_distance, options.odometry.sigma_yaw) == (0.2, 0.02)
+
+
 def test_parameters_override_the_config_file(tmp_path) -> None:
     path = tmp_path / "localise.yaml"
     path.write_text("fix_scans: 9\nlost_scans: 3\nplaces:\n  matches: 5\n")

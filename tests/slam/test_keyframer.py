@@ -91,7 +91,7 @@ def test_a_link_after_a_failed_alignment_gets_the_odometry_noise() -> None:
     keyframer, backend = _keyframer()
     _add(keyframer, 0)
     _add(keyframer, 1, aligned=False)
-    sxy = OPTIONS.odometry_sigma_xy * (0.5 + 0.1)
+    sxy = OPTIONS.odometry.sigma_xy * (0.5 + 0.1)
     assert np.allclose(_sigmas(backend, 1)[:2], [sxy, sxy])
 
 

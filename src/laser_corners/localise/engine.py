@@ -30,7 +30,7 @@ from laser_corners.slam.slam import Slam
 
 __all__ = ["EngineTrack", "engine_options"]
 
-SHARED = ("min_range", "max_range", "odometry_sigma_xy", "odometry_sigma_yaw", "time_jump")
+SHARED = ("min_range", "max_range", "odometry", "time_jump")
 """Options the engine takes from the localiser's (facts of the scanner and the odometry);
 the rest are the SLAM's defaults, which track and close loops as the map was made."""
 

@@ -150,9 +150,8 @@ class LocalMap:
             self.lines,
             guess,
             prior,
-            max_distance=options.icp_max_distance,
+            options.icp,
             inlier_distance=options.inlier_distance,
-            iterations=options.icp_iterations,
             sigma=options.match_sigma,
             overlap_map=self.every,
         )

@@ -40,8 +40,7 @@ class MapMatcher:
     def prior(self, delta: NDArray, jump: bool) -> NDArray[np.float64]:
         """Information of the odometry prediction of the step ``delta`` (a weak one across a
         jump): the one odometry noise model (``registration.odometry``)."""
-        opt = self.options
-        return odometry_information(delta, opt.odometry_sigma_xy, opt.odometry_sigma_yaw, jump)
+        return odometry_information(delta, self.options.odometry, jump)
 
     def align(self, xy: NDArray, guess: NDArray, prior: NDArray) -> tuple[Alignment, float]:
         """ICP of ``xy`` (base frame) against the map from ``guess``, and the agreement of its
@@ -52,9 +51,8 @@ class MapMatcher:
             self.model.lines,
             guess,
             prior,
-            max_distance=opt.icp_max_distance,
+            opt.icp,
             inlier_distance=opt.inlier_distance,
-            iterations=opt.icp_iterations,
             sigma=opt.match_sigma,
             overlap_map=self.model.every,
         )

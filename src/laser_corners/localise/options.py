@@ -1,7 +1,8 @@
 """Options of :mod:`laser_corners.localise`: one validated, frozen object, one set of defaults.
 
 The field names are the vocabulary of the Python API, of YAML files (a ``localise:`` table)
-and of the CLI's ``--set key=value``. Defaults come from the sensors and robots (range noise
+and of the CLI's ``--set key=value``; a group by a dotted key (``icp.max_distance``,
+``odometry.sigma_xy``, ``places.min_votes``). Defaults come from the sensors and robots (range noise
 of centimetres, walking speed, rooms of a few metres), not from the scores of any log.
 """
 
@@ -12,6 +13,8 @@ from typing import ClassVar
 from pydantic import Field
 
 from laser_corners.options import MountValue, Options
+from laser_corners.registration.align import IcpOptions
+from laser_corners.registration.odometry import OdometryNoise
 from laser_corners.registration.place_index import PlaceOptions
 
 __all__ = ["LocaliseOptions"]
@@ -35,16 +38,17 @@ class LocaliseOptions(Options):
     """Spacing (m) of the scan points kept for tracking (fewer points: cheaper ICP)."""
     map_spacing: float = Field(0.05, ge=0.01, le=1.0)
     """Voxel (m) to which the map's points are thinned (one point per voxel)."""
-    icp_max_distance: float = Field(0.3, ge=0.01, le=5.0)
-    """Largest point-to-map distance (m) of an ICP correspondence while tracking."""
-    icp_iterations: int = Field(15, ge=1, le=200)
-    """Maximum point-to-line ICP iterations per scan."""
+    icp: IcpOptions = IcpOptions(max_distance=0.3, iterations=15)
+    """The ICP of the tracker and of the hypotheses against the map: a 0.3 m gate
+    (``icp.max_distance``) and 15 iterations per scan (``icp.iterations``). Wider than the
+    SLAM's (0.15 m, ``SlamOptions.icp``): the SLAM aligns to its own recent keyframes, the
+    localiser to a map made another day (furniture moved, the map's own error)."""
     inlier_distance: float = Field(0.1, ge=0.01, le=1.0)
     """A scan point within this distance (m) of a map point agrees with the map."""
-    odometry_sigma_xy: float = Field(0.05, ge=1e-4, le=10.0)
-    """Odometry noise (m per metre travelled, on 0.1 m more): the ICP prior's weight."""
-    odometry_sigma_yaw: float = Field(0.05, ge=1e-4, le=10.0)
-    """Odometry noise (rad per radian turned plus per metre travelled)."""
+    odometry: OdometryNoise = OdometryNoise()
+    """Odometry noise (``odometry.sigma_xy``: m per metre travelled, on 0.1 m more;
+    ``odometry.sigma_yaw``: rad per radian turned plus per metre travelled): the ICP prior's
+    weight and the growth of a lost track's window. The engine takes it too."""
     match_sigma: float = Field(0.03, ge=1e-3, le=1.0)
     """Noise (m) of one point-to-line residual, scaling the ICP information (covariance)."""
     track_agreement: float = Field(0.6, ge=0.0, le=1.0)
@@ -138,7 +142,7 @@ class LocaliseOptions(Options):
     takes over. A few metres: a room or a corridor's stretch, where the few look-alikes left
     are told apart by the hypotheses' lead."""
     reacquire_yaw: float = Field(1.0, ge=0.0, le=3.2)
-    """See ``reacquire_xy`` (rad). The heading's 3σ grows by ``odometry_sigma_yaw`` per metre
+    """See ``reacquire_xy`` (rad). The heading's 3σ grows by ``odometry.sigma_yaw`` per metre
     and per radian (linearly, 3x that), so it reaches 1 rad after some 5 m of driving with
     turns, about when the position's reaches ``reacquire_xy``; a look-alike elsewhere is
     metres away, which the position limit excludes."""

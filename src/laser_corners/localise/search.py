@@ -129,7 +129,7 @@ class GlobalSearch:
         if self.window is None:
             return
         opt = self.options
-        self.window.move(delta, opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+        self.window.move(delta, opt.odometry)
         if jump or not self.window.open(opt.reacquire_xy, opt.reacquire_yaw):
             self.window = None
             for h in self.hypotheses:  # scored from now on as the global search scores

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.pose import compose_many, wrap_angle
+from laser_corners.registration.odometry import OdometryNoise
 
 __all__ = ["Window"]
 
@@ -59,14 +60,14 @@ class Window:
         sxy = math.sqrt(max(float(np.linalg.eigvalsh(covariance[:2, :2]).max()), 0.0))
         return cls(np.asarray(pose, float).copy(), sxy, math.sqrt(max(covariance[2, 2], 0.0)))
 
-    def move(self, delta: NDArray, per_metre: float, per_radian: float) -> None:
+    def move(self, delta: NDArray, noise: OdometryNoise) -> None:
         """Apply one odometry step ``delta`` (base frame); grow the deviations linearly:
-        heading by ``per_radian`` x (travel + turn), position by ``per_metre`` x travel
-        plus the heading's deviation x travel."""
+        heading by ``noise.sigma_yaw`` x (travel + turn), position by ``noise.sigma_xy`` x
+        travel plus the heading's deviation x travel."""
         dist = math.hypot(float(delta[0]), float(delta[1]))
         self.pose = compose_many(self.pose, delta)
-        self.sigma_yaw += per_radian * (dist + abs(float(delta[2])))
-        self.sigma_xy += per_metre * dist + self.sigma_yaw * dist
+        self.sigma_yaw += noise.sigma_yaw * (dist + abs(float(delta[2])))
+        self.sigma_xy += noise.sigma_xy * dist + self.sigma_yaw * dist
 
     def open(self, xy: float, yaw: float) -> bool:
         """Whether the 3σ of the position and heading are within ``xy`` (m) and ``yaw`` (rad)."""

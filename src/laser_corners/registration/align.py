@@ -14,15 +14,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
+from pydantic import Field
 
+from laser_corners.options import Options
 from laser_corners.pose import check_pose, relative_pose, wrap_angle
 
-__all__ = ["Alignment", "PointMap", "icp", "match_share"]
+__all__ = ["Alignment", "IcpOptions", "PointMap", "icp", "match_share"]
 
 CELL = 0.3
 STEP_XY = 1.0 / 30.0
@@ -36,6 +38,37 @@ SURFACE_AGREE = 0.94
 nearest point's to join that point's implicit surface (:func:`_surface`): the lines of one
 surface, not of a corner's other wall or around a pillar."""
 """Grid cell (m) of a :class:`PointMap`; a search within CELL looks at the 3 x 3 cells around."""
+
+
+class IcpOptions(Options):
+    """The ICP's settings (:func:`icp`): the ``icp`` group of
+    :class:`~laser_corners.slam.SlamOptions` and :class:`~laser_corners.localise.LocaliseOptions`
+    (``--set icp.max_distance=0.2``, a YAML ``icp:`` table, the ROS 2 parameter
+    ``icp.max_distance``).
+
+    The two have their own defaults: the SLAM aligns each scan to its own recent keyframes,
+    a few tenths of a second old, so a 0.15 m gate (five times the 3 cm point noise) and 20
+    iterations; the localiser aligns to a map made another day (furniture moved, the map's own
+    error), so a wider gate, 0.3 m, and 15 iterations per scan.
+
+    Attributes
+    ----------
+    max_distance : float
+        Largest point-to-map distance (m) of a correspondence in the last ICP iterations.
+    iterations : int
+        Maximum point-to-line ICP iterations per alignment.
+
+    Examples
+    --------
+    >>> IcpOptions(max_distance=0.2).with_overrides(["iterations=5"])
+    IcpOptions(max_distance=0.2, iterations=5)
+    """
+
+    title: ClassVar[str] = "IcpOptions"
+    what: ClassVar[str] = "option"
+
+    max_distance: float = Field(0.15, ge=0.01, le=5.0)
+    iterations: int = Field(20, ge=1, le=200)
 
 
 @numba.njit(cache=True)
@@ -316,16 +349,16 @@ def icp(
     pointmap: PointMap,
     guess: NDArray[np.float64],
     prior_info: NDArray[np.float64],
+    settings: IcpOptions,
     *,
-    max_distance: float,
     inlier_distance: float,
-    iterations: int,
     sigma: float = 0.03,
     overlap_map: PointMap | None = None,
     surface: float = 0.0,
 ) -> Alignment:
     """Align ``points`` (base frame) to ``pointmap`` starting from ``guess`` (map frame).
 
+    ``settings`` gives the correspondence gate (``max_distance``, m) and the iteration cap.
     ``prior_info`` (3x3) weighs the pull towards ``guess`` against the point residuals of
     standard deviation ``sigma`` (m). The overlap is measured against ``overlap_map`` (all
     points, also those without a normal) when given, else against ``pointmap``.
@@ -346,9 +379,9 @@ def icp(
             pointmap.normals,
             guess,
             np.asarray(prior_info, dtype=np.float64),
-            max_distance,
+            settings.max_distance,
             sigma,
-            iterations,
+            settings.iterations,
             surface,
         )
     except np.linalg.LinAlgError:  # pragma: no cover - singular system

@@ -219,7 +219,7 @@ class Keyframer:
             return (opt.match_sigma_xy, opt.match_sigma_xy, opt.match_sigma_yaw)
         if cut:
             return CUT_SIGMAS
-        sig = odometry_sigmas(rel, opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
+        sig = odometry_sigmas(rel, opt.odometry)
         return (float(sig[0]), float(sig[1]), float(sig[2]))
 
     def _corners(

@@ -180,18 +180,16 @@ def verify(
         pointmap,
         found,
         np.eye(3) * 1e-6,
-        max_distance=3.0 * SEARCH_RESOLUTION,
+        options.icp.with_overrides({"max_distance": 3.0 * SEARCH_RESOLUTION}),
         inlier_distance=options.loop_inlier_distance,
-        iterations=options.icp_iterations,
     )
     aligned = icp(
         query,
         pointmap,
         aligned.pose,
         np.eye(3) * 1e-6,
-        max_distance=options.icp_max_distance,
+        options.icp,
         inlier_distance=options.loop_inlier_distance,
-        iterations=options.icp_iterations,
     )
     relative = tuple(float(v) for v in aligned.pose)
     overlap = match_share(query, full, aligned.pose, options.loop_inlier_distance)

@@ -132,9 +132,8 @@ def refine_links(
             line,
             guesses[i],
             prior,
-            max_distance=options.icp_max_distance,
+            options.icp,
             inlier_distance=options.loop_inlier_distance,
-            iterations=options.icp_iterations,
             overlap_map=every,
         )
         agree = (options.loop_agree_xy, options.loop_agree_yaw)

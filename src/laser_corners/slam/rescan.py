@@ -118,9 +118,8 @@ def rescan(
                 line,
                 out[i],
                 prior,
-                max_distance=options.icp_max_distance,
+                options.icp,
                 inlier_distance=options.loop_inlier_distance,
-                iterations=options.icp_iterations,
                 overlap_map=every,
                 surface=surface,
             )

@@ -167,8 +167,7 @@ class Tracking:
             return pred
         if corner is not None:
             pred = corner
-        noise = (opt.odometry_sigma_xy, opt.odometry_sigma_yaw)
-        sig = JUMP_SIGMAS if jump else odometry_sigmas(delta, *noise)
+        sig = JUMP_SIGMAS if jump else odometry_sigmas(delta, opt.odometry)
         prior = np.diag(1.0 / sig**2)
         aligned = self._icp(xy, pred, prior)
         if not jump:
@@ -265,9 +264,8 @@ class Tracking:
             self.local,
             guess,
             prior,
-            max_distance=opt.icp_max_distance,
+            opt.icp,
             inlier_distance=opt.loop_inlier_distance,
-            iterations=opt.icp_iterations,
             overlap_map=self.local_all,
             surface=SURFACE_SPACINGS * opt.point_spacing,
         )
