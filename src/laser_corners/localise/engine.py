@@ -7,6 +7,10 @@ optimises; its pose is the online estimate. The localiser places it: at every fi
 global search (:meth:`EngineTrack.place`), after a lost track (:meth:`EngineTrack.cut`: a new
 segment, unplaced), and wherever the tracker, anchored in the map, disagrees with it by more
 than the gate (``engine_gate_xy`` / ``engine_gate_yaw``; counted ``engine_replaced``).
+Once a scan the map explains has confirmed it, where the map does not explain a scan (the
+robot drives out of it) the engine holds the pose (:meth:`EngineTrack.holds`, estimates
+``"local"``) if the scan aligned to the engine's keyframes; the localiser also asks that the
+scan not contradict the map's free space there, which a kidnap inside the map does.
 
 Cost per scan: the engine's front end (an ICP against a local map of a bounded number of
 keyframes) and, per keyframe, an iSAM2 update and a loop-closure check; it does not grow with
@@ -60,7 +64,7 @@ class EngineTrack:
     options : LocaliseOptions
     mount : ndarray, shape (3,)
     counts : dict
-        The localiser's counters (``engine_replaced`` is added).
+        The localiser's counters.
     """
 
     def __init__(
@@ -69,7 +73,6 @@ class EngineTrack:
         self.options = options
         self.slam = Slam(engine_options(options), mount, prior_map=saved, frozen=True)
         self.counts = counts
-        counts.setdefault("engine_replaced", 0)
         self.pose: NDArray[np.float64] | None = None
         self.covariance: NDArray[np.float64] | None = None
         self.confirmed = False
@@ -77,8 +80,9 @@ class EngineTrack:
         anchored in the map, within the gate): only then does it hold the pose alone."""
 
     def place(self, pose: NDArray, covariance: NDArray) -> None:
-        """The scan about to be added is at ``pose`` (a fix, or the tracker where the engine
-        disagrees): a new segment starts there."""
+        """The last scan was at ``pose`` (a fix, or the tracker where the engine disagrees;
+        ``covariance``: its uncertainty): the next scan starts a new segment there, moved by
+        the odometry step (:meth:`~laser_corners.slam.Slam.place`); not confirmed yet."""
         self.slam.place(pose, _sigmas(covariance))
         self.confirmed = False
 
@@ -114,29 +118,28 @@ class EngineTrack:
     def alone(self, odometry: NDArray, index: int, stamp: float) -> LocaliserEstimate | None:
         """The engine's estimate of scan ``index`` where the map gives none (``"local"``: the
         scan is placed by the engine's own keyframes), None while it is not placed."""
-        if not self.slam.placed or self.pose is None or self.covariance is None:
+        if not self.slam.placed or self.pose is None:
             return None
-        return LocaliserEstimate(
-            pose=self.pose.copy(),
-            covariance=self.covariance,
-            status="local",
-            map_to_odom=compose_many(self.pose, invert_many(odometry)),
-            scan_index=index,
-            stamp=stamp,
-        )
+        return self._estimate(odometry, index, stamp, "local", 0.0)
 
     def estimate(self, tracked: LocaliserEstimate, odometry: NDArray) -> LocaliserEstimate:
         """The tracker's estimate of this scan with the engine's pose and covariance (once the
         map confirmed the engine; before, the tracker's own)."""
         if not (self.slam.placed and self.confirmed) or self.pose is None:
             return tracked
-        assert self.covariance is not None
+        t = tracked
+        return self._estimate(odometry, t.scan_index, t.stamp, t.status, t.agreement)
+
+    def _estimate(
+        self, odometry: NDArray, index: int, stamp: float, status: str, agreement: float
+    ) -> LocaliserEstimate:
+        assert self.pose is not None and self.covariance is not None
         return LocaliserEstimate(
             pose=self.pose.copy(),
             covariance=self.covariance,
-            status=tracked.status,
+            status=status,
             map_to_odom=compose_many(self.pose, invert_many(odometry)),
-            scan_index=tracked.scan_index,
-            stamp=tracked.stamp,
-            agreement=tracked.agreement,
+            scan_index=index,
+            stamp=stamp,
+            agreement=agreement,
         )

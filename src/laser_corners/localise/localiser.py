@@ -45,6 +45,11 @@ Three states (:attr:`Localiser.status`):
     explain and is not judged on the scans since the loss; once the window is wider than
     ``reacquire_xy`` / ``reacquire_yaw``, the global search over the whole map takes over (a
     kidnapped robot).
+
+The online poses come from the SLAM engine on the map frozen (:mod:`.engine`, ``engine``):
+placed by the fixes, confirmed by the tracker, cut at an odometry or time jump; where the map
+gives no estimate, the confirmed engine holds the pose when the scan fits its own keyframes
+and does not contradict the map's free space.
 """
 
 from __future__ import annotations
@@ -88,6 +93,7 @@ COUNT_KEYS = (
     "reacquired",
     "place_attempts",
     "credited",
+    "engine_replaced",
 )
 """The localiser's counters (:attr:`Localiser.counts`)."""
 
@@ -272,8 +278,6 @@ class Localiser:
         window = None if recent_jump else Window.from_covariance(pose, covariance)
         self.search.restart(pose, index, window)
         self.state = State.LOST
-        if self.engine is not None and recent_jump:
-            self.engine.cut()
         self.counts["lost"] += 1
 
     def _search(
