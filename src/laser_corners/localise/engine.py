@@ -105,11 +105,6 @@ class EngineTrack:
         self.confirmed |= not far
         return bool(far)
 
-    @property
-    def jumped(self) -> bool:
-        """Whether the stamps jumped since the engine's last keyframe."""
-        return bool(self.slam.tracking.jumped)
-
     def holds(self) -> bool:
         """Whether the engine alone may give this scan's pose: placed, confirmed by the map
         since, and the scan aligned to its keyframes."""

@@ -253,16 +253,15 @@ class Localiser:
         if self.engine is None or not self.engine.holds():
             return False
         support = self.tracker.matcher.support(self.engine.pose, xy)
-        return support.conflict <= self.options.track_conflict and not self.engine.jumped
+        return support.conflict <= self.options.track_conflict
 
     def _engine(self, odo: NDArray, estimate: LocaliserEstimate) -> LocaliserEstimate:
         """This scan's estimate with the engine's pose (:mod:`.engine`); where the tracker,
         anchored in the map, disagrees (a fix, or the engine went astray), the tracker's
         pose, and the engine is placed there from the next scan on."""
         assert self.engine is not None
-        if estimate.status == "local":  # mostly unmapped: the engine's own
-            return self.engine.estimate(estimate, odo)
-        if self.engine.disagrees(estimate.pose):
+        # a "local" estimate (mostly unmapped) is the engine's own, never a reason to re-place
+        if estimate.status != "local" and self.engine.disagrees(estimate.pose):
             self.counts["engine_replaced"] += estimate.status == "tracking"
             self.engine.place(estimate.pose, self.tracker.covariance)
             return estimate
