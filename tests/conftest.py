@@ -120,3 +120,18 @@ def run_until_killed(script: str, *args: str) -> str:
         process.wait(timeout=30)
     assert process.returncode == -signal.SIGKILL and line, "the writer did not start"
     return line
+
+
+def cache_answers(
+    check: str, cold_cache: Path
+) -> tuple[subprocess.CompletedProcess, subprocess.CompletedProcess]:
+    """The Python one-liner ``check`` run in a fresh interpreter twice: with this process's
+    numba cache (warm) and with the empty folder ``cold_cache`` as the cache (cold)."""
+
+    def run(extra: dict[str, str]) -> subprocess.CompletedProcess:
+        env = {**os.environ, **extra}
+        return subprocess.run(
+            [sys.executable, "-c", check], capture_output=True, text=True, env=env, timeout=300
+        )
+
+    return run({}), run({"NUMBA_CACHE_DIR": str(cold_cache)})

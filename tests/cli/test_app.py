@@ -22,7 +22,7 @@ import pytest
 import typer.main
 from typer.testing import CliRunner
 
-from conftest import real_file
+from conftest import cache_answers, real_file
 from laser_corners.cli import app
 
 runner = CliRunner()
@@ -365,18 +365,8 @@ def test_kernel_cache_check_tells_cold_from_warm(tmp_path: Path) -> None:
 
     CornerDetector().detect(LaserScan(np.full(64, 2.0), -0.5, 0.01, 0.05, 10.0))  # warm
     check = "from laser_corners.cli.kernels import kernels_are_cold; print(kernels_are_cold())"
-    env = dict(os.environ)
-    warm = subprocess.run(
-        [sys.executable, "-c", check], capture_output=True, text=True, env=env, timeout=300
-    )
+    warm, cold = cache_answers(check, tmp_path)
     assert warm.stdout.strip() == "False", warm.stderr
-    cold = subprocess.run(
-        [sys.executable, "-c", check],
-        capture_output=True,
-        text=True,
-        env={**env, "NUMBA_CACHE_DIR": str(tmp_path)},
-        timeout=300,
-    )
     assert cold.stdout.strip() == "True", cold.stderr
 
 

@@ -5,9 +5,6 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +13,7 @@ from typer.testing import CliRunner
 
 pytest.importorskip("gtsam")
 
+from conftest import cache_answers
 from laser_corners.cli import app
 from laser_corners.registration import global_search
 
@@ -62,18 +60,8 @@ def test_slam_kernel_cache_check_tells_cold_from_warm(tmp_path: Path) -> None:
         "from laser_corners.cli.kernels import slam_kernels_are_cold; "
         "print(slam_kernels_are_cold())"
     )
-    env = dict(os.environ)
-    warm = subprocess.run(
-        [sys.executable, "-c", check], capture_output=True, text=True, env=env, timeout=300
-    )
+    warm, cold = cache_answers(check, tmp_path)
     assert warm.stdout.strip() == "False", warm.stderr
-    cold = subprocess.run(
-        [sys.executable, "-c", check],
-        capture_output=True,
-        text=True,
-        env={**env, "NUMBA_CACHE_DIR": str(tmp_path)},
-        timeout=300,
-    )
     assert cold.stdout.strip() == "True", cold.stderr
 
 
