@@ -22,6 +22,7 @@ MODULES = [
     "laser_corners.presets",
     "laser_corners.registration.align",
     "laser_corners.registration.odometry",
+    "laser_corners.slam.options",
 ]
 
 

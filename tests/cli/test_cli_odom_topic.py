@@ -117,7 +117,7 @@ def test_detect_map_columns_follow_the_chosen_odometry(bag: Path, tmp_path: Path
 def test_slam_and_localise_take_odom_topic(bag: Path, tmp_path: Path) -> None:
     pytest.importorskip("gtsam")
     out = tmp_path / "map"
-    result = _invoke("slam", bag, "-o", out, "--odom-topic", "tf", "--set", "loop_closure=false")
+    result = _invoke("slam", bag, "-o", out, "--odom-topic", "tf", "--set", "loop.enabled=false")
     assert result.exit_code == 0, result.output
     _, odometry = read_tum(out / "odometry.tum")
     drive = _drive() + np.asarray(SOURCES[TF])

@@ -197,9 +197,10 @@ def test_thesmoothing_slam_takes_the_map_options(mapped, tmp_path: Path) -> None
     copy = tmp_path / "map"
     shutil.copytree(map_dir, copy)
     options = copy / "options.yaml"
-    options.write_text(options.read_text().replace("loop_closure: true", "loop_closure: false"))
+    text = options.read_text().replace("loop:\n  enabled: true", "loop:\n  enabled: false")
+    options.write_text(text)
     slam = smoothing_slam(load_map(copy), np.array([0.1, 0.0, 0.0]))
-    assert slam.options.loop_closure is False and slam.options.mount == (0.1, 0.0, 0.0)
+    assert slam.options.loop.enabled is False and slam.options.mount == (0.1, 0.0, 0.0)
     options.write_text("max_range: -3\n")
     _one_line_error(_invoke("localise", copy, bag, "-o", tmp_path / "a"), "options.yaml")
     result = _invoke("localise", copy, bag, "-o", tmp_path / "b", "--set", "smooth=false")

@@ -39,7 +39,7 @@ def _along_errors(surface: float) -> np.ndarray:
             true,
             np.diag(1.0 / np.array([0.05, 0.05, 0.05]) ** 2),
             opt.icp,
-            inlier_distance=opt.loop_inlier_distance,
+            inlier_distance=opt.inlier_distance,
             surface=surface,
         )
         out.append(aligned.pose[0] - true[0])

@@ -93,6 +93,18 @@ def test_the_icp_and_odometry_groups_are_dotted_parameters(mode: str) -> None:
     assert (options.icp.max_distance, options.odometry.sigma_yaw) == (0.2, 0.02)
 
 
+def test_the_loop_group_is_dotted_parameters() -> None:
+    names = set(estimator_parameters("slam"))
+    assert {"loop.enabled", "loop.radius", "loop.every", "loop.sigma_xy"} <= names
+    assert {"inlier_distance", "agree_xy", "agree_yaw"} <= names
+    assert not {"loop_closure", "loop_radius", "loop_inlier_distance", "loop_agree_xy"} & names
+    config = MappingConfig.from_mapping(
+        {**MAP, "mode": "slam", "loop.radius": 5.0, "loop.enabled": False, "agree_xy": 0.2}
+    )
+    options = config.slam_options()
+    assert (options.loop.radius, options.loop.enabled, options.agree_xy) == (5.0, False, 0.2)
+
+
 def test_parameters_override_the_config_file(tmp_path) -> None:
     path = tmp_path / "localise.yaml"
     path.write_text("fix_scans: 9\nlost_scans: 3\nplaces:\n  matches: 5\n")

@@ -12,7 +12,7 @@ pytest.importorskip("gtsam")
 from laser_corners.slam.backend import Backend
 from laser_corners.slam.closing import LoopCloser
 from laser_corners.slam.keyframes import KeyframeStore
-from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.options import LoopOptions, SlamOptions
 from laser_corners.slam.relocalise import Relocaliser
 from laser_corners.slam.result import LoopClosure
 
@@ -54,9 +54,9 @@ def test_accepted_closures_go_into_the_graph_and_the_dropped_ones_are_marked() -
 def test_no_search_off_the_loop_every_keyframes_or_with_loop_closure_off() -> None:
     store = KeyframeStore()
     store.estimate = np.array([[float(k), 0.0, 0.0] for k in range(3)])
-    closer, backend = _closer(SlamOptions(loop_every=2))
+    closer, backend = _closer(SlamOptions(loop=LoopOptions(every=2)))
     assert closer.keyframe(3, store, np.array([3.0, 0.0, 0.0])) == (False, False)
-    off, _ = _closer(SlamOptions(loop_closure=False, loop_every=1))
+    off, _ = _closer(SlamOptions(loop=LoopOptions(enabled=False, every=1)))
     assert off.keyframe(3, store, np.array([3.0, 0.0, 0.0])) == (False, False)
     assert backend.counts.closures_proposed == 0 and closer.closures == []
 
@@ -100,12 +100,12 @@ def _store(n: int) -> KeyframeStore:
 def test_an_unplaced_segment_closes_only_with_its_own_keyframes(monkeypatch) -> None:
     # a new session on a prior map (keyframes 0-3), no initial pose: its frame is not the
     # map's, so a window around its estimate among the map's keyframes means nothing
-    closer, backend = _closer(SlamOptions(loop_every=1), n=7)
+    closer, backend = _closer(SlamOptions(loop=LoopOptions(every=1)), n=7)
     verified = _closing_with(monkeypatch, closer, [1, 4], accept=False)
     closer.lost_from(4, unplaced=True)
     closer.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))
     assert verified == [4] and backend.counts.closures_proposed == 1
-    placed, _ = _closer(SlamOptions(loop_every=1), n=7)  # an ordinary lost segment
+    placed, _ = _closer(SlamOptions(loop=LoopOptions(every=1)), n=7)  # an ordinary lost segment
     verified = _closing_with(monkeypatch, placed, [1, 4], accept=False)
     placed.lost_from(4)
     placed.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))
@@ -117,7 +117,7 @@ def test_a_closure_within_an_unplaced_segment_does_not_end_its_search(monkeypatc
     # is near the map's); an unplaced one (a new session on a prior map): only relocalisation
     # into the map before it does
     for unplaced, still_lost in ((False, False), (True, True)):
-        closer, _ = _closer(SlamOptions(loop_every=1), n=7)
+        closer, _ = _closer(SlamOptions(loop=LoopOptions(every=1)), n=7)
         _closing_with(monkeypatch, closer, [4], accept=True)
         closer.lost_from(3, unplaced=unplaced)
         assert closer.keyframe(6, _store(6), np.array([6.0, 0.0, 0.0]))[0]  # closed

@@ -87,7 +87,7 @@ def test_refine_links_measure_the_true_relative_poses(lap) -> None:
     assert links.tried > len(truth) // 2 and len(links) > len(truth) // 3
     assert far not in set(links.query.tolist())
     # a submap never holds the keyframe it aligns (1.5 submap lengths on each side)
-    assert np.abs(links.query - links.match).min() > 1.5 * OPTIONS.loop_submap_keyframes
+    assert np.abs(links.query - links.match).min() > 1.5 * OPTIONS.loop.submap_keyframes
     true_rel = between_many(truth[links.match], truth[links.query])
     err = between_many(true_rel, links.relative)
     assert np.percentile(np.hypot(err[:, 0], err[:, 1]), 90) < 0.015

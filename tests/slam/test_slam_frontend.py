@@ -12,7 +12,7 @@ pytest.importorskip("gtsam")
 
 from laser_corners.pose import between_many, compose
 from laser_corners.sim import World
-from laser_corners.slam import Slam, SlamOptions
+from laser_corners.slam import LoopOptions, Slam, SlamOptions
 from laser_corners.slam.result import LoopClosure
 from sim_drives import drive_slam, two_rooms
 
@@ -42,7 +42,7 @@ def test_reversing_counted_as_forward_motion_is_tracked() -> None:
     odo = [truth[0]]
     for d in steps:
         odo.append(np.array(compose(odo[-1], d)))
-    slam = Slam(SlamOptions(loop_closure=False))
+    slam = Slam(SlamOptions(loop=LoopOptions(enabled=False)))
     _drive(slam, truth, np.array(odo))
     result = slam.result()
     assert result.counts["second_guesses_used"] >= 5
@@ -59,7 +59,7 @@ def test_a_scan_with_a_stale_heading_is_rescued() -> None:
     truth = np.column_stack([np.full_like(yaw, 4.0), np.full_like(yaw, 4.0), yaw])
     odo = truth.copy()
     odo[12] = odo[11]
-    slam = Slam(SlamOptions(loop_closure=False))
+    slam = Slam(SlamOptions(loop=LoopOptions(enabled=False)))
     _drive(slam, truth, odo)
     result = slam.result()
     assert result.counts["rescues_used"] >= 1
@@ -87,7 +87,7 @@ def test_a_corridor_keeps_the_driven_length() -> None:
     odo = [truth[0]]
     for d in between_many(truth[:-1], truth[1:]):
         odo.append(np.array(compose(odo[-1], d + rng.normal(0.0, [0.002, 0.002, 0.002]))))
-    slam = Slam(SlamOptions(loop_closure=False))
+    slam = Slam(SlamOptions(loop=LoopOptions(enabled=False)))
     drive_slam(slam, _corridor(), truth, np.array(odo), np.arange(len(truth)) / 10, rng)
     poses = slam.result().poses
     est = between_many(poses[:-10:5], poses[10::5])  # 1 s relations
@@ -102,7 +102,7 @@ def test_pruned_closures_are_the_ones_the_back_end_dropped() -> None:
     # later-verified first): the wrong one (1 m off) must be the one marked dropped
     x = 1.5 + np.arange(60) * 0.1
     truth = np.column_stack([x, np.full_like(x, 1.5), np.zeros_like(x)])
-    slam = Slam(SlamOptions(loop_closure=False))
+    slam = Slam(SlamOptions(loop=LoopOptions(enabled=False)))
     _drive(slam, truth, truth)
     k = len(slam.kf) - 1
     est = slam.kf.estimate

@@ -14,7 +14,7 @@ from laser_corners.eval.relations import closure_consistency, relation_metrics
 from laser_corners.pose import between_many, compose_many
 from laser_corners.scan import LaserScan
 from laser_corners.sim import SICK_LMS_1DEG
-from laser_corners.slam import Slam, SlamOptions, run_slam
+from laser_corners.slam import LoopOptions, Slam, SlamOptions, run_slam
 from sim_drives import drive_slam, noisy_odometry, straight, two_rooms
 
 RATE = 10.0
@@ -84,7 +84,8 @@ def test_mount_is_applied(drive) -> None:
     # the laser 0.3 m ahead of the base: the base trajectory is still the truth
     truth, odo = drive
     n = len(truth) // 2
-    result = _run(truth[:n], odo[:n], SlamOptions(loop_closure=False), mount=(0.3, 0.0, 0.0))
+    options = SlamOptions(loop=LoopOptions(enabled=False))
+    result = _run(truth[:n], odo[:n], options, mount=(0.3, 0.0, 0.0))
     rel = _relations(truth[:n])[:-10]
     assert relation_metrics(result.stamps, result.poses, rel).trans_mean < 0.05
     assert np.allclose(result.mount, [0.3, 0.0, 0.0])

@@ -15,7 +15,7 @@ from laser_corners.errors import InputError
 from laser_corners.io import open_scans
 from laser_corners.io.rosbag import tf_odometry
 from laser_corners.sim import World
-from laser_corners.slam import SlamOptions, run_slam
+from laser_corners.slam import LoopOptions, SlamOptions, run_slam
 from sim_drives import TF, write_drive_bag
 
 RATE = 10.0
@@ -56,7 +56,7 @@ def test_slam_from_tf_odometry_equals_the_odometry_topic_run(tmp_path: Path, ros
     scans = list(source)
     assert source.odom_topic == "/tf" and source.tf_odometry == ("odom", "base_link")
     assert all(s.pose is not None for s in scans)
-    options = SlamOptions(loop_closure=False)
+    options = SlamOptions(loop=LoopOptions(enabled=False))
     a = run_slam(with_topic, options)
     b = run_slam(with_tf, options)
     assert a.counts["scans"] == b.counts["scans"] == len(_drive())

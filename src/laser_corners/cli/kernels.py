@@ -134,7 +134,7 @@ def warm_slam_kernels() -> None:
     from laser_corners.registration.mapfolder import save_map_data
     from laser_corners.registration.points import scan_points
     from laser_corners.sim import SICK_LMS_1DEG, World
-    from laser_corners.slam import Slam, SlamOptions
+    from laser_corners.slam import LoopOptions, Slam, SlamOptions
     from laser_corners.slam.grid import result_grid
 
     world = World().add_polygon([[0, 0], [8, 0], [8, 5], [0, 5]])
@@ -145,7 +145,8 @@ def warm_slam_kernels() -> None:
         world.scan(p, SICK_LMS_1DEG, noise_sigma=0.01, rng=rng, stamp=0.1 * i)
         for i, p in enumerate(poses)
     ]
-    options = SlamOptions(front_end="both", landmarks=True, loop_recent_distance=0.5, loop_every=1)
+    loop = LoopOptions(recent_distance=0.5, every=1)
+    options = SlamOptions(front_end="both", landmarks=True, loop=loop)
     slam = Slam(options)
     for i, (pose, scan) in enumerate(zip(poses, scans, strict=True)):
         slam.add(scan, pose, 0.1 * i)

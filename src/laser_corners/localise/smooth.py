@@ -190,7 +190,7 @@ def _closure_factors(graph, slam: SlamResult, anchored: NDArray) -> int:
     import gtsam
 
     so = slam.options
-    noise = robust_noise(diagonal_noise(so.loop_sigma_xy, so.loop_sigma_xy, so.loop_sigma_yaw))
+    noise = robust_noise(diagonal_noise(so.loop.sigma_xy, so.loop.sigma_xy, so.loop.sigma_yaw))
     used = 0
     for closure in slam.closures:
         if not closure.accepted:

@@ -11,9 +11,17 @@ map), :mod:`~.loops` (closure verification), :mod:`~.run`, :mod:`~.result`, :mod
 ``run_slam(..., prior_map=...)``).
 """
 
-from laser_corners.slam.options import SlamOptions
+from laser_corners.slam.options import LoopOptions, SlamOptions
 from laser_corners.slam.result import Landmarks, LoopClosure, SlamResult
 from laser_corners.slam.run import run_slam
 from laser_corners.slam.slam import Slam
 
-__all__ = ["Landmarks", "LoopClosure", "Slam", "SlamOptions", "SlamResult", "run_slam"]
+__all__ = [
+    "Landmarks",
+    "LoopClosure",
+    "LoopOptions",
+    "Slam",
+    "SlamOptions",
+    "SlamResult",
+    "run_slam",
+]

@@ -1,6 +1,6 @@
 """Loop closure and relocalisation of the keyframes: :class:`LoopCloser`.
 
-Every ``loop_every``-th keyframe, the older keyframes within the search window
+Every ``loop.every``-th keyframe, the older keyframes within the search window
 (:func:`~.loops.candidates`) are verified (:func:`~.loops.verify`); a verified closure passes
 the :class:`~.loops.ClosureGate` (agreement with another) before it goes into the graph. A
 keyframe of a lost segment is searched for in the map built before the segment
@@ -68,9 +68,7 @@ class LoopCloser:
         self._in_graph: list[LoopClosure] = []  # accepted closures, in the back end's order
         self._seeded = len(backend.loops)  # a prior map's closures (:mod:`.grow`) come first
         self.submaps = SubmapCache()
-        self.gate = ClosureGate(
-            options.loop_agree_xy, options.loop_agree_yaw, 4 * options.loop_every
-        )
+        self.gate = ClosureGate(options.agree_xy, options.agree_yaw, 4 * options.loop.every)
         self._since_closure = 0.0  # distance (m) driven since the last closure
         self._joined = False  # a closure joined the lost segment to the map before it
         self.unplaced: int | None = None  # first keyframe of a segment not yet placed
@@ -93,11 +91,11 @@ class LoopCloser:
     def keyframe(
         self, k: int, store: KeyframeStore, pose: NDArray, first: bool = False
     ) -> tuple[bool, bool]:
-        """Loop closure (``options.loop_closure``, not for the ``first`` keyframe) and
+        """Loop closure (``options.loop.enabled``, not for the ``first`` keyframe) and
         relocalisation for keyframe ``k`` at its tracked ``pose`` (``store``: every keyframe,
         the others at their estimates): whether a closure was accepted, whether a lost
         segment was put back into the map."""
-        closed = self._close(k, store, pose) if self.options.loop_closure and not first else False
+        closed = self._close(k, store, pose) if self.options.loop.enabled and not first else False
         if self._joined:
             self.relocaliser.end()  # an ordinary closure put the segment into the map
             self._joined = False
@@ -106,13 +104,13 @@ class LoopCloser:
 
     def _close(self, k: int, store: KeyframeStore, pose: NDArray) -> bool:
         opt = self.options
-        if k % opt.loop_every != 0:
+        if k % opt.loop.every != 0:
             return False
         estimate = np.vstack([store.estimate, pose[None, :]])
         sigma = self.backend.marginal_xy_sigma(k - 1) if k > 0 else 0.0
         window = (
-            min(opt.loop_search_xy + 3.0 * sigma, MAX_WINDOW_XY),
-            min(opt.loop_search_yaw + opt.loop_drift * self._since_closure, MAX_WINDOW_YAW),
+            min(opt.loop.search_xy + 3.0 * sigma, MAX_WINDOW_XY),
+            min(opt.loop.search_yaw + opt.loop.drift * self._since_closure, MAX_WINDOW_YAW),
         )
         closed = False
         travelled = store.travelled_array
@@ -157,7 +155,7 @@ class LoopCloser:
         if closure.reason == "pending confirmation":
             closure.reason = "confirmed by a later closure"
         self._in_graph.append(closure)
-        sig = (opt.loop_sigma_xy, opt.loop_sigma_xy, opt.loop_sigma_yaw)
+        sig = (opt.loop.sigma_xy, opt.loop.sigma_xy, opt.loop.sigma_yaw)
         self.backend.add_between(
             closure.match, closure.query, np.array(closure.relative), sig, robust=True
         )

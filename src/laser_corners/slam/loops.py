@@ -1,7 +1,7 @@
 """Loop closure: candidates near the current estimate, verified by correlative search + ICP.
 
-Candidates are older keyframes (reached more than ``loop_recent_distance`` of travel ago)
-within ``loop_radius`` plus the search window of the current estimate. The window grows with
+Candidates are older keyframes (reached more than ``loop.recent_distance`` of travel ago)
+within ``loop.radius`` plus the search window of the current estimate. The window grows with
 the current keyframe's marginal position uncertainty (iSAM2) so the search survives the drift
 of a long loop. Verification: the candidate's submap (neighbouring keyframes) is rasterised
 into a likelihood grid, the query scan is placed by an exhaustive correlative search over the
@@ -50,20 +50,20 @@ def candidates(
     window: float,
     options: SlamOptions,
 ) -> list[int]:
-    """Older keyframes near keyframe ``k``: nearest first, at most ``loop_candidates``, from
+    """Older keyframes near keyframe ``k``: nearest first, at most ``loop.candidates``, from
     different submaps."""
-    old = travelled[k] - travelled[:k] > options.loop_recent_distance
+    old = travelled[k] - travelled[:k] > options.loop.recent_distance
     if not old.any():
         return []
     idx = np.flatnonzero(old)
     dist = np.hypot(*(estimate[idx, :2] - estimate[k, :2]).T)
-    near = idx[dist < options.loop_radius + window]
-    order = near[np.argsort(dist[dist < options.loop_radius + window])]
+    near = idx[dist < options.loop.radius + window]
+    order = near[np.argsort(dist[dist < options.loop.radius + window])]
     chosen: list[int] = []
     for j in order:
-        if all(abs(int(j) - c) > 2 * options.loop_submap_keyframes for c in chosen):
+        if all(abs(int(j) - c) > 2 * options.loop.submap_keyframes for c in chosen):
             chosen.append(int(j))
-        if len(chosen) == options.loop_candidates:
+        if len(chosen) == options.loop.candidates:
             break
     return chosen
 
@@ -78,10 +78,10 @@ def _submap(
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Points (all), points with normals and their normals of the submap around keyframe
     ``j``, in ``j``'s frame."""
-    lo = max(0, j - options.loop_submap_keyframes)
-    hi = min(k, j + options.loop_submap_keyframes + 1)
+    lo = max(0, j - options.loop.submap_keyframes)
+    hi = min(k, j + options.loop.submap_keyframes + 1)
     members = [
-        i for i in range(lo, hi) if travelled[k] - travelled[i] > options.loop_recent_distance
+        i for i in range(lo, hi) if travelled[k] - travelled[i] > options.loop.recent_distance
     ]
     return submap_points(j, members, points, estimate)
 
@@ -161,7 +161,7 @@ def verify(
 ) -> LoopClosure:
     """Try to close keyframe ``k`` against the older keyframe ``j``."""
     guess = between_many(estimate[j], estimate[k])
-    query = query_points(k, points, estimate, options.loop_query_keyframes)
+    query = query_points(k, points, estimate, options.loop.query_keyframes)
 
     def build() -> tuple[ScoreGrid, PointMap, PointMap] | None:
         all_xy, line_xy, normals = _submap(j, k, points, estimate, travelled, options)
@@ -181,7 +181,7 @@ def verify(
         found,
         np.eye(3) * 1e-6,
         options.icp.with_overrides({"max_distance": 3.0 * SEARCH_RESOLUTION}),
-        inlier_distance=options.loop_inlier_distance,
+        inlier_distance=options.inlier_distance,
     )
     aligned = icp(
         query,
@@ -189,11 +189,11 @@ def verify(
         aligned.pose,
         np.eye(3) * 1e-6,
         options.icp,
-        inlier_distance=options.loop_inlier_distance,
+        inlier_distance=options.inlier_distance,
     )
     relative = tuple(float(v) for v in aligned.pose)
-    overlap = match_share(query, full, aligned.pose, options.loop_inlier_distance)
-    if overlap < options.loop_min_score:
+    overlap = match_share(query, full, aligned.pose, options.inlier_distance)
+    if overlap < options.loop.min_score:
         return LoopClosure(k, j, relative, False, f"low overlap {overlap:.2f}")
     if aligned.degenerate():
         return LoopClosure(k, j, relative, False, "degenerate (corridor)")

@@ -26,7 +26,63 @@ from laser_corners.registration.align import IcpOptions
 from laser_corners.registration.odometry import OdometryNoise
 from laser_corners.registration.place_index import PlaceOptions
 
-__all__ = ["FLAT_NAMES", "SlamOptions", "map_options"]
+__all__ = ["FLAT_NAMES", "LoopOptions", "SlamOptions", "map_options"]
+
+
+class LoopOptions(Options):
+    """The loop closure's settings (:mod:`~laser_corners.slam.closing`): the ``loop`` group of
+    :class:`SlamOptions` (``--set loop.radius=5``, a YAML ``loop:`` table, the ROS 2 parameter
+    ``loop.radius``). The refinement pass (:mod:`~laser_corners.slam.refine`), which adds
+    closures after the final optimisation, uses the same radius, submaps, score and noise;
+    the localiser's smoothing weighs the SLAM's closures by ``sigma_xy`` / ``sigma_yaw``.
+
+    Attributes
+    ----------
+    enabled : bool
+        Search and verify loop closures against older keyframes.
+    radius : float
+        Keyframes within this distance (m) of the current estimate are loop candidates.
+    recent_distance : float
+        Keyframes reached less than this travelled distance (m) ago are not loop candidates.
+    search_xy, search_yaw : float
+        Half-widths (m, rad) of the correlative search window of a loop closure at least.
+    drift : float
+        Expected drift per metre since the last closure, widening the yaw search window.
+    min_score : float
+        Share of points within ``inlier_distance`` of the submap to accept a closure.
+    submap_keyframes : int
+        Keyframes on each side of a candidate that form its submap.
+    query_keyframes : int
+        Keyframes (the current one and its predecessors) whose points form a loop query.
+    every : int
+        Loop search on every n-th keyframe.
+    candidates : int
+        Candidates verified per loop search (nearest first, from different submaps).
+    sigma_xy, sigma_yaw : float
+        Noise (m, rad) of a loop closure factor (under a Cauchy kernel).
+
+    Examples
+    --------
+    >>> LoopOptions().with_overrides(["radius=5", "enabled=false"]).radius
+    5.0
+    """
+
+    title: ClassVar[str] = "LoopOptions"
+    what: ClassVar[str] = "option"
+
+    enabled: bool = True
+    radius: float = Field(4.0, ge=0.1, le=100.0)
+    recent_distance: float = Field(10.0, ge=0.0, le=1000.0)
+    search_xy: float = Field(1.0, ge=0.0, le=10.0)
+    search_yaw: float = Field(0.25, ge=0.0, le=3.2)
+    drift: float = Field(0.03, ge=0.0, le=1.0)
+    min_score: float = Field(0.55, ge=0.0, le=1.0)
+    submap_keyframes: int = Field(10, ge=1, le=200)
+    query_keyframes: int = Field(1, ge=1, le=100)
+    every: int = Field(5, ge=1, le=1000)
+    candidates: int = Field(2, ge=1, le=20)
+    sigma_xy: float = Field(0.03, ge=1e-4, le=10.0)
+    sigma_yaw: float = Field(0.005, ge=1e-5, le=1.0)
 
 
 class SlamOptions(Options):
@@ -76,8 +132,6 @@ class SlamOptions(Options):
     landmark_sigma_floor: float = Field(0.03, ge=0.0, le=1.0)
     """Standard deviation (m) added in quadrature to each keypoint's covariance (the
     detector's covariance leaves out a corner's shape seen from different places)."""
-    loop_closure: bool = True
-    """Search and verify loop closures against older keyframes."""
     relocalisation: bool = True
     """When a scan fits nothing of the local map (kidnapped, an odometry jump) or a time jump
     is not bridged: cut the graph there and search the whole map with no prior until the new
@@ -86,7 +140,7 @@ class SlamOptions(Options):
     """Run a batch Levenberg-Marquardt optimisation of the whole graph at the end."""
     refine_final: bool = False
     """After the final optimisation, re-align every ``refine_every``-th keyframe by ICP from
-    its final estimate to the submaps of its spatial neighbours (within ``loop_radius``, at
+    its final estimate to the submaps of its spatial neighbours (within ``loop.radius``, at
     any time), add the alignments that pass the loop closure's checks as robust relative-pose
     factors and solve once more (:mod:`~laser_corners.slam.refine`; needs
     ``final_optimisation``). Off by default: with ``rescan_final`` it lowered intel's relation
@@ -134,37 +188,21 @@ class SlamOptions(Options):
     """Noise (m) of a keyframe-to-keyframe relative pose from scan alignment."""
     match_sigma_yaw: float = Field(0.005, ge=1e-5, le=1.0)
     """Noise (rad) of a keyframe-to-keyframe relative pose from scan alignment."""
-    loop_radius: float = Field(4.0, ge=0.1, le=100.0)
-    """Keyframes within this distance (m) of the current estimate are loop candidates."""
-    loop_recent_distance: float = Field(10.0, ge=0.0, le=1000.0)
-    """Keyframes reached less than this travelled distance (m) ago are not loop candidates."""
-    loop_search_xy: float = Field(1.0, ge=0.0, le=10.0)
-    """Half-width (m) of the correlative search window of a loop closure at least."""
-    loop_search_yaw: float = Field(0.25, ge=0.0, le=3.2)
-    """Half-width (rad) of the correlative search window of a loop closure at least."""
-    loop_drift: float = Field(0.03, ge=0.0, le=1.0)
-    """Expected drift per metre since the last closure, widening the loop search window."""
-    loop_min_score: float = Field(0.55, ge=0.0, le=1.0)
-    """Share of points within ``loop_inlier_distance`` of the submap to accept a closure."""
-    loop_inlier_distance: float = Field(0.1, ge=0.01, le=1.0)
-    """Distance (m) within which a point counts as explained by the submap."""
-    loop_submap_keyframes: int = Field(10, ge=1, le=200)
-    """Keyframes on each side of a candidate that form its submap."""
-    loop_query_keyframes: int = Field(1, ge=1, le=100)
-    """Keyframes (the current one and its predecessors) whose points form a loop query."""
-    loop_every: int = Field(5, ge=1, le=1000)
-    """Loop search on every n-th keyframe."""
-    loop_candidates: int = Field(2, ge=1, le=20)
-    """Candidates verified per loop search (nearest first, from different submaps)."""
-    loop_agree_xy: float = Field(0.15, ge=0.0, le=10.0)
-    """A verified closure moving the map by less than this (m) is accepted at once; a larger
-    correction needs a second closure implying the same correction within this distance."""
-    loop_agree_yaw: float = Field(0.035, ge=0.0, le=3.2)
-    """As ``loop_agree_xy``, for the rotation (rad, 2 degrees)."""
-    loop_sigma_xy: float = Field(0.03, ge=1e-4, le=10.0)
-    """Noise (m) of a loop closure factor (under a Cauchy kernel)."""
-    loop_sigma_yaw: float = Field(0.005, ge=1e-5, le=1.0)
-    """Noise (rad) of a loop closure factor (under a Cauchy kernel)."""
+    loop: LoopOptions = LoopOptions()
+    """Search and verification of loop closures against older keyframes (``loop.enabled``,
+    ``loop.radius``, ...); the refinement pass (``refine_final``) reuses its radius, submaps,
+    score and noise."""
+    inlier_distance: float = Field(0.1, ge=0.01, le=1.0)
+    """Distance (m) within which a point counts as explained by a map: the tracking's overlap
+    and its lost check, the loop closures' score, relocalisation, the refinement and rescan
+    passes (the localiser's ``inlier_distance``)."""
+    agree_xy: float = Field(0.15, ge=0.0, le=10.0)
+    """A correction of a pose by less than this (m) agrees with the map: a verified loop
+    closure is accepted at once (a larger one needs a second closure implying the same
+    correction within this distance), a refinement link or a rescanned pose is kept (a larger
+    move is a wrong match, the map being consistent already)."""
+    agree_yaw: float = Field(0.035, ge=0.0, le=3.2)
+    """As ``agree_xy``, for the rotation (rad, 2 degrees)."""
     time_jump: float = Field(5.0, ge=0.1, le=1e6)
     """A gap (s) between scan stamps (either way) longer than this is a time jump: the scan
     becomes a keyframe, its alignment gets a weak odometry prior, and when it does not align
@@ -194,30 +232,52 @@ def map_options(folder: str | Path) -> SlamOptions:
         raise InputError(f"{exc} (the map's SLAM options)") from None
 
 
-FLAT_NAMES = {
+FLAT_NAMES: dict[str, tuple[str, ...]] = {
     "icp_max_distance": ("icp", "max_distance"),
     "icp_iterations": ("icp", "iterations"),
     "odometry_sigma_xy": ("odometry", "sigma_xy"),
     "odometry_sigma_yaw": ("odometry", "sigma_yaw"),
+    "loop_closure": ("loop", "enabled"),
+    "loop_radius": ("loop", "radius"),
+    "loop_recent_distance": ("loop", "recent_distance"),
+    "loop_search_xy": ("loop", "search_xy"),
+    "loop_search_yaw": ("loop", "search_yaw"),
+    "loop_drift": ("loop", "drift"),
+    "loop_min_score": ("loop", "min_score"),
+    "loop_submap_keyframes": ("loop", "submap_keyframes"),
+    "loop_query_keyframes": ("loop", "query_keyframes"),
+    "loop_every": ("loop", "every"),
+    "loop_candidates": ("loop", "candidates"),
+    "loop_sigma_xy": ("loop", "sigma_xy"),
+    "loop_sigma_yaw": ("loop", "sigma_yaw"),
+    "loop_inlier_distance": ("inlier_distance",),
+    "loop_agree_xy": ("agree_xy",),
+    "loop_agree_yaw": ("agree_yaw",),
 }
-"""The names an ``options.yaml`` had before the ``icp`` and ``odometry`` groups -> their
-group and field: a map folder written then still loads (:func:`map_options` only; ``--set``,
-``--config`` and the ROS parameters take the grouped names alone)."""
+"""The names an ``options.yaml`` had before the ``icp``, ``odometry`` and ``loop`` groups ->
+their group and field (or their new name at the top): a map folder written then still loads
+(:func:`map_options` only; ``--set``, ``--config`` and the ROS parameters take the new names
+alone)."""
 
 
 def _grouped(data: Any, path: Path) -> Any:
-    """``data`` (a parsed ``options.yaml``) with the flat names of :data:`FLAT_NAMES` moved
-    into their groups; both spellings of one option: one line naming them."""
+    """``data`` (a parsed ``options.yaml``) with the old names of :data:`FLAT_NAMES` moved to
+    their new places; both spellings of one option: one line naming them."""
     if not isinstance(data, Mapping) or not FLAT_NAMES.keys() & data.keys():
         return data
     out = dict(data)
-    for old, (group, field) in FLAT_NAMES.items():
+    for old, (*group, field) in FLAT_NAMES.items():
         if old not in out:
             continue
-        table = out.get(group, {})
+        table = out.get(group[0], {}) if group else out
         if not isinstance(table, Mapping):  # not a table: the validation names it
             continue
         if field in table:
-            raise InvalidParamsError(f"{path}: both {old} (the old name) and {group}.{field}")
-        out[group] = {**table, field: out.pop(old)}
+            new = ".".join([*group, field])
+            raise InvalidParamsError(f"{path}: both {old} (the old name) and {new}")
+        value = out.pop(old)
+        if group:
+            out[group[0]] = {**table, field: value}
+        else:
+            out[field] = value
     return out

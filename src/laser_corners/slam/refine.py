@@ -2,18 +2,18 @@
 
 After the final batch optimisation the map is globally consistent but held together only by the
 keyframe chain and the few loop closures the online search found (one search every
-``loop_every`` keyframes). This pass adds what Cartographer's constraint search adds online:
+``loop.every`` keyframes). This pass adds what Cartographer's constraint search adds online:
 constraints from many keyframes to every submap near them, whatever the time between.
 
-Every ``loop_submap_keyframes``-th keyframe (n) anchors a submap: the keyframes within 1.5 n
+Every ``loop.submap_keyframes``-th keyframe (n) anchors a submap: the keyframes within 1.5 n
 of it, in its frame, at their final estimates. Each ``refine_every``-th keyframe is aligned by
 point-to-line ICP, from its final estimate, to at most ``refine_candidates`` submaps (nearest
-first) whose anchor lies within ``loop_radius`` of it and at least ``refine_min_travel`` of
+first) whose anchor lies within ``loop.radius`` of it and at least ``refine_min_travel`` of
 travel before or after it, and which do not hold the keyframe itself. An alignment becomes a
 relative-pose factor under the loop closures' robust model when, as for a loop closure, at
-least ``loop_min_score`` of the keyframe's points lie on the submap and the alignment is not
+least ``loop.min_score`` of the keyframe's points lie on the submap and the alignment is not
 degenerate, and, the map being consistent already, when it moves the keyframe by less than
-``loop_agree_xy`` / ``loop_agree_yaw``: a larger move is a wrong match, not a correction.
+``agree_xy`` / ``agree_yaw``: a larger move is a wrong match, not a correction.
 No search: the estimate is the guess.
 """
 
@@ -79,7 +79,7 @@ def _pairs(
     options: SlamOptions,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(keyframe, anchor) pairs to align: each ``refine_every``-th keyframe with its nearest
-    ``refine_candidates`` anchors within ``loop_radius``, travelled apart by at least
+    ``refine_candidates`` anchors within ``loop.radius``, travelled apart by at least
     ``refine_min_travel``."""
     keys = np.arange(0, estimate.shape[0], options.refine_every)
     query, match = [], []
@@ -89,7 +89,7 @@ def _pairs(
             estimate[chunk, None, 1] - estimate[None, anchors, 1],
         )
         apart = np.abs(travelled[chunk, None] - travelled[None, anchors])
-        d[(d >= options.loop_radius) | (apart < options.refine_min_travel)] = np.inf
+        d[(d >= options.loop.radius) | (apart < options.refine_min_travel)] = np.inf
         n = min(options.refine_candidates, anchors.shape[0])
         near = np.argsort(d, axis=1)[:, :n]
         ok = np.isfinite(np.take_along_axis(d, near, axis=1))
@@ -109,7 +109,7 @@ def refine_links(
     """The refinement pass's measurements (module docstring) for keyframes with ``points``
     at their final ``estimate`` (K, 3) and ``travelled`` distance (K,)."""
     estimate = np.asarray(estimate, dtype=np.float64)
-    block = options.loop_submap_keyframes
+    block = options.loop.submap_keyframes
     anchors = np.arange(block // 2, estimate.shape[0], block, dtype=np.int64)
     if anchors.shape[0] == 0:
         return RefineLinks()
@@ -133,11 +133,11 @@ def refine_links(
             guesses[i],
             prior,
             options.icp,
-            inlier_distance=options.loop_inlier_distance,
+            inlier_distance=options.inlier_distance,
             overlap_map=every,
         )
-        agree = (options.loop_agree_xy, options.loop_agree_yaw)
-        if aligned.confirms(guesses[i], options.loop_min_score, *agree):
+        agree = (options.agree_xy, options.agree_yaw)
+        if aligned.confirms(guesses[i], options.loop.min_score, *agree):
             keep.append(i)
             measured.append(aligned.pose)
     idx = np.asarray(keep, dtype=np.int64)
@@ -161,7 +161,7 @@ def refine(
     (:meth:`Backend.optimise`, robust and pruned as the loop closures): (graph, values,
     counts ``refine_tried`` / ``refine_links`` / ``refine_pruned``)."""
     links = refine_links(points, backend.estimate, travelled, options)
-    sig = (options.loop_sigma_xy, options.loop_sigma_xy, options.loop_sigma_yaw)
+    sig = (options.loop.sigma_xy, options.loop.sigma_xy, options.loop.sigma_yaw)
     extra = [
         (int(j), int(k), rel, sig)
         for j, k, rel in zip(links.match, links.query, links.relative, strict=True)

@@ -333,7 +333,7 @@ class Relocaliser:
             if not closure.accepted:
                 continue
             found = np.array(compose(estimate[j], closure.relative))
-            share = match_share(query, self.old.points, found, opt.loop_inlier_distance)
+            share = match_share(query, self.old.points, found, opt.inlier_distance)
             conflict = scan_conflict(self.old.occupied, points[k], found, self.mount)
             if share < MIN_SHARE or conflict > MAX_CONFLICT:
                 closure.accepted = False

@@ -10,7 +10,7 @@ their final estimates), starting from its blended pose with a prior of the scan 
 noise (``match_sigma_*``: the blended pose is such an alignment). The result replaces the
 blended pose when it passes the tracking's and the loop closure's checks: at least
 ``min_overlap`` of the scan's points on the map, the alignment not degenerate (a corridor),
-and a move of less than ``loop_agree_xy`` / ``loop_agree_yaw`` (a larger one is a wrong match:
+and a move of less than ``agree_xy`` / ``agree_yaw`` (a larger one is a wrong match:
 the map is consistent already). Keyframe estimates are not changed. :class:`~.slam.Slam`
 runs it only where its front end runs ICP.
 
@@ -119,11 +119,11 @@ def rescan(
                 out[i],
                 prior,
                 options.icp,
-                inlier_distance=options.loop_inlier_distance,
+                inlier_distance=options.inlier_distance,
                 overlap_map=every,
                 surface=surface,
             )
-            agree = (options.loop_agree_xy, options.loop_agree_yaw)
+            agree = (options.agree_xy, options.agree_yaw)
             if aligned.confirms(out[i], options.min_overlap, *agree):
                 out[i] = aligned.pose
                 kept += 1

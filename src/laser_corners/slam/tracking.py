@@ -202,7 +202,7 @@ class Tracking:
         """Share of the scan's points ``xy`` within half the inlier distance of the local map
         at ``pose``: how the front end compares its candidate alignments."""
         assert self.local_all is not None
-        return match_share(xy, self.local_all, pose, 0.5 * self.options.loop_inlier_distance)
+        return match_share(xy, self.local_all, pose, 0.5 * self.options.inlier_distance)
 
     def _rescue(self, xy: NDArray, aligned: Alignment, share: float, pred: NDArray) -> Alignment:
         """When less than :data:`RESCUE_SHARE` of the scan lies within half the inlier
@@ -265,7 +265,7 @@ class Tracking:
             guess,
             prior,
             opt.icp,
-            inlier_distance=opt.loop_inlier_distance,
+            inlier_distance=opt.inlier_distance,
             overlap_map=self.local_all,
             surface=SURFACE_SPACINGS * opt.point_spacing,
         )
