@@ -230,6 +230,25 @@ def test_bad_inputs_are_one_line(tmp_path: Path) -> None:
     _one_line_error(_invoke("slam", bag, "-o", tmp_path / "o", "--config", config), "bad.yaml")
 
 
+def test_the_loop_group_by_set_and_config_reaches_the_map_folder(tmp_path: Path) -> None:
+    """``--set loop.radius=5`` and a ``--config`` ``loop:`` table are recorded in the map
+    folder's ``options.yaml``; the old flat names and a bad value are one line."""
+    bag, _, _ = _sim_bag(tmp_path, n_scans=20)
+    config = tmp_path / "slam.yaml"
+    config.write_text("loop:\n  every: 3\n")
+    out = tmp_path / "out"
+    args = ("--config", config, "--set", "loop.radius=5", "--set", "inlier_distance=0.12")
+    result = _invoke("slam", bag, "-o", out, *args)
+    assert result.exit_code == 0, result.output
+    recorded = yaml.safe_load((out / "options.yaml").read_text())
+    assert recorded["loop"]["radius"] == 5.0 and recorded["loop"]["every"] == 3
+    assert recorded["inlier_distance"] == 0.12 and "loop_radius" not in recorded
+    bad = tmp_path / "bad"
+    _one_line_error(_invoke("slam", bag, "-o", bad, "--set", "loop_radius=5"), "loop_radius")
+    _one_line_error(_invoke("slam", bag, "-o", bad, "--set", "loop.radius=-1"), "loop", "radius")
+    assert not bad.exists()
+
+
 def _carmen(path: Path, laser: bool, odometry: bool) -> Path:
     ranges = " ".join(["2.0"] * 181)
     lines = []

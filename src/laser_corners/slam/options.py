@@ -4,7 +4,8 @@ The field names are the vocabulary of the Python API, of YAML files (a ``slam:``
 fields at the top) and of the CLI's ``--set key=value``; options of one concern form a group
 reached by a dotted key (``icp.max_distance``:
 :class:`~laser_corners.registration.align.IcpOptions`; ``odometry.sigma_xy``:
-:class:`~laser_corners.registration.odometry.OdometryNoise`; ``places.*``).
+:class:`~laser_corners.registration.odometry.OdometryNoise`; ``loop.radius``:
+:class:`LoopOptions`; ``places.*``).
 :class:`SlamOptions` is an :class:`~laser_corners.options.Options`, the package's one form of
 an options object. The
 defaults were chosen from the sensors and the robots (range noise of a few centimetres,
