@@ -60,7 +60,8 @@ class LoopOptions(Options):
     candidates : int
         Candidates verified per loop search (nearest first, from different submaps).
     sigma_xy, sigma_yaw : float
-        Noise (m, rad) of a loop closure factor (under a Cauchy kernel).
+        Noise (m, rad) of a loop closure factor (under the Huber kernel of
+        :func:`~laser_corners.registration.graph.robust_noise`).
 
     Examples
     --------
