@@ -75,7 +75,7 @@ from laser_corners.slam.output import SlamRunInfo
 from laser_corners.viz.slam_report import write_slam_outputs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from localise_ros2 import published, replay
+from localise_ros2 import parse_parameters, published, replay
 from report import write_table
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
@@ -283,11 +283,11 @@ def visit_cli(saved, options, scans, odo, stamps, half) -> dict:
     return out
 
 
-def visit_ros2(path, folder, options, stamps, half) -> dict:
-    """The second half through the ROS 2 node's core in localise mode (``localise_ros2``):
-    what :func:`visit_cli` gives, from the poses the node publishes; no smoothing (the node
-    publishes online poses only)."""
-    run = replay(path, folder, options, float(stamps[half]))
+def visit_ros2(path, folder, options, stamps, half, extra: dict) -> dict:
+    """The second half through the ROS 2 node's core in localise mode (``localise_ros2``;
+    ``extra``: more node parameters): what :func:`visit_cli` gives, from the poses the node
+    publishes; no smoothing (the node publishes online poses only)."""
+    run = replay(path, folder, options, float(stamps[half]), extra=extra)
     out = published(run, stamps)
     c = run.core.counts
     out.update(loc=run.core.estimator, slam=None, slam_cpu=0.0, estimates=[])
@@ -315,17 +315,18 @@ def later_visit(
     full_traj,
     options,
     split: float = 0.5,
-    ros2: bool = False,
+    ros2: dict | None = None,
 ) -> dict:
-    """Map the first half, localise the second half (see the module notes); ``ros2``: through
-    the ROS 2 node's core (:func:`visit_ros2`) instead of the ``Localiser`` directly."""
+    """Map the first half, localise the second half (see the module notes); ``ros2`` (node
+    parameters, maybe none): through the ROS 2 node's core (:func:`visit_ros2`) instead of
+    the ``Localiser`` directly."""
     half = int(len(scans) * split)
     tag = "half" if split == 0.5 else f"split{split:g}"
     folder = cached_map(path, cache / f"{name}-{tag}", stop_scan=half)
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
-    if ros2:
-        v = visit_ros2(path, folder, options, stamps, half)
+    if ros2 is not None:
+        v = visit_ros2(path, folder, options, stamps, half, ros2)
     else:
         v = visit_cli(saved, options, scans, odo, stamps, half)
     loc, slam, estimates = v["loc"], v["slam"], v["estimates"]
@@ -516,7 +517,7 @@ def run_log(name: str, args, options) -> dict:
     result["later"] = later_visit(*visit)
     online = result["later"].pop("online")
     if args.ros2:
-        result["later_ros2"] = later_visit(*visit, ros2=True)
+        result["later_ros2"] = later_visit(*visit, ros2=parse_parameters(args.ros2_param))
         result["later_ros2"]["agreement"] = agreement(online, result["later_ros2"].pop("online"))
     if args.yardstick:
         t_half = stamps[int(len(scans) * args.split)]
@@ -567,6 +568,13 @@ def main() -> None:
         "--ros2",
         action="store_true",
         help="later visit also through the ROS 2 node's localise mode (localise_ros2.py)",
+    )
+    parser.add_argument(
+        "--ros2-param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="with --ros2: a node parameter (tf_wait=5, odom_topic=tf), over the options'",
     )
     args = parser.parse_args()
     options = LocaliseOptions().with_overrides(args.set) if args.set else LocaliseOptions()

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from laser_corners.localise import LocaliseOptions
 from laser_corners.pipeline.recording import open_recording
@@ -121,14 +122,32 @@ class _Clock:
         return self.now
 
 
+def parse_parameters(pairs: list[str]) -> dict[str, Any]:
+    """``NAME=VALUE`` strings (``--ros2-param``) as node parameters, each value read as YAML
+    (``tf_wait=5`` is a float, ``odom_topic=tf`` a string), as ``ros2 run -p`` reads them."""
+    params = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name:
+            raise SystemExit(f"--ros2-param {pair!r}: expected NAME=VALUE")
+        params[name.strip()] = yaml.safe_load(value)
+    return params
+
+
 def replay(
-    path: Path, folder: Path, options: LocaliseOptions, t_start: float, t_end: float | None = None
+    path: Path,
+    folder: Path,
+    options: LocaliseOptions,
+    t_start: float,
+    t_end: float | None = None,
+    extra: dict[str, Any] | None = None,
 ) -> Replay:
     """Give the bag's messages to the node's core in localise mode in ``folder``: the scans
-    stamped from ``t_start`` (to ``t_end``), odometry from ``START_BEFORE_S`` before."""
+    stamped from ``t_start`` (to ``t_end``), odometry from ``START_BEFORE_S`` before;
+    ``extra``: node parameters over those of :func:`node_parameters`."""
     with open_recording(path, None) as rec:
         source = rec.source
-        params = node_parameters(folder, options, source.odom_topic)
+        params = {**node_parameters(folder, options, source.odom_topic), **(extra or {})}
         clock = _Clock()
         core = ReplayCore(MappingConfig.from_mapping(params), clock)
         config = core.config
