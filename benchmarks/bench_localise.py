@@ -4,6 +4,7 @@ Usage::
 
     PYTHONPATH=src python benchmarks/bench_localise.py [LOG ...] [--cache DIR] [--starts 5]
         [--scans 1200] [--kidnap 300] [--json FILE] [--protocols same later]
+        [--ros2 [--ros2-param NAME=VALUE ...]]
 
 LOG defaults to ``fr079``, ``aces`` and ``intel`` (``../shared/data/real/LOG.bag`` with
 ``LOG.relations``). Maps are made with :func:`laser_corners.slam.run_slam` (default options)
@@ -42,6 +43,12 @@ window's dead-reckoned pose; the localiser does not report these poses (no estim
 :meth:`~laser_corners.slam.Slam.add` returns it, before later loop closures correct it), scored
 on the later visit's relations: the best a causal estimator of this SLAM front end does on them
 with the whole log to map, beside the localiser's online ratio.
+
+**ROS 2 node** (``--ros2``): the later visit's second half again through the ROS 2 node's
+core in localise mode (:mod:`localise_ros2`: the bag's messages in log-time order through the
+node's conversions, the options as node parameters, ``--ros2-param NAME=VALUE`` more of them),
+scored by the same code; the table's *ROS 2 core online ratio* beside the CLI's ratio, and a
+table of the node's counts and its largest pose difference from the CLI's estimates.
 
 ``--table FILE`` writes the tables (markdown, with the command, date and machine).
 
