@@ -4,6 +4,7 @@ Usage::
 
     PYTHONPATH=src python benchmarks/bench_localise.py [LOG ...] [--cache DIR] [--starts 5]
         [--scans 1200] [--kidnap 300] [--json FILE] [--protocols same later]
+        [--ros2 [--ros2-param NAME=VALUE ...]]
 
 LOG defaults to ``fr079``, ``aces`` and ``intel`` (``../shared/data/real/LOG.bag`` with
 ``LOG.relations``). Maps are made with :func:`laser_corners.slam.run_slam` (default options)
@@ -43,6 +44,12 @@ window's dead-reckoned pose; the localiser does not report these poses (no estim
 on the later visit's relations: the best a causal estimator of this SLAM front end does on them
 with the whole log to map, beside the localiser's online ratio.
 
+**ROS 2 node** (``--ros2``): the later visit's second half again through the ROS 2 node's
+core in localise mode (:mod:`localise_ros2`: the bag's messages in log-time order through the
+node's conversions, the options as node parameters, ``--ros2-param NAME=VALUE`` more of them),
+scored by the same code; the table's *ROS 2 core online ratio* beside the CLI's ratio, and a
+table of the node's counts and its largest pose difference from the CLI's estimates.
+
 ``--table FILE`` writes the tables (markdown, with the command, date and machine).
 
 Timings are of this machine under whatever else runs on it (2 cores shared).
@@ -75,6 +82,7 @@ from laser_corners.slam.output import SlamRunInfo
 from laser_corners.viz.slam_report import write_slam_outputs
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from localise_ros2 import parse_parameters, published, replay
 from report import write_table
 
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
@@ -246,47 +254,92 @@ def anchored_truth(half_t, half_p, full_t, full_p, stamps) -> tuple[np.ndarray, 
     return truth, dist
 
 
+def visit_cli(saved, options, scans, odo, stamps, half) -> dict:
+    """The second half through the ``Localiser`` (the CLI's): per scan its estimate (stamp,
+    pose, scan index, status), held and dead-reckoned poses, CPU ms while tracking; the
+    smoothing SLAM (with ``options.smooth``) fed alongside."""
+    loc = Localiser(saved, options)
+    slam = smoothing_slam(saved, loc.mount) if options.smooth else None
+    out: dict = {k: [] for k in ("est_t", "est_p", "est_i", "est_s", "held_t", "held_p", "dead_t")}
+    out.update(dead_p=[], cpu_tracking=[], estimates=[], loc=loc, slam=slam, slam_cpu=0.0)
+    out["given"] = list(range(half, len(scans)))
+    map_to_odom = None  # the last map -> odom, applied to the odometry (what a robot uses)
+    for i in range(half, len(scans)):
+        tracking = loc.status == "tracking"
+        cpu = time.process_time()
+        e = loc.add(scans[i], odo[i], stamps[i])
+        if tracking:  # CPU ms of the scans given while tracking (anchored or local)
+            out["cpu_tracking"].append((time.process_time() - cpu) * 1e3)
+        if slam is not None:
+            cpu = time.process_time()
+            slam.add(scans[i], odo[i], stamps[i])
+            out["slam_cpu"] += time.process_time() - cpu
+        if e is not None:
+            out["estimates"].append(e)
+            out["est_t"].append(stamps[i])
+            out["est_p"].append(e.pose)
+            out["est_i"].append(i)
+            out["est_s"].append(e.status)
+            map_to_odom = e.map_to_odom
+        elif loc.window is not None:  # no estimate, a lost track's window open
+            out["dead_t"].append(stamps[i])
+            out["dead_p"].append(loc.window.pose)
+        if map_to_odom is not None:  # every scan from the first fix on
+            out["held_t"].append(stamps[i])
+            out["held_p"].append(compose_many(map_to_odom, odo[i]))
+    return out
+
+
+def visit_ros2(path, folder, options, stamps, half, extra: dict) -> dict:
+    """The second half through the ROS 2 node's core in localise mode (``localise_ros2``;
+    ``extra``: more node parameters): what :func:`visit_cli` gives, from the poses the node
+    publishes; no smoothing (the node publishes online poses only)."""
+    run = replay(path, folder, options, float(stamps[half]), extra=extra)
+    out = published(run, stamps)
+    c = run.core.counts
+    out.update(loc=run.core.estimator, slam=None, slam_cpu=0.0, estimates=[])
+    out["node"] = {
+        "parameters": {k: v for k, v in run.parameters.items() if k != "map"},
+        "scans_given": run.scans_given,
+        "processed": c.processed,
+        "no_fix": c.no_fix,
+        "no_odometry": c.no_odometry,
+        "malformed": c.malformed,
+        "still_waiting": len(run.core.pending),
+        "messages": run.messages,
+    }
+    return out
+
+
 def later_visit(
-    path, cache, name, scans, odo, stamps, relations, full_traj, options, split: float = 0.5
+    path,
+    cache,
+    name,
+    scans,
+    odo,
+    stamps,
+    relations,
+    full_traj,
+    options,
+    split: float = 0.5,
+    ros2: dict | None = None,
 ) -> dict:
-    """Map the first half, localise the second half (see the module notes)."""
+    """Map the first half, localise the second half (see the module notes); ``ros2`` (node
+    parameters, maybe none): through the ROS 2 node's core (:func:`visit_ros2`) instead of
+    the ``Localiser`` directly."""
     half = int(len(scans) * split)
     tag = "half" if split == 0.5 else f"split{split:g}"
     folder = cached_map(path, cache / f"{name}-{tag}", stop_scan=half)
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
-    loc = Localiser(saved, options)
-    slam = smoothing_slam(saved, loc.mount) if options.smooth else None
-    slam_cpu = 0.0
-    estimates: list = []
-    est_t, est_p, est_i, est_s = [], [], [], []
-    held_t, held_p = [], []  # every scan from the first fix on: the estimate, else the
-    map_to_odom = None  # last map -> odom applied to the odometry (what a robot would use)
-    cpu_tracking = []  # CPU ms of the scans given while tracking (anchored or local)
-    dead_t, dead_p = [], []  # no estimate, a lost track's window open: its dead-reckoned pose
-    for i in range(half, len(scans)):
-        tracking = loc.status == "tracking"
-        cpu = time.process_time()
-        e = loc.add(scans[i], odo[i], stamps[i])
-        if tracking:
-            cpu_tracking.append((time.process_time() - cpu) * 1e3)
-        if slam is not None:
-            cpu = time.process_time()
-            slam.add(scans[i], odo[i], stamps[i])
-            slam_cpu += time.process_time() - cpu
-        if e is not None:
-            estimates.append(e)
-            est_t.append(stamps[i])
-            est_p.append(e.pose)
-            est_i.append(i)
-            est_s.append(e.status)
-            map_to_odom = e.map_to_odom
-        elif loc.window is not None:
-            dead_t.append(stamps[i])
-            dead_p.append(loc.window.pose)
-        if map_to_odom is not None:
-            held_t.append(stamps[i])
-            held_p.append(compose_many(map_to_odom, odo[i]))
+    if ros2 is not None:
+        v = visit_ros2(path, folder, options, stamps, half, ros2)
+    else:
+        v = visit_cli(saved, options, scans, odo, stamps, half)
+    loc, slam, estimates = v["loc"], v["slam"], v["estimates"]
+    est_t, est_p, est_i, est_s = v["est_t"], v["est_p"], v["est_i"], v["est_s"]
+    held_t, held_p, dead_t, dead_p = v["held_t"], v["held_p"], v["dead_t"], v["dead_p"]
+    cpu_tracking, given = v["cpu_tracking"], v["given"]
     est_p = np.array(est_p).reshape(-1, 3)
     truth, anchor = anchored_truth(map_t, map_p, *full_traj, stamps[np.array(est_i, int)])
     err = np.array([pose_error(e, t)[0] for e, t in zip(est_p, truth, strict=True)])
@@ -330,7 +383,7 @@ def later_visit(
         smoothed = smoothed_visit(
             slam, estimates, options, (map_t[first], map_p[first]), rel, spanning, full_traj
         )
-        smoothed["slam_cpu_ms_per_scan"] = slam_cpu * 1e3 / (len(scans) - half)
+        smoothed["slam_cpu_ms_per_scan"] = v["slam_cpu"] * 1e3 / (len(scans) - half)
         truth, dist = anchored_truth(map_t, map_p, *full_traj, smoothed.pop("stamps"))
         off = np.array(
             [pose_error(p, t)[0] for p, t in zip(smoothed.pop("poses"), truth, strict=True)]
@@ -341,6 +394,8 @@ def later_visit(
         smoothed["near"] = int((dist < 2.0).sum())
         smoothed["off_anchor_median"] = float(np.median(dist[off > 0.5])) if off.size else None
     return {
+        "online": (np.array(est_t), est_p),  # popped by run_log (not in the JSON)
+        "node": v.get("node"),
         "smoothed": smoothed,
         "relations": len(rel),
         "spanning": int(spanning.sum()),
@@ -363,14 +418,14 @@ def later_visit(
         "reacquired": loc.counts["reacquired"],
         "fixes": [
             {
-                "scan": half + f.scan_index,
+                "scan": given[f.scan_index],
                 "travel": f.travel,
                 "error": float(e),
                 "window": f.windowed,
             }
             for f, e in zip(
                 loc.fixes,
-                [err[est_i.index(half + f.scan_index)] for f in loc.fixes],
+                [err[est_i.index(given[f.scan_index])] for f in loc.fixes],
                 strict=True,
             )
         ],
@@ -465,15 +520,33 @@ def run_log(name: str, args, options) -> dict:
         result["kidnap"] = kidnap(saved, scans, odo, stamps, ref, k_starts, args.kidnap, options)
     if "later" not in args.protocols:
         return result
-    result["later"] = later_visit(
-        path, args.cache, name, scans, odo, stamps, relations, traj, options, args.split
-    )
+    visit = (path, args.cache, name, scans, odo, stamps, relations, traj, options, args.split)
+    result["later"] = later_visit(*visit)
+    online = result["later"].pop("online")
+    if args.ros2:
+        result["later_ros2"] = later_visit(*visit, ros2=parse_parameters(args.ros2_param))
+        result["later_ros2"]["agreement"] = agreement(online, result["later_ros2"].pop("online"))
     if args.yardstick:
         t_half = stamps[int(len(scans) * args.split)]
         rel = relations[(relations[:, 0] >= t_half) | (relations[:, 1] >= t_half)]
         online = slam_online(scans, odo, stamps, saved.mount)
         result["later"]["slam_online_trans"] = relation_metrics(stamps, online, rel).trans_mean
     return result
+
+
+def agreement(cli, node) -> dict:
+    """The node's published poses against the CLI localiser's, by scan stamp: scans with an
+    estimate in both, in one only, and the largest difference (m, deg) where both have one."""
+    (t_cli, p_cli), (t_node, p_node) = cli, node
+    common, a, b = np.intersect1d(t_cli, t_node, return_indices=True)
+    d = between_many(p_cli[a], p_node[b]).reshape(-1, 3)
+    return {
+        "both": len(common),
+        "cli_only": len(t_cli) - len(common),
+        "node_only": len(t_node) - len(common),
+        "max_m": float(np.hypot(d[:, 0], d[:, 1]).max()) if len(d) else None,
+        "max_deg": float(np.degrees(np.abs(d[:, 2])).max()) if len(d) else None,
+    }
 
 
 def slam_online(scans, odo, stamps, mount) -> np.ndarray:
@@ -498,6 +571,18 @@ def main() -> None:
     )
     parser.add_argument("--yardstick", action="store_true", help="the SLAM's online ratio too")
     parser.add_argument("--table", type=Path, default=None, help="write the tables here")
+    parser.add_argument(
+        "--ros2",
+        action="store_true",
+        help="later visit also through the ROS 2 node's localise mode (localise_ros2.py)",
+    )
+    parser.add_argument(
+        "--ros2-param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="with --ros2: a node parameter (tf_wait=5, odom_topic=tf), over the options'",
+    )
     args = parser.parse_args()
     options = LocaliseOptions().with_overrides(args.set) if args.set else LocaliseOptions()
     results = []
@@ -568,6 +653,7 @@ def table(results: list[dict]) -> list[str]:
             *[row for row in rows if row],
         ]
     lines += later_table(results)
+    lines += ros2_table(results)
     lines += smoothed_table(results)
     return lines
 
@@ -579,23 +665,26 @@ def later_table(results: list[dict]) -> list[str]:
     lines = [
         "",
         "| log | relations (spanning) | covered | joined m / deg | full-log SLAM m / deg "
-        "| ratio | gaps dead-reckoned in the window: m, ratio (poses) | spanning m "
+        "| ratio | ROS 2 core online ratio "
+        "| gaps dead-reckoned in the window: m, ratio (poses) | spanning m "
         "| posed relations (spanning) | posed: joined / full m, ratio "
         "| held relations: joined / full m, ratio "
         "| first fix travel m | estimates / scans (local) | lost | wrong (local) "
         "| error median / p95 m | error share: worst 5 % of relations, gap relations |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
         if "later" not in r:
             continue
         v = r["later"]
         ratio = v["joined_trans"] / v["full_trans"] if v["full_trans"] else math.nan
+        node = r.get("later_ros2")
+        node_ratio = f"{node['joined_trans'] / node['full_trans']:.2f}" if node else "-"
         fix = "-" if v["first_fix_travel"] is None else f"{v['first_fix_travel']:.1f}"
         lines.append(
             f"| {r['log']} | {v['relations']} ({v['spanning']}) | {v['covered']} "
             f"| {v['joined_trans']:.4f} / {v['joined_rot']:.3f} "
-            f"| {v['full_trans']:.4f} / {v['full_rot']:.3f} | {ratio:.2f} "
+            f"| {v['full_trans']:.4f} / {v['full_rot']:.3f} | {ratio:.2f} | {node_ratio} "
             f"| {v['joined_dead_trans']:.4f}, {v['joined_dead_trans'] / v['full_trans']:.2f} "
             f"({v['dead_reckoned']}) "
             f"| {v['spanning_trans']:.4f} | {v['posed']} ({v['posed_spanning']}) "
@@ -607,6 +696,39 @@ def later_table(results: list[dict]) -> list[str]:
             f"| {v['wrong']} ({v['wrong_local']}) "
             f"| {v['error_median']:.3f} / {v['error_p95']:.3f} "
             f"| {v['worst']['top5pct_share']:.2f}, {v['worst']['gap_share']:.2f} |"
+        )
+    return lines
+
+
+def ros2_table(results: list[dict]) -> list[str]:
+    """The later visit through the ROS 2 node's core beside the CLI's localiser, one row per
+    log (``--ros2``)."""
+    rows = [r for r in results if "later_ros2" in r]
+    if not rows:
+        return []
+    lines = [
+        "",
+        "| log | CLI online ratio | ROS 2 core online ratio | held ratio CLI / ROS 2 core "
+        "| estimates CLI / ROS 2 core | scans given / processed / no fix / dropped (no "
+        "odometry) / still waiting | estimates in both (CLI only, node only) "
+        "| max pose difference m / deg | node parameters |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        v, n = r["later"], r["later_ros2"]
+        node, agree = n["node"], n["agreement"]
+        diff = "-" if agree["max_m"] is None else f"{agree['max_m']:.2g} / {agree['max_deg']:.2g}"
+        params = ", ".join(f"{k}={val}" for k, val in node["parameters"].items())
+        lines.append(
+            f"| {r['log']} | {v['joined_trans'] / v['full_trans']:.2f} "
+            f"| {n['joined_trans'] / n['full_trans']:.2f} "
+            f"| {v['held_trans'] / v['held_full_trans']:.2f} / "
+            f"{n['held_trans'] / n['held_full_trans']:.2f} "
+            f"| {v['estimates']} / {n['estimates']} "
+            f"| {node['scans_given']} / {node['processed'] + node['no_fix']} / {node['no_fix']} "
+            f"/ {node['no_odometry']} / {node['still_waiting']} "
+            f"| {agree['both']} ({agree['cli_only']}, {agree['node_only']}) | {diff} "
+            f"| {params} |"
         )
     return lines
 

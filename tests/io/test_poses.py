@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bisect
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -55,3 +56,55 @@ def test_interp_at_is_np_interp_bit_for_bit() -> None:
         j = bisect.bisect_right(times.tolist(), stamp) - 1
         got = interp_at(stamp, times.tolist(), values.tolist(), j)
         assert got == float(np.interp(stamp, times, values))
+
+
+def _pairs_bag(path, epoch_s: int, n: int):
+    """A ROS 1 bag stamped from ``epoch_s``: per scan, odometry at the scan's own header stamp
+    and a second sample 1 ms later 0.5 m further (intel's odometry comes in such pairs); the
+    scans, odometry x = 0.1 k at scan k; stamps (sec, nanosec) of the scans."""
+    from rosbags.rosbag1 import Writer
+
+    from laser_corners.sim import SICK_LMS_1DEG, rectangular_room
+    from sim_drives import ODOM_TYPE, SCAN_TYPE, TF_TYPE, BagMessages
+
+    bag = BagMessages(False)
+    scan = rectangular_room().scan((0.0, 0.0, 0.0), SICK_LMS_1DEG)
+    time = bag.t["builtin_interfaces/msg/Time"]
+    stamps = []
+    with Writer(path) as writer:
+        static = writer.add_connection("/tf_static", TF_TYPE, typestore=bag.store)
+        odom = writer.add_connection("/odom", ODOM_TYPE, typestore=bag.store)
+        scans = writer.add_connection("/scan", SCAN_TYPE, typestore=bag.store)
+        mount = bag.t[TF_TYPE](transforms=[bag.tf(0.0, "base_link", "laser", (0, 0, 0))])
+        writer.write(static, epoch_s * 10**9, bag.ser(mount, TF_TYPE))
+        for k in range(n):
+            ns = epoch_s * 10**9 + k * 100_000_000 + 7_919 * k * k
+            for dt, x in ((0, 0.1 * k), (1_000_000, 0.1 * k + 0.5)):
+                msg = bag.odometry(0.0, (x, 0.0, 0.0))
+                msg.header.stamp = time(*divmod(ns + dt, 10**9))
+                writer.write(odom, ns + dt, bag.ser(msg, ODOM_TYPE))
+                if dt == 0:
+                    msg = bag.scan(0.0, scan)
+                    msg.header.stamp = time(*divmod(ns, 10**9))
+                    writer.write(scans, ns, bag.ser(msg, SCAN_TYPE))
+                    stamps.append(divmod(ns, 10**9))
+    return stamps
+
+
+@pytest.mark.parametrize("epoch_s", [1211, 976054571])  # fr079's stamps, intel's (year 2000)
+def test_a_scan_stamped_as_an_odometry_sample_gets_its_pose(tmp_path, epoch_s: int) -> None:
+    """A scan's stamp is read as every odometry and tf stamp is (``sec + 1e-9 * nsec``, as the
+    ROS 2 node reads them too), so a scan stamped as an odometry sample gets that sample's
+    pose: at intel's epoch a float second steps by 1.2e-7 s, and a stamp one step off was
+    interpolated towards the sample 1 ms later (0.5 m on: 6e-5 m off)."""
+    from laser_corners.io import open_scans
+    from laser_corners.ros.convert import stamp_to_sec
+
+    bag = tmp_path / "pairs.bag"
+    stamps = _pairs_bag(bag, epoch_s, 40)
+    scans = list(open_scans(bag))
+    assert len(scans) == 40
+    for k, (scan, (sec, nsec)) in enumerate(zip(scans, stamps, strict=True)):
+        assert scan.stamp == sec + 1e-9 * nsec
+        assert scan.stamp == stamp_to_sec(SimpleNamespace(sec=sec, nanosec=nsec))  # the node's
+        assert scan.pose == pytest.approx((0.1 * k, 0.0, 0.0), abs=1e-9)

@@ -17,8 +17,11 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.registration.mapfolder import load_map
+from laser_corners.registration.odometry import OdometryNoise
+from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.ros.nav_convert import (
     fill_occupancy_grid,
     fill_pose_with_covariance,
@@ -323,19 +326,52 @@ def test_localise_in_a_map_server_yaml(saved_map) -> None:
         MappingCore(config)
 
 
+# non-default localiser options that shape the tracked poses (points, ICP, odometry noise,
+# the engine off) and the search's; as ROS 2 parameters and as the CLI's LocaliseOptions
+NODE_OPTIONS = {
+    "fix_scans": 7,
+    "places.min_votes": 3,
+    "smooth": False,
+    "point_spacing": 0.15,
+    "icp.iterations": 9,
+    "match_sigma": 0.05,
+    "odometry.sigma_xy": 0.08,
+    "engine": False,
+}
+CLI_OPTIONS = LocaliseOptions(
+    fix_scans=7,
+    places=PlaceOptions(min_votes=3),
+    smooth=False,
+    point_spacing=0.15,
+    icp=LocaliseOptions().icp.model_copy(update={"iterations": 9}),
+    match_sigma=0.05,
+    odometry=OdometryNoise(sigma_xy=0.08),
+    engine=False,
+)
+
+
+def _cli_estimates(folder, odom: np.ndarray, scans: list, start: int, initial) -> list:
+    """What the CLI's localiser (``run_localise``'s ``Localiser``) estimates for the scans
+    from ``start`` on: the map's folder, :data:`CLI_OPTIONS`, the mount, the initial pose."""
+    loc = Localiser(load_map(folder), CLI_OPTIONS, mount=MOUNT)
+    if initial is not None:
+        loc.set_pose(initial)
+    found = [loc.add(scan, odom[i], scan.stamp) for i, scan in enumerate(scans) if i >= start]
+    return [e for e in found if e is not None]
+
+
 def test_localise_options_reach_the_localiser(saved_map, tmp_path) -> None:
     """Every LocaliseOptions field is a parameter (issue 31 item 2): non-default values reach
     the Localiser, also the one a reinitialisation or a new map makes; AMCL's
-    set_initial_pose + initial_pose start it tracking there."""
+    set_initial_pose + initial_pose start it tracking there; the node's estimates are the
+    CLI's localiser's with the same options (pose, covariance, map -> odom to 1e-9)."""
     folder, truth, scans = saved_map
     config = MappingConfig.from_mapping(
         {
             "mode": "localise",
             "map": str(folder),
             "mount": list(MOUNT),
-            "fix_scans": 7,
-            "places.min_votes": 3,
-            "smooth": False,
+            **NODE_OPTIONS,
             "set_initial_pose": True,
             "initial_pose.x": float(truth[10][0]),
             "initial_pose.y": float(truth[10][1]),
@@ -345,9 +381,16 @@ def test_localise_options_reach_the_localiser(saved_map, tmp_path) -> None:
     core = MappingCore(config)
     out = _feed(core, truth, scans, start=10)
     options = core.estimator.options
-    assert (options.fix_scans, options.places.min_votes, options.smooth) == (7, 3, False)
+    assert options == CLI_OPTIONS and options != LocaliseOptions()
     assert len(out) >= 45 and core.estimator.status == "tracking", core.summary()
     np.testing.assert_allclose(out[0].pose[:2], truth[10][:2], atol=0.1)  # from initial_pose
+    cli = _cli_estimates(folder, truth, scans, 10, truth[10])
+    assert [u.stamp for u in out] == [e.stamp for e in cli]
+    for update, e in zip(out, cli, strict=True):
+        np.testing.assert_allclose(update.pose, e.pose, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(update.covariance, e.covariance, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(update.map_to_odom, e.map_to_odom, rtol=0, atol=1e-9)
+        assert update.status == str(e.status)
     other = load_map(folder)
     assert core.reinitialize(other) and core.saved is other and core.grid() is other.grid
     assert core.estimator.options.fix_scans == 7 and core.estimator.map is not None

@@ -35,6 +35,7 @@ __all__ = [
     "Transform",
     "frame_name",
     "interp_at",
+    "ns_seconds",
     "stamped_transforms",
     "tf_odometry",
     "yaw_from_quaternion",
@@ -52,6 +53,19 @@ Transform = tuple[str, str, Pose2D]
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     """Yaw (rotation about z) of a unit quaternion, radians."""
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def ns_seconds(stamp_ns: int) -> float:
+    """A ROS stamp in nanoseconds as seconds, ``sec + 1e-9 * nsec`` as every odometry and tf
+    stamp is read here (and by the ROS 2 node), so a scan stamped as an odometry sample gets
+    that sample's pose: ``stamp_ns * 1e-9`` can differ by a float step (1.2e-7 s at the
+    year 2000's 9.8e8 s), and odometry samples 1 ms apart make that 1e-4 of their step.
+
+    >>> ns_seconds(976054571_000000000), 976054571_000000000 * 1e-9
+    (976054571.0, 976054571.0000001)
+    """
+    sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+    return sec + 1e-9 * nsec
 
 
 def frame_name(name: str) -> str:
@@ -256,7 +270,7 @@ class StreamingTrack:
 
     def ready(self, stamp_ns: int, frame_id: str) -> bool:
         """Whether the pose at ``stamp_ns`` is final: odometry after it, a known mount."""
-        if not self._samples or self._samples[-1][0] <= stamp_ns * 1e-9:
+        if not self._samples or self._samples[-1][0] <= ns_seconds(stamp_ns):
             return False
         return self._mount_of(frame_id) is not None
 

@@ -53,6 +53,7 @@ from laser_corners.io.poses import (
     StreamingTrack,
     add_transforms,
     frame_name,
+    ns_seconds,
     stamped_transforms,
     tf_odometry,
     track_from,
@@ -536,7 +537,7 @@ class BagSource(_TopicChoice, _PoseReading, _LeanReading, ScanSource):
     def _release(self, item: RawScan, track: StreamingTrack | None) -> Iterator[LaserScan]:
         """The LaserScan of a decoded message (nothing, counted as skipped, when invalid)."""
         self.position = item.where
-        stamp = item.stamp_ns * 1e-9
+        stamp = ns_seconds(item.stamp_ns)
         pose = track.pose(stamp, item.frame_id) if track is not None else None
         if track is not None and item.frame_id not in self.mounts:
             self.mounts[item.frame_id] = track.mount_of(item.frame_id)
