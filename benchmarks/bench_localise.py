@@ -115,7 +115,7 @@ def drive(loc, saved, scans, odo, stamps, order, ref) -> dict:
     """Feed the scans ``order``; score against ``ref`` (N, 3) poses by scan index."""
     rows = []
     travel = 0.0
-    slam = smoothing_slam(saved, loc.mount) if loc.options.smooth else None
+    slam = smoothing_slam(saved, loc.mount) if loc.options.smooth.enabled else None
     estimates = []
     for n, i in enumerate(order):
         if n:
@@ -256,7 +256,7 @@ def later_visit(
     saved = load_map(folder)
     map_t, map_p = read_tum(folder / "trajectory.tum")
     loc = Localiser(saved, options)
-    slam = smoothing_slam(saved, loc.mount) if options.smooth else None
+    slam = smoothing_slam(saved, loc.mount) if options.smooth.enabled else None
     slam_cpu = 0.0
     estimates: list = []
     est_t, est_p, est_i, est_s = [], [], [], []

@@ -335,7 +335,8 @@ def test_localise_options_reach_the_localiser(saved_map, tmp_path) -> None:
             "mount": list(MOUNT),
             "fix_scans": 7,
             "places.min_votes": 3,
-            "smooth": False,
+            "smooth.enabled": False,
+            "engine.gate_xy": 0.4,
             "set_initial_pose": True,
             "initial_pose.x": float(truth[10][0]),
             "initial_pose.y": float(truth[10][1]),
@@ -345,7 +346,8 @@ def test_localise_options_reach_the_localiser(saved_map, tmp_path) -> None:
     core = MappingCore(config)
     out = _feed(core, truth, scans, start=10)
     options = core.estimator.options
-    assert (options.fix_scans, options.places.min_votes, options.smooth) == (7, 3, False)
+    assert (options.fix_scans, options.places.min_votes, options.smooth.enabled) == (7, 3, False)
+    assert options.engine.gate_xy == 0.4
     assert len(out) >= 45 and core.estimator.status == "tracking", core.summary()
     np.testing.assert_allclose(out[0].pose[:2], truth[10][:2], atol=0.1)  # from initial_pose
     other = load_map(folder)
