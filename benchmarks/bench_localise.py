@@ -123,7 +123,7 @@ def drive(loc, saved, scans, odo, stamps, order, ref) -> dict:
     """Feed the scans ``order``; score against ``ref`` (N, 3) poses by scan index."""
     rows = []
     travel = 0.0
-    slam = smoothing_slam(saved, loc.mount) if loc.options.smooth else None
+    slam = smoothing_slam(saved, loc.mount) if loc.options.smooth.enabled else None
     estimates = []
     for n, i in enumerate(order):
         if n:
@@ -259,7 +259,7 @@ def visit_cli(saved, options, scans, odo, stamps, half) -> dict:
     pose, scan index, status), held and dead-reckoned poses, CPU ms while tracking; the
     smoothing SLAM (with ``options.smooth``) fed alongside."""
     loc = Localiser(saved, options)
-    slam = smoothing_slam(saved, loc.mount) if options.smooth else None
+    slam = smoothing_slam(saved, loc.mount) if options.smooth.enabled else None
     out: dict = {k: [] for k in ("est_t", "est_p", "est_i", "est_s", "held_t", "held_p", "dead_t")}
     out.update(dead_p=[], cpu_tracking=[], estimates=[], loc=loc, slam=slam, slam_cpu=0.0)
     out["given"] = list(range(half, len(scans)))

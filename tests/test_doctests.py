@@ -23,6 +23,7 @@ MODULES = [
     "laser_corners.registration.align",
     "laser_corners.registration.odometry",
     "laser_corners.slam.options",
+    "laser_corners.localise.options",
 ]
 
 

@@ -159,3 +159,21 @@ def test_ros_node_parameters_say_unknown_keys_the_same_way() -> None:
     with pytest.raises(InvalidParamsError, match=r"^ROS 2 parameters: map: mode localise needs"):
         MappingConfig.from_mapping({"mode": "localise"})
     assert MappingConfig().map_period == 5.0 and MappingConfig.from_mapping({}).mode == "slam"
+
+
+def test_a_flat_name_of_a_group_field_or_a_value_for_a_group_names_the_dotted_names() -> None:
+    # every options object with groups (issue 31): ``loop_radius`` was SlamOptions' flat name
+    # of ``loop.radius``; ``loop=false`` gives a value to the whole group
+    cls = _slam_options()
+    with pytest.raises(InvalidParamsError) as info:
+        cls().with_overrides(["loop_radius=5"])
+    assert str(info.value).startswith("unknown option 'loop_radius' (now 'loop.radius'); known:")
+    with pytest.raises(InvalidParamsError) as info:
+        cls.from_mapping({"icp_iterations": 5, "bgus": 1}, "f.yaml")
+    assert "'icp_iterations' (now 'icp.iterations'), 'bgus';" in str(info.value)
+    with pytest.raises(InvalidParamsError, match=r"^loop: .*loop.enabled, loop.radius") as info:
+        cls().with_overrides(["loop=false"])
+    assert str(info.value).endswith("or the table loop:, got False")
+    with pytest.raises(InvalidParamsError) as info:
+        MatchOptions().with_overrides(["k_nearest_x=1"])
+    assert "(now" not in str(info.value)  # no group there: the plain message

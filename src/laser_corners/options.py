@@ -204,8 +204,31 @@ def unknown_keys(cls: type[Options], keys: Iterable[str]) -> str:
     """The one message of unknown keys: ``unknown <what> 'x'; known: a, b, ...`` (the
     :attr:`Options.what` and fields of ``cls``), for :meth:`Options.with_overrides`, the
     constructor and :meth:`Options.from_mapping` alike."""
-    names = ", ".join(repr(k) for k in keys)
+    names = ", ".join(repr(k) + _grouped_hint(cls, str(k)) for k in keys)
     return f"unknown {cls.what} {names}; known: {', '.join(cls.model_fields)}"
+
+
+def _grouped_hint(cls: type[Options], key: str) -> str:
+    """`` (now 'loop.radius')`` for a flat name ``loop_radius`` whose group ``loop`` (a nested
+    options field of ``cls``) has the field ``radius``, else ""."""
+    for head, field in cls.model_fields.items():
+        nested = _options_type(field.annotation)
+        rest = key.removeprefix(f"{head}_")
+        if nested is not None and rest != key and rest in nested.model_fields:
+            return f" (now '{head}.{rest}')"
+    return ""
+
+
+def _group_message(cls: type[Options], loc: list[str]) -> str | None:
+    """The message for a plain value given to the group at ``loc`` (``smooth=false``): its
+    dotted names, else None when ``loc`` is not a nested options field."""
+    owner, key = _owner(cls, loc)
+    field = owner.model_fields.get(key)
+    nested = _options_type(field.annotation) if field is not None else None
+    if nested is None:
+        return None
+    names = ", ".join(f"{key}.{k}" for k in nested.model_fields)
+    return f"a group of {cls.what}s: set one by its dotted name ({names}) or the table {key}:"
 
 
 def _owner(cls: type[Options], loc: list[str]) -> tuple[type[Options], str]:
@@ -235,7 +258,10 @@ def one_line(exc: ValidationError, cls: type[Options]) -> str:
         field = ".".join(loc)
         where = f"{cls.title}.{field}" if cls.title and field else field or cls.title
         message = str(error.get("msg", "invalid")).removeprefix("Value error, ")
-        if loc and loc[0] in cls.tuple_hints and kind != "value_error":
+        group = _group_message(cls, loc) if kind == "model_type" and loc else None
+        if group is not None:
+            message = f"{group}, got {error.get('input')!r}"
+        elif loc and loc[0] in cls.tuple_hints and kind != "value_error":
             message = f"expected {cls.tuple_hints[loc[0]]} ({message})"
             where = loc[0]
         elif kind not in ("value_error", "missing", "extra_forbidden") and "input" in error:

@@ -13,7 +13,7 @@ pytest.importorskip("gtsam")
 
 from benchmark_modules import load
 from laser_corners.io import open_scans
-from laser_corners.localise import LocaliseOptions
+from laser_corners.localise import LocaliseOptions, SmoothOptions
 from laser_corners.localise.run import run_localise
 from laser_corners.ros.mapping_config import MappingConfig
 from laser_corners.slam import run_slam
@@ -29,7 +29,7 @@ OPTIONS = LocaliseOptions(
     fix_scans=5,
     point_spacing=0.15,
     icp=LocaliseOptions().icp.model_copy(update={"iterations": 9}),
-    smooth=False,
+    smooth=SmoothOptions(enabled=False),
 )
 
 
@@ -42,7 +42,7 @@ def test_node_parameters_carry_every_non_default_option(tmp_path: Path) -> None:
         "fix_scans": 5,
         "point_spacing": 0.15,
         "icp.iterations": 9,
-        "smooth": False,
+        "smooth.enabled": False,
     }
     assert MappingConfig.from_mapping(params).localise_options() == OPTIONS
     assert node_parameters(tmp_path, LocaliseOptions(), "tf") == {

@@ -157,14 +157,26 @@ def test_ctrl_c_keeps_the_poses_written_and_exits_130(mapped, tmp_path: Path, mo
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
 
 
-def test_smooth_false_writes_the_online_estimates(mapped, tmp_path: Path) -> None:
+def test_smooth_enabled_false_writes_the_online_estimates(mapped, tmp_path: Path) -> None:
     bag, map_dir, _, _ = mapped
     out = tmp_path / "o"
-    result = _invoke("localise", map_dir, bag, "-o", out, "--set", "smooth=false")
+    result = _invoke("localise", map_dir, bag, "-o", out, "--set", "smooth.enabled=false")
     assert result.exit_code == 0, result.output
     online, smoothed = read_tum(out / "online.tum"), read_tum(out / "trajectory.tum")
     assert np.array_equal(online[0], smoothed[0]) and np.allclose(online[1], smoothed[1])
     assert json.loads((out / "summary.json").read_text())["smoothed"] is None
+
+
+def test_the_old_smooth_names_are_one_line_before_any_work(mapped, tmp_path: Path) -> None:
+    """``--set smooth=false`` (the name before the ``smooth`` group) and ``smooth_drift``:
+    one line naming the new names, no output folder."""
+    bag, map_dir, _, _ = mapped
+    out = tmp_path / "o"
+    result = _invoke("localise", map_dir, bag, "-o", out, "--set", "smooth=false")
+    _one_line_error(result, "smooth.enabled")
+    result = _invoke("localise", map_dir, bag, "-o", out, "--set", "smooth_drift=0.02")
+    _one_line_error(result, "smooth_drift", "smooth.drift")
+    assert not out.exists()
 
 
 def test_ctrl_c_while_smoothing_keeps_the_online_estimates(mapped, tmp_path, monkeypatch) -> None:
@@ -203,7 +215,7 @@ def test_thesmoothing_slam_takes_the_map_options(mapped, tmp_path: Path) -> None
     assert slam.options.loop.enabled is False and slam.options.mount == (0.1, 0.0, 0.0)
     options.write_text("max_range: -3\n")
     _one_line_error(_invoke("localise", copy, bag, "-o", tmp_path / "a"), "options.yaml")
-    result = _invoke("localise", copy, bag, "-o", tmp_path / "b", "--set", "smooth=false")
+    result = _invoke("localise", copy, bag, "-o", tmp_path / "b", "--set", "smooth.enabled=false")
     assert result.exit_code == 0, result.output
 
 
@@ -240,7 +252,9 @@ def test_a_failed_localise_keeps_the_previous_online_tum(
 
     bag, map_dir, _, _ = mapped
     out = tmp_path / "out"
-    first = _invoke("localise", map_dir, bag, "-o", out, "--stop-scan", 80, "--set", "smooth=false")
+    first = _invoke(
+        "localise", map_dir, bag, "-o", out, "--stop-scan", 80, "--set", "smooth.enabled=false"
+    )
     assert first.exit_code == 0, first.output
     before = (out / "online.tum").read_bytes()
 
@@ -304,7 +318,9 @@ def test_a_partial_map_is_a_warning(mapped, tmp_path: Path) -> None:
     summary.update(partial=True, partial_reason="terminated (SIGTERM)")
     (copy / "summary.json").write_text(json.dumps(summary))
     out = tmp_path / "out"
-    result = _invoke("localise", copy, bag, "-o", out, "--stop-scan", 40, "--set", "smooth=false")
+    result = _invoke(
+        "localise", copy, bag, "-o", out, "--stop-scan", 40, "--set", "smooth.enabled=false"
+    )
     assert result.exit_code == 0, result.output
     assert f"warning: {copy} is a partial map (terminated (SIGTERM))" in result.stderr
     assert json.loads((out / "summary.json").read_text())["map_partial_reason"] == (
@@ -323,7 +339,9 @@ def test_localise_in_a_map_server_yaml_alone(mapped, tmp_path: Path) -> None:
     for name in ("map.yaml", "map.pgm"):
         shutil.copy(map_dir / name, foreign / name)
     out = tmp_path / "out"
-    result = _invoke("localise", foreign / "map.yaml", bag, "-o", out, "--set", "smooth=false")
+    result = _invoke(
+        "localise", foreign / "map.yaml", bag, "-o", out, "--set", "smooth.enabled=false"
+    )
     assert result.exit_code == 0, result.output
     summary = json.loads((out / "summary.json").read_text())
     assert summary["first_fix"] is not None and summary["map"] == str(foreign / "map.yaml")

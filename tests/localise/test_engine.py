@@ -19,7 +19,7 @@ from test_localiser import (
     scans_along,
 )
 
-from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise import EngineOptions, LocaliseOptions, Localiser
 from laser_corners.localise.engine import engine_options
 from laser_corners.pose import between_many
 from laser_corners.registration.mapfolder import load_map
@@ -49,7 +49,7 @@ def test_the_engine_gives_the_tracked_estimates(engine_map) -> None:
     assert len(d) >= 0.98 * len(truth)
     assert np.mean(d) < 0.03 and d.max() < 0.1 and yaw.max() < math.radians(1.5)
     # off: the tracker's poses, as before the engine
-    assert Localiser(folder, LocaliseOptions(engine=False)).engine is None
+    assert Localiser(folder, LocaliseOptions(engine=EngineOptions(enabled=False))).engine is None
 
 
 def test_a_placed_engine_starts_a_segment_at_the_given_pose(engine_map) -> None:

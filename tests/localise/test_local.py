@@ -14,7 +14,7 @@ import pytest
 from test_localiser import RATE, noisy_odometry
 from test_unmapped import map_folder, scans_along
 
-from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise import EngineOptions, LocaliseOptions, Localiser
 from laser_corners.localise.local import fuse
 from laser_corners.registration.align import Alignment
 from laser_corners.sim import World
@@ -94,7 +94,7 @@ def test_a_recovered_pose_that_fits_worse_than_usual_gives_no_estimate(
     σ 0.03 m. A pose off the odometry's is reported only when the scan fits as usual there."""
     drive = straight(2.0, 4.0)
     # the tracker's own rule: without the engine, which would hold the scans the map refuses
-    loc = Localiser(start_of_corridor, LocaliseOptions(engine=False))
+    loc = Localiser(start_of_corridor, LocaliseOptions(engine=EngineOptions(enabled=False)))
     loc.set_pose(drive[0])
     scans = scans_along(corridor(), drive, seed=7)
     odo = noisy_odometry(drive, seed=7)

@@ -13,7 +13,7 @@ import yaml
 from conftest import real_file
 from laser_corners.errors import InputError
 from laser_corners.io.occupancy import OccupancyGrid, read_map, write_map
-from laser_corners.localise import LocaliseOptions, Localiser, run_localise
+from laser_corners.localise import LocaliseOptions, Localiser, SmoothOptions, run_localise
 from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.gridmap import (
     BEAMS,
@@ -389,7 +389,7 @@ def slam_errors(run, result) -> np.ndarray:
 
 def test_fr079_our_map_yaml_as_a_foreign_map(fr079_yaml) -> None:
     bag, yaml_path, result = fr079_yaml
-    options = LocaliseOptions(smooth=False)
+    options = LocaliseOptions(smooth=SmoothOptions(enabled=False))
     run = run_localise(yaml_path, bag, options, start_scan=LATER[0], stop_scan=LATER[1])
     assert run.fixes, run.counts
     for fix in run.fixes:  # every fix right

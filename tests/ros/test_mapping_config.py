@@ -105,6 +105,21 @@ def test_the_loop_group_is_dotted_parameters() -> None:
     assert (options.loop.radius, options.loop.enabled, options.agree_xy) == (5.0, False, 0.2)
 
 
+def test_the_smooth_and_engine_groups_are_dotted_parameters() -> None:
+    names = set(estimator_parameters("localise"))
+    assert {"smooth.enabled", "smooth.anchor_travel", "smooth.drift", "engine.enabled"} <= names
+    assert {"smooth.step_xy", "smooth.step_yaw", "engine.gate_xy", "engine.gate_yaw"} <= names
+    assert not {"smooth", "engine", "smooth_drift", "engine_gate_xy"} & names
+    config = MappingConfig.from_mapping(
+        {**MAP, "smooth.enabled": False, "engine.gate_yaw": 0.1, "smooth.step_xy": 0.003}
+    )
+    options = config.localise_options()
+    assert (options.smooth.enabled, options.smooth.step_xy) == (False, 0.003)
+    assert options.engine.gate_yaw == 0.1
+    with pytest.raises(InvalidParamsError, match=r"unknown parameter 'engine_gate_xy'"):
+        MappingConfig.from_mapping({**MAP, "engine_gate_xy": 0.4})
+
+
 def test_parameters_override_the_config_file(tmp_path) -> None:
     path = tmp_path / "localise.yaml"
     path.write_text("fix_scans: 9\nlost_scans: 3\nplaces:\n  matches: 5\n")

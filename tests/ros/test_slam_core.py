@@ -17,7 +17,7 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
-from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise import EngineOptions, LocaliseOptions, Localiser, SmoothOptions
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.registration.mapfolder import load_map
 from laser_corners.registration.odometry import OdometryNoise
@@ -331,22 +331,22 @@ def test_localise_in_a_map_server_yaml(saved_map) -> None:
 NODE_OPTIONS = {
     "fix_scans": 7,
     "places.min_votes": 3,
-    "smooth": False,
+    "smooth.enabled": False,
     "point_spacing": 0.15,
     "icp.iterations": 9,
     "match_sigma": 0.05,
     "odometry.sigma_xy": 0.08,
-    "engine": False,
+    "engine.gate_xy": 0.4,
 }
 CLI_OPTIONS = LocaliseOptions(
     fix_scans=7,
     places=PlaceOptions(min_votes=3),
-    smooth=False,
+    smooth=SmoothOptions(enabled=False),
     point_spacing=0.15,
     icp=LocaliseOptions().icp.model_copy(update={"iterations": 9}),
     match_sigma=0.05,
     odometry=OdometryNoise(sigma_xy=0.08),
-    engine=False,
+    engine=EngineOptions(gate_xy=0.4),
 )
 
 
@@ -382,6 +382,7 @@ def test_localise_options_reach_the_localiser(saved_map, tmp_path) -> None:
     out = _feed(core, truth, scans, start=10)
     options = core.estimator.options
     assert options == CLI_OPTIONS and options != LocaliseOptions()
+    assert options.engine.gate_xy == 0.4 and core.estimator.engine is not None
     assert len(out) >= 45 and core.estimator.status == "tracking", core.summary()
     np.testing.assert_allclose(out[0].pose[:2], truth[10][:2], atol=0.1)  # from initial_pose
     cli = _cli_estimates(folder, truth, scans, 10, truth[10])

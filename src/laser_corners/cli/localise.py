@@ -5,7 +5,7 @@
 See docs/localise.md. Parses the options, makes one call (``localise.run_localise``) that
 writes ``online.tum`` as the estimates come (what the robot knew at each scan), then writes
 ``trajectory.tum`` (the smoothed trajectory, ``localise.smooth``; the online estimates with
-``--set smooth=false``), ``summary.json`` and ``trajectory.png``
+``--set smooth.enabled=false``), ``summary.json`` and ``trajectory.png``
 (:mod:`laser_corners.viz.localise`). Ctrl-C or SIGTERM stops between two scans, and an error
 while localising ends the run: what was done is written, marked partial in ``summary.json``
 (exit 130, 143, 1). The output folder is checked first (no overlap with the map or the

@@ -7,7 +7,15 @@
 """
 
 from laser_corners.localise.localiser import Localiser, LocaliserEstimate
-from laser_corners.localise.options import LocaliseOptions
+from laser_corners.localise.options import EngineOptions, LocaliseOptions, SmoothOptions
 from laser_corners.localise.run import LocaliseRun, run_localise
 
-__all__ = ["LocaliseOptions", "LocaliseRun", "Localiser", "LocaliserEstimate", "run_localise"]
+__all__ = [
+    "EngineOptions",
+    "LocaliseOptions",
+    "LocaliseRun",
+    "Localiser",
+    "LocaliserEstimate",
+    "SmoothOptions",
+    "run_localise",
+]

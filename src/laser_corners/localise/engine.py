@@ -6,7 +6,7 @@ its pose and its own recent keyframes, makes keyframes, closes loops into the ma
 optimises; its pose is the online estimate. The localiser places it: at every fix of the
 global search (:meth:`EngineTrack.place`), after a lost track (:meth:`EngineTrack.cut`: a new
 segment, unplaced), and wherever the tracker, anchored in the map, disagrees with it by more
-than the gate (``engine_gate_xy`` / ``engine_gate_yaw``; counted ``engine_replaced``).
+than the gate (``engine.gate_xy`` / ``engine.gate_yaw``; counted ``engine_replaced``).
 Once a scan the map explains has confirmed it, where the map does not explain a scan (the
 robot drives out of it) the engine holds the pose (:meth:`EngineTrack.holds`, estimates
 ``"local"``) if the scan aligned to the engine's keyframes; the localiser also asks that the
@@ -101,7 +101,7 @@ class EngineTrack:
             return True
         d = between_many(pose, self.pose)
         opt = self.options
-        far = math.hypot(d[0], d[1]) > opt.engine_gate_xy or abs(d[2]) > opt.engine_gate_yaw
+        far = math.hypot(d[0], d[1]) > opt.engine.gate_xy or abs(d[2]) > opt.engine.gate_yaw
         self.confirmed |= not far
         return bool(far)
 

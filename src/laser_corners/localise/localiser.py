@@ -156,7 +156,7 @@ class Localiser:
         self.state = State.GLOBAL
         self.engine: EngineTrack | None = None
         """The engine giving the online poses (``engine``; None for a ``map_server`` map)."""
-        if self.options.engine and saved.virtual_scans is None:
+        if self.options.engine.enabled and saved.virtual_scans is None:
             self.engine = EngineTrack(saved, self.options, self.mount, self.counts)
         self._last_odom: NDArray | None = None
         self._last_stamp = -math.inf

@@ -2,8 +2,9 @@
 
 The field names are the vocabulary of the Python API, of YAML files (a ``localise:`` table)
 and of the CLI's ``--set key=value``; a group by a dotted key (``icp.max_distance``,
-``odometry.sigma_xy``, ``places.min_votes``). Defaults come from the sensors and robots (range noise
-of centimetres, walking speed, rooms of a few metres), not from the scores of any log.
+``odometry.sigma_xy``, ``places.min_votes``, ``smooth.enabled``: :class:`SmoothOptions`,
+``engine.gate_xy``: :class:`EngineOptions`). Defaults come from the sensors and robots (range
+noise of centimetres, walking speed, rooms of a few metres), not from the scores of any log.
 """
 
 from __future__ import annotations
@@ -17,7 +18,81 @@ from laser_corners.registration.align import IcpOptions
 from laser_corners.registration.odometry import OdometryNoise
 from laser_corners.registration.place_index import PlaceOptions
 
-__all__ = ["LocaliseOptions"]
+__all__ = ["EngineOptions", "LocaliseOptions", "SmoothOptions"]
+
+
+class EngineOptions(Options):
+    """The engine's settings (:mod:`~laser_corners.localise.engine`): the ``engine`` group of
+    :class:`LocaliseOptions` (``--set engine.gate_xy=0.5``, a YAML ``engine:`` table, the
+    ROS 2 parameter ``engine.gate_xy``).
+
+    Attributes
+    ----------
+    enabled : bool
+        The online estimates come from the engine (:class:`~laser_corners.slam.Slam` in its
+        frozen-map mode, ``localise.engine``): it tracks every scan against the map's
+        keyframes near the pose and its own recent ones, closes loops into the map, and is
+        placed by the fixes of the global search; the tracker decides when there is an
+        estimate and re-places the engine where the two disagree by more than the gate. Off:
+        the tracker's own poses (and for a ``map_server`` map, which has no keyframe scans).
+    gate_xy : float
+        The engine is re-placed at the tracker's pose when they differ by more than this (m)
+        on a scan the map explains ("tracking")...
+    gate_yaw : float
+        ... or by more than this (rad).
+
+    Examples
+    --------
+    >>> EngineOptions().with_overrides(["gate_xy=0.5"]).gate_xy
+    0.5
+    """
+
+    title: ClassVar[str] = "EngineOptions"
+    what: ClassVar[str] = "option"
+
+    enabled: bool = True
+    gate_xy: float = Field(0.3, ge=0.0, le=100.0)
+    gate_yaw: float = Field(0.05, ge=0.0, le=3.2)
+
+
+class SmoothOptions(Options):
+    """The smoothed trajectory's settings (:mod:`~laser_corners.localise.smooth`): the
+    ``smooth`` group of :class:`LocaliseOptions` (``--set smooth.enabled=false``, a YAML
+    ``smooth:`` table, the ROS 2 parameter ``smooth.enabled``).
+
+    Attributes
+    ----------
+    enabled : bool
+        :func:`~laser_corners.localise.run_localise` also runs the SLAM front end over the
+        scans and places every scan (before the first fix too) in one pose graph: the
+        localiser's anchors on the SLAM's chain. Offline only (it uses the scans after each
+        one); the CLI writes it as ``trajectory.tum`` and the causal estimates as
+        ``online.tum``.
+    anchor_travel : float
+        One anchor per this travel (m, turns 0.5 m per radian): consecutive scans see the
+        same part of the map and share its error. The SLAM's keyframe spacing.
+    step_xy : float
+        Noise (m) of one step of the SLAM chain between consecutive scans (scan matching).
+    step_yaw : float
+        Noise (rad) of one step of the SLAM chain.
+    drift : float
+        Growth of the chain's step noise per metre travelled (m/m; rad per metre and per
+        radian turned: half of it): scan matching drifts about 1 % of the distance.
+
+    Examples
+    --------
+    >>> SmoothOptions().with_overrides(["enabled=false"]).enabled
+    False
+    """
+
+    title: ClassVar[str] = "SmoothOptions"
+    what: ClassVar[str] = "option"
+
+    enabled: bool = True
+    anchor_travel: float = Field(0.4, ge=0.0, le=100.0)
+    step_xy: float = Field(0.002, ge=1e-5, le=1.0)
+    step_yaw: float = Field(0.001, ge=1e-6, le=1.0)
+    drift: float = Field(0.01, ge=0.0, le=1.0)
 
 
 class LocaliseOptions(Options):
@@ -159,34 +234,13 @@ class LocaliseOptions(Options):
     """Odometry travel (m) without any estimate (no fix, no accepted initial pose) after which
     :func:`~laser_corners.localise.run_localise` stops with "never found itself in this map"
     (a recording of another place); 0: never give up."""
-    engine: bool = True
-    """The online estimates come from the engine (:class:`~laser_corners.slam.Slam` in its
-    frozen-map mode, ``localise.engine``): it tracks every scan against the map's keyframes
-    near the pose and its own recent ones, closes loops into the map, and is placed by the
-    fixes of the global search; the tracker here decides when there is an estimate and
-    re-places the engine where the two disagree by more than ``engine_gate``. Off: the
-    tracker's own poses (and for a ``map_server`` map, which has no keyframe scans)."""
-    engine_gate_xy: float = Field(0.3, ge=0.0, le=100.0)
-    """The engine is re-placed at the tracker's pose when they differ by more than this (m)
-    on a scan the map explains ("tracking")..."""
-    engine_gate_yaw: float = Field(0.05, ge=0.0, le=3.2)
-    """... or by more than this (rad)."""
-    smooth: bool = True
-    """:func:`~laser_corners.localise.run_localise` also runs the SLAM front end over the
-    scans and places every scan (before the first fix too) in one pose graph: the localiser's
-    anchors on the SLAM's chain (``localise.smooth``). Offline only (it uses the scans after
-    each one); the CLI writes it as ``trajectory.tum`` and the causal estimates as
-    ``online.tum``."""
-    smooth_anchor_travel: float = Field(0.4, ge=0.0, le=100.0)
-    """One anchor per this travel (m, turns 0.5 m per radian): consecutive scans see the same
-    part of the map and share its error. The SLAM's keyframe spacing."""
-    smooth_step_xy: float = Field(0.002, ge=1e-5, le=1.0)
-    """Noise (m) of one step of the SLAM chain between consecutive scans (scan matching)."""
-    smooth_step_yaw: float = Field(0.001, ge=1e-6, le=1.0)
-    """Noise (rad) of one step of the SLAM chain."""
-    smooth_drift: float = Field(0.01, ge=0.0, le=1.0)
-    """Growth of the chain's step noise per metre travelled (m/m; rad per metre and per
-    radian turned: half of it): scan matching drifts about 1 % of the distance."""
+    engine: EngineOptions = EngineOptions()
+    """The engine (``localise.engine``): the online estimates come from the SLAM in its
+    frozen-map mode, placed by the fixes (``engine.enabled``; re-placed past
+    ``engine.gate_xy`` / ``engine.gate_yaw``)."""
+    smooth: SmoothOptions = SmoothOptions()
+    """The smoothed trajectory of :func:`~laser_corners.localise.run_localise`
+    (``localise.smooth``; ``smooth.enabled=false``: the online estimates only)."""
     places: PlaceOptions = PlaceOptions(min_votes=1)
     """The place index: corner keypoints and descriptors of the map's keyframes, which propose
     global (re)localisation candidates in milliseconds (``places.enabled=false``: the

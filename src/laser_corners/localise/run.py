@@ -86,10 +86,11 @@ class LocaliseRun:
     positions : ndarray of int
         Index of each estimate's scan among the scans given (into ``odometry_stamps``).
     smoothed : Smoothed or None
-        With ``options.smooth``: every scan (before the first fix too) placed by the localiser's
-        anchors on the SLAM's chain (:mod:`.smooth`); ``index`` into ``odometry_stamps``.
+        With ``options.smooth.enabled``: every scan (before the first fix too) placed by the
+        localiser's anchors on the SLAM's chain (:mod:`.smooth`); ``index`` into
+        ``odometry_stamps``.
     slam_ms_per_scan : ndarray
-        The SLAM's time per scan (with ``options.smooth``), apart from ``ms_per_scan``.
+        The SLAM's time per scan (with ``options.smooth.enabled``), apart from ``ms_per_scan``.
     skipped : dict of str to int
         Records the reader skipped (damaged chunks, broken rows), by reason (``ScanSource``).
     initial : InitialPose or None
@@ -174,7 +175,7 @@ def run_localise(
         if initial_pose is not None:
             initial = InitialPose(tuple(map(float, check_pose(initial_pose, "initial_pose"))))
             loc.set_pose(initial.pose)
-        slam = smoothing_slam(saved, loc.mount) if options.smooth else None
+        slam = smoothing_slam(saved, loc.mount) if options.smooth.enabled else None
         watch = _Watch(initial, options.give_up_travel, path, saved.folder)
         run = _loop(loc, slam, rec, (start_scan, stop_scan), (on_estimate, progress), watch)
         run.skipped = dict(rec.source.skipped)

@@ -7,13 +7,13 @@ every scan can be placed better, in one pose graph (gtsam, Levenberg-Marquardt):
 * **the chain**: the same scans run through :class:`~laser_corners.slam.Slam` (its front end,
   its loop closures, its scan pass), a trajectory that is accurate relative to itself (scan to
   scan, and across its own loops) but in a frame of its own and free to drift. Its step between
-  two consecutive scans is a between factor, noise ``smooth_step_xy`` / ``smooth_step_yaw``
-  plus ``smooth_drift`` per metre travelled (and per radian turned); its accepted loop
-  closures are between factors too (``loop_sigma_*`` of its options). Where the SLAM cut its
+  two consecutive scans is a between factor, noise ``smooth.step_xy`` / ``smooth.step_yaw``
+  plus ``smooth.drift`` per metre travelled (and per radian turned); its accepted loop
+  closures are between factors too (``loop.sigma_*`` of its options). Where the SLAM cut its
   graph (a gap its alignment did not bridge, a kidnap) the chain is cut.
 * **the anchors**: the localiser's estimates anchored in the map (``tracking`` and
   ``relocalised``; not the ``local`` ones, which are chained to the last anchor), each a prior
-  on its scan's pose with its covariance. One anchor per ``smooth_anchor_travel`` metres of
+  on its scan's pose with its covariance. One anchor per ``smooth.anchor_travel`` metres of
   travel: consecutive scans see the same part of the map and share its error, so a
   per-scan anchor would count the map's error once per scan (on aces' later visit, where the
   half map bends away from the second half's own loops, per-scan anchors give a relation
@@ -143,7 +143,7 @@ def smooth(
     index = np.asarray(index, dtype=np.int64)
     steps = between_many(chain[:-1], chain[1:])
     travel = np.r_[0.0, np.cumsum(np.hypot(steps[:, 0], steps[:, 1]) + 0.5 * abs(steps[:, 2]))]
-    anchors = _anchors(estimates, index, travel, opt.smooth_anchor_travel)
+    anchors = _anchors(estimates, index, travel, opt.smooth.anchor_travel)
     if not anchors:
         return Smoothed(np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros(0))
     at = np.array([i for i, _ in anchors], dtype=np.int64)
@@ -176,8 +176,8 @@ def _chain_factors(graph, steps, segment, anchored, opt: LocaliseOptions) -> Non
     import gtsam
 
     dist = np.hypot(steps[:, 0], steps[:, 1])
-    sxy = opt.smooth_step_xy + opt.smooth_drift * dist
-    syaw = opt.smooth_step_yaw + 0.5 * opt.smooth_drift * (dist + np.abs(steps[:, 2]))
+    sxy = opt.smooth.step_xy + opt.smooth.drift * dist
+    syaw = opt.smooth.step_yaw + 0.5 * opt.smooth.drift * (dist + np.abs(steps[:, 2]))
     same = (segment[:-1] == segment[1:]) & anchored[:-1]
     for k in np.flatnonzero(same):
         noise = robust_noise(diagonal_noise(sxy[k], sxy[k], syaw[k]))
