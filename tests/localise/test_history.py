@@ -66,3 +66,46 @@ def test_replay_keeps_the_guess_where_icp_disagrees() -> None:
     assert out[1].agreement == pytest.approx(0.2)
     expected = compose_many(invert_many([1.0, 0.0, 0.0]), np.zeros(3))
     assert np.allclose(out[1].pose, expected)  # dead reckoning, not the poor alignment
+
+
+def _judging(misfits: set[int]) -> SimpleNamespace:
+    """A stand-in for ``MapMatcher`` judging the past scans of :func:`_fill` (scan ``i`` has
+    points ``i``): those in ``misfits`` agree 0.2, the others 0.9; no free-space conflict."""
+
+    def align(xy, guess, prior):
+        agreement = 0.2 if int(xy[0, 0]) in misfits else 0.9
+        return Alignment(guess, agreement, 2, np.eye(3)), agreement
+
+    options = SimpleNamespace(
+        hypothesis_agreement=0.5,
+        fix_travel=2.0,
+        max_conflict=0.2,
+        max_loose_conflict=0.4,
+        max_outside=0.5,
+    )
+    matcher = SimpleNamespace(
+        align=align,
+        prior=lambda delta, jump: np.eye(3),
+        support=lambda pose, xy: Support(0.0, 0.0, 0.0),
+        options=options,
+    )
+    matcher.admits = lambda s: s.conflict <= 0.2 and s.loose <= 0.4 and s.outside <= 0.5
+    return matcher
+
+
+def test_credit_skips_past_scans_that_do_not_fit_instead_of_stopping() -> None:
+    # aces' later visit: the robot turned in place through a view of a part of the building
+    # changed since the map; the right pose fitted the scans before that view, which
+    # stopped the credit and left the re-proposed right pose 2 m of travel short
+    history = SearchHistory(keep=100.0, step=0.0)
+    odometry = np.c_[np.arange(15) * 0.25, np.zeros(15), np.zeros(15)]
+    _fill(history, odometry, 0.25)  # scan i at travel 0.25 i
+    credited = history.explained(_judging({9, 10}), odometry[-1], odometry[-1], 3.5, 14)
+    assert [p.scan.index for p in credited] == [13, 12, 11, 8, 7, 6]  # to 2 m back
+
+
+def test_credit_is_nothing_where_no_past_scan_fits() -> None:
+    history = SearchHistory(keep=100.0, step=0.0)
+    odometry = np.c_[np.arange(15) * 0.25, np.zeros(15), np.zeros(15)]
+    _fill(history, odometry, 0.25)
+    assert history.explained(_judging(set(range(14))), odometry[-1], odometry[-1], 3.5, 14) == []
