@@ -14,15 +14,8 @@ odometry (:meth:`SearchHistory.replay`), they serve twice:
   proposal, while the margin over every rival and ``fix_followed_travel`` of following still
   apply.
 
-A past scan the hypothesis does not explain (a passer-by, a view of a part of the building
-changed since the map) is left out of the credit, not the end of it: the chain back by
-odometry goes on through it (dead reckoning, as :meth:`SearchHistory.replay` does), and the
-scans before it that fit are evidence as much as those after it. In aces' later visit the
-robot turned in place through such a view; stopping there left the re-proposed right pose
-with 0.2 m of credit, and with no rival at all the fix waited for 2 m more of turning.
-
 Cost: one ICP per replayed scan, at most ``fix_travel / HISTORY_STEP`` of them per credited
-hypothesis (10 by default).
+hypothesis (10 by default), stopping at the first scan that does not fit.
 """
 
 from __future__ import annotations
@@ -152,15 +145,15 @@ class SearchHistory:
         self, matcher: MapMatcher, pose: NDArray, odometry: NDArray, travel: float, before: int
     ) -> list[Replayed]:
         """The kept scans before scan ``before`` that a hypothesis at ``pose`` explains,
-        newest first, up to ``fix_travel`` back from the search's ``travel``: those that
-        agree at least ``hypothesis_agreement`` without contradicting the map's free space as
-        a hypothesis may not (:meth:`MapMatcher.admits`); the others are left out, the
-        chain goes on through them (see the module notes)."""
+        newest first: up to ``fix_travel`` back from the search's ``travel``, stopping at the
+        first that agrees less than ``hypothesis_agreement`` or contradicts the map's free
+        space as a hypothesis may not (:meth:`MapMatcher.admits`)."""
         opt = matcher.options
         out: list[Replayed] = []
         for past in self.replay(matcher, pose, odometry, before):
-            if past.agreement >= opt.hypothesis_agreement and matcher.admits(past.support):
-                out.append(past)
+            if past.agreement < opt.hypothesis_agreement or not matcher.admits(past.support):
+                break
+            out.append(past)
             if travel - past.scan.travel >= opt.fix_travel:
                 break
         return out
