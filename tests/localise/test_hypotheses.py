@@ -81,3 +81,28 @@ def test_no_fix_while_a_rival_is_close_or_barely_scored() -> None:
     assert choose_winner([best, young], OPTIONS, travel=2.0) is None
     young.remember(0.1, Support(0.0, 0.0), window=10)
     assert choose_winner([best, young], OPTIONS, travel=2.0) is best
+
+
+def test_a_rival_seeing_through_the_maps_walls_is_beaten_sooner() -> None:
+    # aces from scan 681: the right pose agrees 0.99 contradicting the free space on 0.08
+    # of its beams; a look-alike 1.6 m along the corridor agrees 0.97 but sees through the
+    # map's walls on 0.17: the agreement alone (0.02) stayed under the margin for 2 m more
+    best = scored((0.0, 0.0, 0.0), [0.99] * 6, conflict=0.08)
+    slid = scored((1.6, 0.0, 0.0), [0.97] * 6, conflict=0.17)
+    assert choose_winner([best, slid], OPTIONS, travel=2.0) is best
+
+
+def test_an_alias_as_good_on_both_counts_still_blocks_the_fix() -> None:
+    # a symmetric room or a corridor alias: as many points explained, as many beams
+    # contradicting the free space, so no lead on either
+    best = scored((0.0, 0.0, 0.0), [0.95] * 6, conflict=0.1)
+    twin = scored((0.0, 8.0, np.pi), [0.94] * 6, conflict=0.1)
+    assert choose_winner([best, twin], OPTIONS, travel=2.0) is None
+
+
+def test_a_lead_in_agreement_lost_in_free_space_conflict_is_no_lead() -> None:
+    # the best by agreement contradicts the map's free space more than the rival by as
+    # much as it explains more points: the evidence does not tell them apart
+    best = scored((0.0, 0.0, 0.0), [0.95] * 6, conflict=0.15)
+    rival = scored((4.0, 0.0, 0.0), [0.89] * 6, conflict=0.05)
+    assert choose_winner([best, rival], OPTIONS, travel=2.0) is None

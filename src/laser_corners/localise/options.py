@@ -158,8 +158,9 @@ class LocaliseOptions(Options):
     fix_agreement: float = Field(0.7, ge=0.0, le=1.0)
     """Recent agreement a hypothesis needs to become the fix."""
     fix_margin: float = Field(0.04, ge=0.0, le=1.0)
-    """Every other hypothesis must agree less than the winner by this much on average over
-    the recent scans both were scored on (at least 3): a share of the scan's points."""
+    """Every other hypothesis must trail the winner by this much on average over the recent
+    scans both were scored on (at least 3): its agreement lower plus its free-space conflict
+    higher, shares of the scan's points and beams (``localise.hypotheses``)."""
     max_conflict: float = Field(0.2, ge=0.0, le=1.0)
     """Share of the tested beams (at most, on average over the recent scans) that may
     contradict the map's free space (end in space the map surely saw free, or see through
