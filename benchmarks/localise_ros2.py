@@ -111,6 +111,7 @@ class Replay:
 
     core: ReplayCore
     parameters: dict
+    odometry_frame: Any = None
     scans_given: int = 0
     messages: dict[str, int] = field(default_factory=dict)
 
@@ -141,10 +142,13 @@ def replay(
     t_start: float,
     t_end: float | None = None,
     extra: dict[str, Any] | None = None,
+    odometry_frame: Any = None,
 ) -> Replay:
     """Give the bag's messages to the node's core in localise mode in ``folder``: the scans
     stamped from ``t_start`` (to ``t_end``), odometry from ``START_BEFORE_S`` before;
-    ``extra``: node parameters over those of :func:`node_parameters`."""
+    ``extra``: node parameters over those of :func:`node_parameters`; ``odometry_frame``
+    (x, y, yaw): the odometry messages' poses moved by it (the localiser's odometry in a frame
+    of its own, as :mod:`bench_localise` gives the CLI's; an odometry topic only)."""
     with open_recording(path, None) as rec:
         source = rec.source
         params = {**node_parameters(folder, options, source.odom_topic), **(extra or {})}
@@ -153,7 +157,9 @@ def replay(
         config = core.config
         topics = [source.topic, "/tf_static"]
         topics.append(config.odom_topic if config.odom_topic else "/tf")
-        run = Replay(core, params)
+        if odometry_frame is not None and not config.odom_topic:
+            raise SystemExit("an odometry frame needs an odometry topic (the odometry on /tf)")
+        run = Replay(core, params, odometry_frame)
         with source.reader() as reader:
             for connection, log_time, raw in source.messages(reader, topics):
                 clock.now = log_time * 1e-9
@@ -171,6 +177,9 @@ def _give(core: ReplayCore, run: Replay, connection: Any, msg: Any, span: tuple)
         core.release()
     elif connection.msgtype == ODOMETRY:
         sample = odometry_of(msg)
+        if run.odometry_frame is not None:
+            moved = compose_many(np.asarray(run.odometry_frame), np.asarray(sample[3]))
+            sample = (*sample[:3], tuple(map(float, moved)))
         if sample[2] >= t_start - START_BEFORE_S:
             core.book.add_odometry(*sample)
             core.release()

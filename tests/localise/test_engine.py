@@ -21,7 +21,7 @@ from test_localiser import (
 
 from laser_corners.localise import EngineOptions, LocaliseOptions, Localiser
 from laser_corners.localise.engine import engine_options
-from laser_corners.pose import between_many
+from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.mapfolder import load_map
 from laser_corners.slam import Slam, SlamOptions
 
@@ -84,20 +84,57 @@ def test_the_engine_holds_a_pose_only_once_the_map_confirmed_it(engine_map) -> N
     engine = loc.engine
     assert engine is not None
     scans, odo = scans_along(building(), truth, 14), noisy_odometry(truth, 14)
-    engine.place(truth[0], np.diag([0.05, 0.05, 0.02]) ** 2)
+    engine.place(truth[0], np.diag([0.05, 0.05, 0.02]) ** 2, odo[0])
     engine.add(scans[1], odo[1], 0.1)
-    assert engine.slam.placed and not engine.confirmed and not engine.holds()
+    assert engine.placed and not engine.confirmed and not engine.holds()
     assert engine.disagrees(truth[1] + np.array([0.5, 0.0, 0.0]))  # beyond the gate: no
     assert not engine.confirmed
     assert not engine.disagrees(truth[1] + np.array([0.05, 0.0, 0.01]))  # within: confirmed
     assert engine.confirmed and engine.holds()
     alone = engine.alone(odo[1], 1, 0.1)
     assert alone is not None and alone.status == "local"
-    engine.cut()  # a lost track after a jump: a new segment, unplaced
+    engine.cut()  # an odometry jump: unplaced, and not fed until the next fix
     engine.add(scans[2], odo[2], 0.2)
     assert not engine.holds() and engine.alone(odo[2], 2, 0.2) is None
-    engine.place(truth[2], np.diag([0.05, 0.05, 0.02]) ** 2)
+    assert engine.slam.counts.scans == 1
+    engine.place(truth[2], np.diag([0.05, 0.05, 0.02]) ** 2, odo[2])
     assert not engine.confirmed  # placed again: confirmed again by the map first
+    engine.add(scans[3], odo[3], 0.3)
+    d = between_many(truth[3], engine.pose)
+    assert math.hypot(d[0], d[1]) < 0.05  # moved from the fix by the odometry step
+
+
+def test_a_scan_not_given_can_place_the_engine_by_its_odometry(engine_map) -> None:
+    # a localiser places the engine at a fix on a scan it did not feed it (unplaced engines
+    # are not fed): the next scan is moved from the fix by the odometry step since that scan
+    folder, truth = engine_map
+    slam = Slam(SlamOptions(), prior_map=load_map(folder), frozen=True)
+    odo = noisy_odometry(truth, 15)
+    scans = scans_along(building(), truth, 15)
+    slam.place(truth[9], (0.05, 0.05, 0.02), odo[9])
+    pose, _ = slam.add(scans[10], odo[10], 1.0)
+    d = between_many(truth[10], pose)
+    assert math.hypot(d[0], d[1]) < 0.05 and abs(d[2]) < 0.02
+    assert slam.placed and slam.counts.scans == 1
+
+
+def test_the_engine_is_fed_only_from_the_first_fix_on(engine_map) -> None:
+    # no initial pose: the scans of the global search cost the engine nothing, and its first
+    # keyframe is the scan after the fix, in the map's frame
+    folder, truth = engine_map
+    loc = Localiser(folder)
+    assert loc.engine is not None
+    scans, odo = scans_along(building(), truth, 16), noisy_odometry(truth, 16)
+    first = None
+    for i, (s, o) in enumerate(zip(scans, odo, strict=True)):
+        if loc.add(s, o, i / RATE) is not None and first is None:
+            first = i
+    assert first is not None and first > 0
+    assert loc.engine.slam.counts.scans == len(scans) - 1 - first
+    kf = loc.engine.slam.kf
+    session = np.asarray(kf.estimate[kf.first :])
+    nearest = np.min(np.hypot(*(session[:, None, :2] - truth[None, :, :2]).transpose(2, 0, 1)), 1)
+    assert nearest.max() < 0.2  # every session keyframe in the map's frame
 
 
 def test_the_engine_takes_the_localisers_odometry_noise_but_keeps_the_slams_icp() -> None:
@@ -106,3 +143,23 @@ def test_the_engine_takes_the_localisers_odometry_noise_but_keeps_the_slams_icp(
     assert engine.odometry == options.odometry  # a fact of the robot: one noise for both
     assert engine.icp == SlamOptions().icp  # tracks and closes loops as the map was made
     assert not engine.relocalisation
+
+
+def test_the_estimates_do_not_depend_on_the_odometrys_frame(engine_map) -> None:
+    # a later visit's odometry starts in a frame of its own: no initial pose, the same drive
+    # with its odometry moved by a rigid transform gives the same estimates (the engine, not
+    # fed before the first fix, has nothing in the odometry's frame to track against)
+    folder, truth = engine_map
+    scans, odo = scans_along(building(), truth, 17), noisy_odometry(truth, 17)
+    moved = compose_many(np.array([50.0, -30.0, 1.0]), odo)
+    runs = []
+    for odometry in (odo, moved):
+        loc = Localiser(folder)
+        runs.append(
+            [loc.add(s, o, i / RATE) for i, (s, o) in enumerate(zip(scans, odometry, strict=True))]
+        )
+    found = [i for i, e in enumerate(runs[0]) if e is not None]
+    assert len(found) > len(truth) // 2
+    assert found == [i for i, e in enumerate(runs[1]) if e is not None]
+    for i in found:
+        np.testing.assert_allclose(runs[0][i].pose, runs[1][i].pose, atol=1e-6)

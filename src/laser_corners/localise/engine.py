@@ -4,17 +4,20 @@ The SLAM engine (:class:`~laser_corners.slam.Slam`) runs on the localiser's scan
 as its frozen prior (``frozen=True``): it tracks each scan against the map's keyframes near
 its pose and its own recent keyframes, makes keyframes, closes loops into the map and
 optimises; its pose is the online estimate. The localiser places it: at every fix of the
-global search (:meth:`EngineTrack.place`), after a lost track (:meth:`EngineTrack.cut`: a new
-segment, unplaced), and wherever the tracker, anchored in the map, disagrees with it by more
-than the gate (``engine.gate_xy`` / ``engine.gate_yaw``; counted ``engine_replaced``).
+global search (:meth:`EngineTrack.place`) and wherever the tracker, anchored in the map,
+disagrees with it by more than the gate (``engine.gate_xy`` / ``engine.gate_yaw``; counted
+``engine_replaced``). Until the first fix, and from an odometry or time jump
+(:meth:`EngineTrack.cut`) to the next fix, it is unplaced and not fed: the scans of the search
+cost it nothing, and no keyframe floats in a frame of its own.
 Once a scan the map explains has confirmed it, where the map does not explain a scan (the
 robot drives out of it) the engine holds the pose (:meth:`EngineTrack.holds`, estimates
 ``"local"``) if the scan aligned to the engine's keyframes; the localiser also asks that the
 scan not contradict the map's free space there, which a kidnap inside the map does.
 
 Cost per scan: the engine's front end (an ICP against a local map of a bounded number of
-keyframes) and, per keyframe, an iSAM2 update and a loop-closure check; it does not grow with
-the map except through iSAM2's update (the prior map's keyframes are held by priors).
+keyframes) and, per keyframe, an iSAM2 update and a loop-closure check (nothing while
+unplaced); it does not grow with the map except through iSAM2's update (the prior map's
+keyframes are held by priors).
 """
 
 from __future__ import annotations
@@ -78,26 +81,35 @@ class EngineTrack:
         self.confirmed = False
         """Whether the map confirmed the engine since it was last placed (a scan the tracker
         anchored in the map, within the gate): only then does it hold the pose alone."""
+        self.placed = False
+        """Whether the engine is placed in the map (from :meth:`place` to :meth:`cut`): only
+        then is it fed scans (unplaced, its keyframes would float in a frame of their own)."""
 
-    def place(self, pose: NDArray, covariance: NDArray) -> None:
+    def place(self, pose: NDArray, covariance: NDArray, odometry: NDArray | None) -> None:
         """The last scan was at ``pose`` (a fix, or the tracker where the engine disagrees;
-        ``covariance``: its uncertainty): the next scan starts a new segment there, moved by
-        the odometry step (:meth:`~laser_corners.slam.Slam.place`); not confirmed yet."""
-        self.slam.place(pose, _sigmas(covariance))
-        self.confirmed = False
+        ``covariance``: its uncertainty; ``odometry``: its odometry pose, None before the first
+        scan): the next scan starts a new segment there, moved by the odometry step
+        (:meth:`~laser_corners.slam.Slam.place`); not confirmed yet."""
+        self.slam.place(pose, _sigmas(covariance), odometry)
+        self.placed, self.confirmed = True, False
 
     def cut(self) -> None:
-        """The localiser lost its track: a new, unplaced segment from the next scan."""
-        self.slam.cut()
+        """The odometry or the stamps jumped: the engine is unplaced (and not fed) until the
+        next :meth:`place`, which starts a new segment."""
+        if self.placed:
+            self.slam.cut()
+        self.placed, self.pose, self.covariance = False, None, None
 
     def add(self, scan: LaserScan, odometry: NDArray, stamp: float) -> None:
-        """One scan: the engine's pose and covariance (:attr:`pose`, :attr:`covariance`)."""
-        self.pose, self.covariance = self.slam.add(scan, odometry, stamp)
+        """One scan, while placed: the engine's pose and covariance (:attr:`pose`,
+        :attr:`covariance`; None while unplaced)."""
+        if self.placed:
+            self.pose, self.covariance = self.slam.add(scan, odometry, stamp)
 
     def disagrees(self, pose: NDArray) -> bool:
         """Whether the engine, placed, is farther than the gate from ``pose`` (or unplaced);
         agreeing with a pose anchored in the map confirms it."""
-        if not self.slam.placed or self.pose is None:
+        if not self.placed or self.pose is None:
             return True
         d = between_many(pose, self.pose)
         opt = self.options
@@ -108,19 +120,24 @@ class EngineTrack:
     def holds(self) -> bool:
         """Whether the engine alone may give this scan's pose: placed, confirmed by the map
         since, and the scan aligned to its keyframes."""
-        return self.slam.placed and self.confirmed and self.slam.tracking.scan_aligned
+        return (
+            self.placed
+            and self.pose is not None
+            and self.confirmed
+            and self.slam.tracking.scan_aligned
+        )
 
     def alone(self, odometry: NDArray, index: int, stamp: float) -> LocaliserEstimate | None:
         """The engine's estimate of scan ``index`` where the map gives none (``"local"``: the
         scan is placed by the engine's own keyframes), None while it is not placed."""
-        if not self.slam.placed or self.pose is None:
+        if not self.placed or self.pose is None:
             return None
         return self._estimate(odometry, index, stamp, "local", 0.0)
 
     def estimate(self, tracked: LocaliserEstimate, odometry: NDArray) -> LocaliserEstimate:
         """The tracker's estimate of this scan with the engine's pose and covariance (once the
         map confirmed the engine; before, the tracker's own)."""
-        if not (self.slam.placed and self.confirmed) or self.pose is None:
+        if not (self.placed and self.confirmed) or self.pose is None:
             return tracked
         t = tracked
         return self._estimate(odometry, t.scan_index, t.stamp, t.status, t.agreement)

@@ -199,7 +199,7 @@ class Localiser:
         self.search.stop()
         self.state = State.TRACKING
         if self.engine is not None:
-            self.engine.place(self.tracker.pose, self.tracker.covariance)
+            self.engine.place(self.tracker.pose, self.tracker.covariance, self._last_odom)
 
     # ------------------------------------------------------------------ per scan
     def add(
@@ -263,7 +263,7 @@ class Localiser:
         # a "local" estimate (mostly unmapped) is the engine's own, never a reason to re-place
         if estimate.status != "local" and self.engine.disagrees(estimate.pose):
             self.counts["engine_replaced"] += estimate.status == "tracking"
-            self.engine.place(estimate.pose, self.tracker.covariance)
+            self.engine.place(estimate.pose, self.tracker.covariance, odo)
             return estimate
         return self.engine.estimate(estimate, odo)
 

@@ -133,17 +133,24 @@ class Slam:
         self._last_stamp = -np.inf
         self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
         self._cov = np.diag([1e-6, 1e-6, 1e-8])  # the last keyframe's marginal
-        self._place: tuple[NDArray, tuple[float, float, float]] | None = None  # place() next
+        self._place: tuple | None = None  # place() next: pose, sigmas, odometry or None
         self._cut = False  # cut() asked for the next scan
 
     # ------------------------------------------------------------------ placing (frozen)
-    def place(self, pose: ArrayLike, sigmas: tuple[float, float, float]) -> None:
-        """The last scan's base pose (or, before the first scan, the first's) is ``pose``
-        (map frame) with these standard deviations (m, m, rad): the next scan, placed by the
-        odometry step from it, becomes a keyframe starting a new segment there under that
-        prior (a fix of a localiser searching the map; loop closures then join the segment
-        to the map)."""
-        self._place = (np.asarray(pose, dtype=np.float64).reshape(3).copy(), sigmas)
+    def place(
+        self,
+        pose: ArrayLike,
+        sigmas: tuple[float, float, float],
+        odometry: ArrayLike | None = None,
+    ) -> None:
+        """A scan's base pose is ``pose`` (map frame) with these standard deviations (m, m,
+        rad): the next scan, placed by the odometry step from it, becomes a keyframe starting
+        a new segment there under that prior (a fix of a localiser searching the map; loop
+        closures then join the segment to the map). ``odometry``: that scan's odometry pose,
+        when it was not given to :meth:`add` (a localiser feeds the engine only while it is
+        placed); None: the last scan given (before the first scan: the first scan's pose)."""
+        at = None if odometry is None else np.asarray(odometry, dtype=np.float64).reshape(3)
+        self._place = (np.asarray(pose, dtype=np.float64).reshape(3).copy(), sigmas, at)
 
     def cut(self) -> None:
         """The next scan starts a new segment, not placed in the map (a localiser lost its
@@ -179,6 +186,8 @@ class Slam:
             self._place, self._cut = None, False
             step = np.zeros(3) if first else np.array(relative_pose(self._last_odom, odo))
             if placed is not None:
+                if placed[2] is not None:  # placed at a scan not given to add()
+                    step = np.array(relative_pose(placed[2], odo))
                 self.pose = np.array(compose(placed[0], step))
             elif first:
                 self.pose = odo.copy() if self.initial_pose is None else self.initial_pose.copy()
@@ -224,7 +233,7 @@ class Slam:
         stamp: float,
         kp: Keypoints | None,
         first: bool = False,
-        placed: tuple[NDArray, tuple[float, float, float]] | None = None,
+        placed: tuple | None = None,
         cut: bool = False,
     ) -> None:
         """The scan at the tracked pose becomes keyframe ``k``: into the graph, loop closure
