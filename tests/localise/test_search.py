@@ -70,3 +70,21 @@ def test_a_restart_in_a_window_follows_the_lost_pose_and_a_jump_clears_it(buildi
     assert any(np.hypot(*(h.pose[:2] - drive[4, :2])) < 0.3 for h in search.hypotheses)
     _run(search, drive[5:7], 10, jump_at=0)
     assert search.window is None  # a jump closes the window: the global search takes over
+
+
+def test_a_sliced_exhaustive_search_carries_its_answers_to_the_scan_it_ends_on(
+    building_world,
+) -> None:
+    # the exhaustive search alone (no place index), a few nodes a scan: each search spans
+    # many scans, its answers found for the scan it started on are moved by the odometry
+    # since, and the fix is as right as with one-shot searches
+    saved, truth = building_world
+    options = LocaliseOptions().with_overrides(["places.enabled=false"])
+    search = _search(saved, options)
+    search.slice_nodes = 300
+    drive = truth[150:450]
+    at, winner = _run(search, drive, 8)
+    assert winner is not None
+    assert np.hypot(*(winner.pose[:2] - drive[at, :2])) < 0.3
+    assert search.counts["searches"] >= 1
+    assert len(search.search_ms) >= 3 * search.counts["searches"]  # sliced over scans

@@ -9,7 +9,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from laser_corners.pose import poses_apart
+from laser_corners.pose import compose_many, poses_apart, wrap_angle
 from laser_corners.registration.correlative import ScoreGrid
 from laser_corners.registration.global_search import (
     QUANT,
@@ -17,6 +17,7 @@ from laser_corners.registration.global_search import (
     Pyramid,
     SlicedSearch,
     best_poses,
+    carried,
 )
 
 
@@ -217,3 +218,17 @@ def test_a_search_with_nothing_to_search_is_done_at_once() -> None:
     lattice = Lattice(grid.origin.copy(), 1, np.zeros((4, 4), dtype=bool))
     sliced = SlicedSearch(Pyramid.build(grid), lattice, np.ones((5, 2)), np.zeros(3), 3, (1, 0.3))
     assert sliced.done and sliced.result() == [] and sliced.advance(10) == 0
+
+
+def test_answers_are_carried_to_the_current_scan_by_the_odometry_since() -> None:
+    rng = np.random.default_rng(11)
+    then = np.array([3.0, -2.0, 2.5])  # the robot in the map at the scan searched
+    motion = np.array([[0.0, 0.0, 0.0], [1.2, 0.3, 0.4], [-0.5, 2.0, -2.9]])
+    now = compose_many(then, motion)  # where it is later
+    frame = np.array([*rng.uniform(-50, 50, 2), rng.uniform(-3, 3)])  # the odometry's frame
+    odo_then, odo_now = compose_many(frame, then), compose_many(frame, now)
+    for k in range(len(motion)):
+        [p] = carried([then], odo_then, odo_now[k])
+        assert np.allclose(p[:2], now[k, :2]) and abs(wrap_angle(p[2] - now[k, 2])) < 1e-12
+    two = carried([then, np.zeros(3)], odo_then, odo_now[1])
+    assert np.allclose(two[1], motion[1])  # an answer at the map's origin moves by the motion

@@ -33,6 +33,7 @@ from laser_corners.localise.matcher import MapMatcher
 from laser_corners.localise.places import PlaceProposer
 from laser_corners.localise.window import Window
 from laser_corners.pose import compose_many, poses_apart
+from laser_corners.registration.global_search import SLICE_NODES, SlicedSearch, carried
 from laser_corners.registration.points import ScanPoints, scan_points, transform
 from laser_corners.scan import LaserScan
 
@@ -75,7 +76,12 @@ class GlobalSearch:
         """Odometry travel (m, turns 0.5 m per radian) of the search so far."""
         self.scans = 0
         self.search_ms: list[float] = []
-        """Milliseconds of every exhaustive correlative search (global or window)."""
+        """Milliseconds of every slice of an exhaustive correlative search (global or window):
+        what it cost a scan."""
+        self.slice_nodes = SLICE_NODES
+        """Nodes of the running exhaustive search spent per scan (:class:`SlicedSearch`)."""
+        self.running: tuple[SlicedSearch, NDArray] | None = None
+        """The exhaustive search under way and the odometry of the scan it searches."""
 
     def restart(self, pose: NDArray | None, index: int, window: Window | None) -> None:
         """A new search: from the lost track's predicted ``pose`` as the first hypothesis (a
@@ -84,6 +90,7 @@ class GlobalSearch:
         given."""
         self.hypotheses = [] if pose is None else [Hypothesis(np.asarray(pose).copy(), index)]
         self.window = window
+        self.running = None
         self.scans = 0
         self.travel = 0.0
         self.history.clear()
@@ -92,6 +99,7 @@ class GlobalSearch:
         """The search is over (a fix, or a pose given from outside)."""
         self.hypotheses = []
         self.window = None
+        self.running = None
 
     def step(
         self, scan: LaserScan, pts: ScanPoints, delta: NDArray, jump: bool, odo: NDArray, index: int
@@ -100,6 +108,7 @@ class GlobalSearch:
         opt = self.options
         if jump:
             self.hypotheses = []
+            self.running = None
             self.scans = 0
             self.history.clear()
             self.places.clear()
@@ -132,6 +141,7 @@ class GlobalSearch:
         self.window.move(delta, opt.odometry)
         if jump or not self.window.open(opt.reacquire_xy, opt.reacquire_yaw):
             self.window = None
+            self.running = None  # a window search: the global one starts anew
             for h in self.hypotheses:  # scored from now on as the global search scores
                 h.recent.clear()
 
@@ -172,14 +182,15 @@ class GlobalSearch:
     def _propose(self, scan: LaserScan, xy: NDArray, odo: NDArray, index: int) -> None:
         """New hypotheses: on every scan the place index's candidates (corner keypoints,
         ``localise.places``) when the map has an index and no lost track's window is open;
-        every ``global_every`` scans the exhaustive correlative search (the whole map, or
-        the window after a lost track) when there is no index, or inside a window, or once
-        the search has travelled ``places.fallback_travel`` with no hypothesis alive (too few
-        corners where the robot is)."""
+        the exhaustive correlative search (the whole map, or the window after a lost track)
+        when there is no index, or inside a window, or once the search has travelled
+        ``places.fallback_travel`` with no hypothesis alive (too few corners where the robot
+        is): started every ``global_every`` scans, run :attr:`slice_nodes` nodes a scan
+        (:meth:`_slice`)."""
         opt = self.options
         keypoints = self.window is None and self.places.usable
         due = self.scans % opt.global_every == 0
-        if not (keypoints or due):
+        if not (keypoints or due or self.running is not None):
             return
         mount = self.matcher.mount
         coarse = scan_points(scan, mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
@@ -190,20 +201,34 @@ class GlobalSearch:
         fallback = not keypoints or (
             self.travel >= opt.places.fallback_travel and not self.hypotheses
         )
-        if fallback and due:
-            self.counts["searches"] += 1
-            start = time.perf_counter()
-            found = self._exhaustive(coarse.xy)
-            self.search_ms.append((time.perf_counter() - start) * 1e3)
-            self._spawn([guess for guess, _ in found], xy, odo, index)
+        if not fallback:
+            self.running = None
+        elif due or self.running is not None:
+            self._slice(coarse.xy, xy, odo, index)
 
-    def _exhaustive(self, xy: NDArray) -> list[tuple[NDArray[np.float64], float]]:
-        """The exhaustive correlative search: over the whole map, or inside the window."""
+    def _slice(self, coarse: NDArray, xy: NDArray, odo: NDArray, index: int) -> None:
+        """One slice of the exhaustive search (a new one on ``coarse`` when none runs); when
+        it ends, its answers for the scan it started on, carried to this scan by the odometry
+        since (:func:`~laser_corners.registration.global_search.carried`), are proposed."""
+        start = time.perf_counter()
+        if self.running is None:
+            self.counts["searches"] += 1
+            self.running = (self._exhaustive(coarse), np.array(odo, dtype=np.float64))
+        search, then = self.running
+        search.advance(self.slice_nodes)
+        self.search_ms.append((time.perf_counter() - start) * 1e3)
+        if search.done:
+            self.running = None
+            self._spawn(carried([p for p, _ in search.result()], then, odo), xy, odo, index)
+
+    def _exhaustive(self, xy: NDArray) -> SlicedSearch:
+        """The exhaustive correlative search, to run in slices: over the whole map, or inside
+        the window."""
         opt = self.options
         model = self.matcher.model
         if self.window is None:
-            return model.global_search(xy, opt.global_yaw_step, opt.global_candidates)
-        return model.window_search(
+            return model.global_slices(xy, opt.global_yaw_step, opt.global_candidates)
+        return model.window_slices(
             xy,
             self.window.pose,
             *self.window.half_widths,

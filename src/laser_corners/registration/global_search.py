@@ -49,14 +49,28 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.correlative import ScoreGrid
 
-__all__ = ["LEVELS", "QUANT", "Lattice", "Pyramid", "SlicedSearch", "best_poses"]
+__all__ = [
+    "LEVELS",
+    "QUANT",
+    "SLICE_NODES",
+    "Lattice",
+    "Pyramid",
+    "SlicedSearch",
+    "best_poses",
+    "carried",
+]
 
 LEVELS = 7
 """Pooled levels of a :class:`Pyramid` (blocks of 1 .. 64 lattice positions a side)."""
 QUANT = 255
 """Steps of a pooled score (0 .. 1) in a :class:`Pyramid`'s bytes."""
+SLICE_NODES = 2000
+"""Nodes of a :class:`SlicedSearch` spent per scan by its callers (localisation, SLAM
+relocalisation): about 3-6 µs a node with 120-150 points on this project's 2-core test machine
+(``docs/relocalisation.md``), some 6-12 ms a scan."""
 
 
 def _window_max(a: NDArray[np.float32], w: int, axis: int) -> NDArray[np.float32]:
@@ -515,6 +529,11 @@ class SlicedSearch:
         self._done = bool(seeded and (size == 0 or n_chosen >= len(self.scores)))
         return int(spent)
 
+    def finish(self) -> list[tuple[NDArray[np.float64], float]]:
+        """Go on to the end (no budget): the answers (:meth:`result`)."""
+        self.advance(np.iinfo(np.int64).max)
+        return self.result()
+
     def result(self) -> list[tuple[NDArray[np.float64], float]]:
         """The answers found so far (all of them once :attr:`done`): :func:`best_poses`'s."""
         n = int(self.state[1])
@@ -554,6 +573,15 @@ def best_poses(
         where no point scores are not answers: an empty scan or lattice, or a scan off the
         map, gives ``[]``.
     """
-    search = SlicedSearch(pyramid, lattice, points, yaws, count, apart)
-    search.advance(np.iinfo(np.int64).max)
-    return search.result()
+    return SlicedSearch(pyramid, lattice, points, yaws, count, apart).finish()
+
+
+def carried(
+    poses: list[NDArray[np.float64]], then: NDArray[np.float64], now: NDArray[np.float64]
+) -> list[NDArray[np.float64]]:
+    """Answers of a search of the scan at odometry ``then`` (map-frame poses of that scan)
+    carried to the scan at odometry ``now``: each composed with the motion between them
+    (``then`` and ``now`` in any one frame: the odometry's, or a segment's dead-reckoned
+    estimate)."""
+    motion = between_many(then, now)
+    return [compose_many(p, motion) for p in poses]
