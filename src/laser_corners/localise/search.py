@@ -201,25 +201,34 @@ class GlobalSearch:
         fallback = not keypoints or (
             self.travel >= opt.places.fallback_travel and not self.hypotheses
         )
-        if not fallback:
-            self.running = None
-        elif due or self.running is not None:
+        if (fallback and due) or self.running is not None:
             self._slice(coarse.xy, xy, odo, index)
 
     def _slice(self, coarse: NDArray, xy: NDArray, odo: NDArray, index: int) -> None:
-        """One slice of the exhaustive search (a new one on ``coarse`` when none runs); when
-        it ends, its answers for the scan it started on, carried to this scan by the odometry
-        since (:func:`~laser_corners.registration.global_search.carried`), are proposed."""
+        """One slice of the exhaustive search (a new one on this scan when none runs). Its
+        answers come out best first and final (:class:`SlicedSearch`): each new one becomes
+        a hypothesis as it would have on the scan searched (:meth:`_fresh` on that scan),
+        carried to this scan by the odometry since
+        (:func:`~laser_corners.registration.global_search.carried`)."""
         start = time.perf_counter()
         if self.running is None:
             self.counts["searches"] += 1
-            self.running = (self._exhaustive(coarse), np.array(odo, dtype=np.float64))
-        search, then = self.running
+            then = (np.array(odo, dtype=np.float64), xy, index, self.travel)
+            self.running = (self._exhaustive(coarse), then, 0)
+        search, (then_odo, then_xy, then_index, then_travel), used = self.running
         search.advance(self.slice_nodes)
         self.search_ms.append((time.perf_counter() - start) * 1e3)
-        if search.done:
-            self.running = None
-            self._spawn(carried([p for p, _ in search.result()], then, odo), xy, odo, index)
+        guesses = [p for p, _ in search.result()[used:]]
+        self.running = None if search.done else (search, self.running[1], used + len(guesses))
+        if not guesses:
+            return
+        back = carried([h.pose for h in self.hypotheses], odo, then_odo)
+        fresh = self._fresh(guesses, back, then_xy, then_odo, then_index, then_travel)
+        for h, pose in zip(fresh, carried([h.pose for h in fresh], then_odo, odo), strict=True):
+            h.pose = pose
+            h.travel += self.travel - then_travel
+            h.scans += index - then_index
+        self.hypotheses = merged(self.hypotheses + fresh, self.options)
 
     def _exhaustive(self, xy: NDArray) -> SlicedSearch:
         """The exhaustive correlative search, to run in slices: over the whole map, or inside
@@ -238,16 +247,32 @@ class GlobalSearch:
         )
 
     def _spawn(self, guesses: list[NDArray], xy: NDArray, odo: NDArray, index: int) -> None:
-        """Hypotheses from the guesses that ICP aligns to agree with the map without
+        """Hypotheses from the guesses on this scan (:meth:`_fresh`), merged with those
+        alive."""
+        poses = [h.pose for h in self.hypotheses]
+        fresh = self._fresh(guesses, poses, xy, odo, index, self.travel)
+        self.hypotheses = merged(self.hypotheses + fresh, self.options)
+
+    def _fresh(
+        self,
+        guesses: list[NDArray],
+        taken: list[NDArray],
+        xy: NDArray,
+        odo: NDArray,
+        index: int,
+        travel: float,
+    ) -> list[Hypothesis]:
+        """Hypotheses from the guesses of the scan ``index`` (points ``xy``, odometry
+        ``odo``, the search's ``travel`` then) that ICP aligns to agree with the map without
         contradicting its free space (counted in ``refused_free_space`` when not); guesses
-        where a hypothesis already is are skipped. Those of the global search are credited
-        with the past scans they explain (:meth:`_credit`)."""
+        near a pose of ``taken`` (the hypotheses alive, at that scan) are skipped. Those of
+        the global search are credited with the past scans they explain (:meth:`_credit`)."""
         opt = self.options
         prior = np.diag(1.0 / SPAWN_SIGMA**2)
         apart = (opt.distinct_xy, opt.distinct_yaw)
         fresh = []
         for guess in guesses:
-            if any(not poses_apart(guess, h.pose, *apart) for h in self.hypotheses):
+            if any(not poses_apart(guess, pose, *apart) for pose in taken):
                 continue
             aligned, agreement = self.matcher.align(xy, guess, prior)
             if agreement < opt.hypothesis_agreement:
@@ -258,20 +283,21 @@ class GlobalSearch:
                 continue
             h = Hypothesis(aligned.pose, index)
             if self.window is None:
-                self._credit(h, odo, index)
+                self._credit(h, odo, index, travel)
             h.remember(self._agreement(xy, h.pose, agreement), support, opt.recent_scans)
             fresh.append(h)
-        self.hypotheses = merged(self.hypotheses + fresh, opt)
+        return fresh
 
-    def _credit(self, h: Hypothesis, odo: NDArray, index: int) -> None:
-        """Credit a new hypothesis of the global search with the past scans it explains
-        (``SearchHistory.explained``): their agreements and shares join its recent ones,
-        their travel and scans its own (``localise.history``)."""
-        credited = self.history.explained(self.matcher, h.pose, odo, self.travel, index)
+    def _credit(self, h: Hypothesis, odo: NDArray, index: int, travel: float) -> None:
+        """Credit a new hypothesis of the global search at scan ``index`` (the search's
+        ``travel`` then) with the past scans it explains (``SearchHistory.explained``):
+        their agreements and shares join its recent ones, their travel and scans its own
+        (``localise.history``)."""
+        credited = self.history.explained(self.matcher, h.pose, odo, travel, index)
         if not credited:
             return
         for past in reversed(credited):
             h.remember(past.agreement, past.support, self.options.recent_scans)
-        h.travel = self.travel - credited[-1].scan.travel
+        h.travel = travel - credited[-1].scan.travel
         h.scans = index - credited[-1].scan.index
         self.counts["credited"] += 1
