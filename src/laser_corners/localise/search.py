@@ -4,7 +4,9 @@ states of :class:`~laser_corners.localise.Localiser`).
 On every scan the map's place index (corner keypoints of the last metres, :mod:`.places`)
 proposes poses; where it has none for ``places.fallback_travel`` (or the map has no index),
 every ``global_every`` scans the exhaustive search over the whole map
-(:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) does. Each pose becomes a
+(:meth:`~laser_corners.localise.mapmodel.MapModel.global_slices`) starts, run in slices of
+``SLICE_NODES`` nodes a scan so that no scan waits on it; its answers come best first, each
+judged on the scan searched and carried to the current one by the odometry. Each pose becomes a
 hypothesis (``localise.hypotheses``), refined by ICP against the map's points and credited with
 the search's past scans it explains (``localise.history``). Every scan, every hypothesis is
 moved by the odometry step, aligned again and scored by its *agreement*; the winner
