@@ -67,6 +67,9 @@ LEVELS = 7
 """Pooled levels of a :class:`Pyramid` (blocks of 1 .. 64 lattice positions a side)."""
 QUANT = 255
 """Steps of a pooled score (0 .. 1) in a :class:`Pyramid`'s bytes."""
+SEED_BLOCKS = 4
+"""Top-level blocks bounded per node of a :class:`SlicedSearch`'s budget (a bound reads each
+point once, a node split reads it four times)."""
 SLICE_NODES = 2000
 """Nodes of a :class:`SlicedSearch` spent per scan by its callers (localisation, SLAM
 relocalisation): about 3-6 µs a node with 120-150 points on this project's 2-core test machine
@@ -344,15 +347,19 @@ def _advance(
     scores: NDArray[np.float64],
     budget: int,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64], int]:
-    """The branch and bound (module notes), resumed: at most ``budget`` nodes (a top-level
-    block bounded, or a node popped) from ``state`` (heap size, answers, next top-level
-    block), whose arrays it updates in place: the answers so far in ``chosen`` / ``scores``
-    (pose, score sum). ``geometry``: lattice origin x, y, step (m), cells per step. Returns
-    the heap (grown) and the nodes spent; the same sequence of nodes in one call or many."""
+    """The branch and bound (module notes), resumed: at most ``budget`` nodes (a node
+    popped, or :data:`SEED_BLOCKS` top-level blocks bounded) from ``state`` (heap size,
+    answers, next top-level block), whose arrays it updates in place: the answers so far in
+    ``chosen`` / ``scores`` (pose, score sum). ``geometry``: lattice origin x, y, step (m),
+    cells per step. Returns the heap (grown) and the nodes spent; the same sequence of nodes
+    in one call or many."""
     score, data, offsets, shapes = pyramid
     allowed, m_offsets, m_shapes = masks
     m = int(geometry[3])
-    keys, nodes, spent = _seed(pyramid, masks, level, cy, cx, m, heap, state, budget)
+    # a top-level bound reads each point once, a node split four times: four to a node
+    blocks = SEED_BLOCKS * budget if budget < 2**60 else budget
+    keys, nodes, blocks = _seed(pyramid, masks, level, cy, cx, m, heap, state, blocks)
+    spent = (blocks + SEED_BLOCKS - 1) // SEED_BLOCKS
     top = level.shape[0] - 1
     seeded = state[2] >= cy.shape[0] * m_shapes[top, 0] * m_shapes[top, 1]
     size, n_chosen = state[0], state[1]
@@ -460,9 +467,10 @@ class SlicedSearch:
     :meth:`advance`, each spending at most a budget of nodes, and gives the answers of the
     one-shot search (the same nodes in the same order, however sliced) once :attr:`done`.
 
-    A node is a top-level block bounded or a node taken from the heap (split into its four
-    children, or a leaf scored): a few lookups per point each, so a budget of nodes bounds
-    the time of a slice whatever the map, while the answer does not depend on the load.
+    A node is a node taken from the heap (split into its four children, or a leaf scored:
+    four lookups a point) or :data:`SEED_BLOCKS` top-level blocks bounded (one each), so a
+    budget of nodes bounds the time of a slice whatever the map, while the answer does not
+    depend on the load.
 
     Parameters
     ----------
