@@ -81,7 +81,7 @@ def test_a_sliced_exhaustive_search_carries_its_answers_to_the_scan_it_ends_on(
     saved, truth = building_world
     options = LocaliseOptions().with_overrides(["places.enabled=false"])
     search = _search(saved, options)
-    search.slice_nodes = 100
+    search.slice_nodes = 40
     drive = truth[150:450]
     scans, odo = scans_along(building(), drive, 8), noisy_odometry(drive, 8)
     fresh_errors, winner = [], None

@@ -70,10 +70,12 @@ QUANT = 255
 SEED_BLOCKS = 4
 """Top-level blocks bounded per node of a :class:`SlicedSearch`'s budget (a bound reads each
 point once, a node split reads it four times)."""
-SLICE_NODES = 2000
+SLICE_NODES = 4000
 """Nodes of a :class:`SlicedSearch` spent per scan by its callers (localisation, SLAM
-relocalisation): about 3-6 µs a node with 120-150 points on this project's 2-core test machine
-(``docs/relocalisation.md``), some 6-12 ms a scan."""
+relocalisation): about 3 µs a node on average with 120 points on this project's shared 2-core
+machine, some 12 ms a scan (``docs/relocalisation.md``). Fewer delay the answers: with 2,000,
+fr079's right pose came 12 scans after the scan searched, too late for a fix before a
+corridor (``tests/localise/test_places.py``)."""
 
 
 def _window_max(a: NDArray[np.float32], w: int, axis: int) -> NDArray[np.float32]:
