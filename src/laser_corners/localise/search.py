@@ -82,8 +82,9 @@ class GlobalSearch:
         what it cost a scan."""
         self.slice_nodes = SLICE_NODES
         """Nodes of the running exhaustive search spent per scan (:class:`SlicedSearch`)."""
-        self.running: tuple[SlicedSearch, NDArray] | None = None
-        """The exhaustive search under way and the odometry of the scan it searches."""
+        self.running: tuple[SlicedSearch, tuple, int] | None = None
+        """The exhaustive search under way, the scan it searches (odometry, points, index,
+        the search's travel) and how many of its answers are hypotheses already."""
 
     def restart(self, pose: NDArray | None, index: int, window: Window | None) -> None:
         """A new search: from the lost track's predicted ``pose`` as the first hypothesis (a
