@@ -20,9 +20,10 @@ search runs only after ``places.fallback_travel`` without a fix; ``correlative``
 * **kidnap**: from each start the localiser tracks 300 scans, then the input jumps
   ``--kidnap`` scans ahead with the odometry made continuous across the jump (a robot carried
   away); reported: whether and after how much travel it relocalised, and wrong estimates.
-* **cost**: milliseconds per place-index attempt (query + dense check), per exhaustive search,
-  and per scan while searching (everything the localiser does for the scan: detection, the
-  attempt, hypotheses' ICP), mean / p95 / max over every start.
+* **cost**: milliseconds per place-index attempt (query + dense check), per exhaustive search
+  slice (one a scan while a search runs) and per scan while searching (everything the
+  localiser does for the scan: detection, the attempt, hypotheses' ICP), mean / p95 / max
+  over every start.
 
 Writes the table (with the command, the date and the machine) to ``--output`` (``--append``:
 adds to it) and, with ``--json FILE``, every run's numbers. Times are this machine's, with
@@ -192,8 +193,8 @@ def table(rows: list[dict]) -> list[str]:
     lines = [
         "| log | method | first fix within 3 m | wrong fixes | travel to fix median / max m "
         "| wrong estimates | kidnaps relocalised (within 3 m) | ms per index attempt "
-        "mean / p95 / max | exhaustive searches, ms mean / p95 / max | ms per scan while "
-        "searching mean / p95 / max |",
+        "mean / p95 / max | exhaustive search slices (one a scan), ms mean / p95 / max "
+        "| ms per scan while searching mean / p95 / max |",
         "|---|---|---|---:|---|---:|---|---|---|---|",
     ]
     for r in rows:

@@ -73,7 +73,7 @@ def test_warmup_compiles_the_slam_kernels_and_says_the_time() -> None:
     assert any(line.startswith("SLAM, localiser and matching kernels ready in") for line in lines)
     # the whole-map branch and bound, which the place index's answers would leave cold until
     # a relocalisation falls back to it (seconds of compiling in the middle of a run)
-    assert global_search._search.signatures
+    assert global_search._advance.signatures
 
 
 def test_warmup_without_gtsam_compiles_the_detector_and_says_why_not_the_slam(

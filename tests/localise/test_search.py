@@ -70,3 +70,34 @@ def test_a_restart_in_a_window_follows_the_lost_pose_and_a_jump_clears_it(buildi
     assert any(np.hypot(*(h.pose[:2] - drive[4, :2])) < 0.3 for h in search.hypotheses)
     _run(search, drive[5:7], 10, jump_at=0)
     assert search.window is None  # a jump closes the window: the global search takes over
+
+
+def test_a_sliced_exhaustive_search_carries_its_answers_to_the_scan_it_ends_on(
+    building_world,
+) -> None:
+    # the exhaustive search alone (no place index), a few nodes a scan: a search spans many
+    # scans; its answers, judged on the scan it started on, come as hypotheses at the pose
+    # the odometry since carries them to, and the fix is as right as with one-shot searches
+    saved, truth = building_world
+    options = LocaliseOptions().with_overrides(["places.enabled=false"])
+    search = _search(saved, options)
+    search.slice_nodes = 40
+    drive = truth[150:450]
+    scans, odo = scans_along(building(), drive, 8), noisy_odometry(drive, 8)
+    fresh_errors, winner = [], None
+    for i, scan in enumerate(scans):
+        pts = scan_points(scan, np.zeros(3), 0.1, 30.0, options.point_spacing)
+        delta = np.zeros(3) if i == 0 else between_many(odo[i - 1], odo[i])
+        winner = search.step(scan, pts, delta, False, odo[i], i)
+        fresh = [h for h in search.hypotheses if h.followed == 0.0 and h.born < i]
+        if fresh:  # answers of a search started on scan h.born, new on this scan
+            moved = np.hypot(*(drive[i, :2] - drive[fresh[0].born, :2]))
+            err = min(np.hypot(*(h.pose[:2] - drive[i, :2])) for h in fresh)
+            fresh_errors.append((moved, err))
+        if winner is not None:
+            break
+    assert winner is not None
+    assert np.hypot(*(winner.pose[:2] - drive[i, :2])) < 0.3
+    assert len(search.search_ms) >= 3 * search.counts["searches"]  # sliced over scans
+    # the robot moved during a search, and its right answer came where the robot is now
+    assert any(moved > 0.5 and err < 0.2 for moved, err in fresh_errors), fresh_errors

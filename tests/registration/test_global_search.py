@@ -9,9 +9,16 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from laser_corners.pose import poses_apart
+from laser_corners.pose import compose_many, poses_apart, wrap_angle
 from laser_corners.registration.correlative import ScoreGrid
-from laser_corners.registration.global_search import QUANT, Lattice, Pyramid, best_poses
+from laser_corners.registration.global_search import (
+    QUANT,
+    Lattice,
+    Pyramid,
+    SlicedSearch,
+    best_poses,
+    carried,
+)
 
 
 def _exhaustive(grid: ScoreGrid, lattice: Lattice, pts, yaws):
@@ -150,3 +157,78 @@ def test_the_pooled_levels_hold_the_window_maxima() -> None:
             top = float(window.max()) if window.size else 0.0
             assert top <= level[r, c] / QUANT < top + 1.0 / QUANT  # rounded up
     assert pyramid.nbytes == pyramid.data.nbytes
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    cells=st.integers(1, 3),
+    count=st.integers(1, 6),
+    budget=st.integers(1, 40),
+)
+def test_the_sliced_search_returns_exactly_the_one_shot_answers(
+    seed: int, cells: int, count: int, budget: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    xy = _room(rng, rng.uniform(4.0, 9.0))
+    grid = ScoreGrid.build(xy, 0.1, 0.2, 1.0)
+    pyramid = Pyramid.build(grid, cells, levels=int(rng.integers(1, 6)))
+    shape = (np.array(grid.score.shape) / cells).astype(int) + 1
+    lattice = Lattice(grid.origin + rng.uniform(-0.3, 0.3, 2), cells, rng.uniform(size=shape) < 0.6)
+    truth = np.array([*rng.uniform(1.0, xy.max() - 1.0, 2), rng.uniform(-3, 3)])
+    pts = _scan(rng, xy, truth, int(rng.integers(5, 60)))
+    yaws = np.sort(rng.uniform(-math.pi, math.pi, int(rng.integers(1, 12))))
+    one_shot = best_poses(pyramid, lattice, pts, yaws, count, (0.8, 0.3))
+    sliced = SlicedSearch(pyramid, lattice, pts, yaws, count, (0.8, 0.3))
+    calls = 0
+    while not sliced.done:
+        spent = sliced.advance(budget)
+        assert 1 <= spent <= budget
+        calls += 1
+    assert sliced.nodes <= calls * budget
+    found = sliced.result()
+    assert len(found) == len(one_shot)
+    for (p, s), (q, r) in zip(found, one_shot, strict=True):
+        assert np.array_equal(p, q) and s == r
+
+
+def test_a_budget_of_one_node_finishes_in_a_bounded_number_of_calls() -> None:
+    rng = np.random.default_rng(7)
+    xy = _room(rng, 6.0)
+    grid = ScoreGrid.build(xy, 0.1, 0.2, 1.0)
+    lattice = Lattice(grid.origin.copy(), 2, np.ones(np.array(grid.score.shape) // 2, bool))
+    yaws = np.linspace(-3, 3, 9)
+    sliced = SlicedSearch(
+        Pyramid.build(grid, 2), lattice, _scan(rng, xy, np.ones(3), 40), yaws, 4, (1.0, 0.3)
+    )
+    allowed, _, _ = lattice.blocks
+    most = len(yaws) * int(allowed.sum())  # every node of every heading once
+    calls = 0
+    while not sliced.done and calls <= most:
+        assert sliced.advance(1) == 1
+        calls += 1
+    assert sliced.done and calls <= most
+    assert sliced.advance(5) == 0  # nothing left to do
+    assert len(sliced.result()) == 4
+
+
+def test_a_search_with_nothing_to_search_is_done_at_once() -> None:
+    rng = np.random.default_rng(5)
+    grid = ScoreGrid.build(_room(rng, 6.0), 0.1, 0.2, 1.0)
+    lattice = Lattice(grid.origin.copy(), 1, np.zeros((4, 4), dtype=bool))
+    sliced = SlicedSearch(Pyramid.build(grid), lattice, np.ones((5, 2)), np.zeros(3), 3, (1, 0.3))
+    assert sliced.done and sliced.result() == [] and sliced.advance(10) == 0
+
+
+def test_answers_are_carried_to_the_current_scan_by_the_odometry_since() -> None:
+    rng = np.random.default_rng(11)
+    then = np.array([3.0, -2.0, 2.5])  # the robot in the map at the scan searched
+    motion = np.array([[0.0, 0.0, 0.0], [1.2, 0.3, 0.4], [-0.5, 2.0, -2.9]])
+    now = compose_many(then, motion)  # where it is later
+    frame = np.array([*rng.uniform(-50, 50, 2), rng.uniform(-3, 3)])  # the odometry's frame
+    odo_then, odo_now = compose_many(frame, then), compose_many(frame, now)
+    for k in range(len(motion)):
+        [p] = carried([then], odo_then, odo_now[k])
+        assert np.allclose(p[:2], now[k, :2]) and abs(wrap_angle(p[2] - now[k, 2])) < 1e-12
+    two = carried([then, np.zeros(3)], odo_then, odo_now[1])
+    assert np.allclose(two[1], motion[1])  # an answer at the map's origin moves by the motion

@@ -13,9 +13,10 @@ pytest.importorskip("gtsam")
 
 
 from laser_corners.pose import compose_many, invert, poses_apart
+from laser_corners.registration.global_search import SlicedSearch
 from laser_corners.registration.place_index import PlaceOptions
 from laser_corners.registration.points import ScanPoints
-from laser_corners.slam import Slam, SlamOptions
+from laser_corners.slam import Slam, SlamOptions, relocalise
 from laser_corners.slam.relocalise import (
     CANDIDATES,
     CENTER_WINDOW,
@@ -160,3 +161,24 @@ def test_the_old_map_of_a_prior_map_takes_its_occupancy_from_the_grid() -> None:
     beam = np.array([[3.9, 0.0]])  # from the origin through the person to the wall
     assert free_space_conflict(plain.occupied, np.zeros(3), beam) == 1.0
     assert free_space_conflict(old.occupied, np.zeros(3), beam) == 0.0
+
+
+def test_the_exhaustive_search_runs_in_slices_and_still_relocalises(monkeypatch) -> None:
+    # a few hundred nodes a scan: each search spans many scans, no scan spends more, and its
+    # answers carried to the keyframe it ends on by the segment's estimate are right
+    spent: list[int] = []
+    advance = SlicedSearch.advance
+
+    def counted(self, budget: int) -> int:
+        spent.append(advance(self, budget))
+        return spent[-1]
+
+    monkeypatch.setattr(SlicedSearch, "advance", counted)
+    monkeypatch.setattr(relocalise, "SLICE_NODES", 300)
+    options = SlamOptions(places=PlaceOptions(enabled=False))
+    truth, kidnap, result = _run(options, 0.0)
+    after = np.hypot(*(result.poses[kidnap:, :2] - truth[kidnap:, :2]).T)
+    assert np.median(after) < 0.1
+    assert result.counts["relocalisations_accepted"] >= 1
+    assert max(spent) <= 300
+    assert len(spent) >= 3 * result.counts["relocalisations_exhaustive"] >= 3

@@ -189,7 +189,9 @@ class Localiser:
 
     @property
     def search_ms(self) -> list[float]:
-        """Milliseconds of every exhaustive correlative search (global or window)."""
+        """Milliseconds of every slice of an exhaustive correlative search (global or
+        window): one a scan while a search runs (``registration.global_search.SLICE_NODES``
+        nodes at most)."""
         return self.search.search_ms
 
     def set_pose(self, pose: ArrayLike, covariance: ArrayLike | None = None) -> None:

@@ -33,7 +33,7 @@ from laser_corners.localise.freespace import FreeSpace
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.registration.align import PointMap
 from laser_corners.registration.correlative import ScoreGrid
-from laser_corners.registration.global_search import Lattice, Pyramid, best_poses
+from laser_corners.registration.global_search import Lattice, Pyramid, SlicedSearch, best_poses
 from laser_corners.registration.mapfolder import SavedMap
 
 __all__ = ["MapModel"]
@@ -125,8 +125,15 @@ class MapModel:
     ) -> list[tuple[NDArray[np.float64], float]]:
         """The ``count`` best poses of ``points`` (base frame) over the whole map, at least
         1 m or 0.3 rad apart, with their mean likelihood."""
+        return self.global_slices(points, yaw_step, count).finish()
+
+    def global_slices(
+        self, points: NDArray[np.float64], yaw_step: float, count: int
+    ) -> SlicedSearch:
+        """:meth:`global_search`, to be run in slices (:class:`SlicedSearch`)."""
         yaws = np.arange(-math.pi, math.pi, yaw_step)
-        return best_poses(self.pyramid, self.lattice, _subsample(points), yaws, count, (1.0, 0.3))
+        pts = _subsample(points)
+        return SlicedSearch(self.pyramid, self.lattice, pts, yaws, count, (1.0, 0.3))
 
     def window_search(
         self,
@@ -145,6 +152,19 @@ class MapModel:
         Used after a lost track, around its dead-reckoned pose: the prior excludes the
         look-alikes elsewhere in the map, and the lattice does not need a keyframe nearby.
         """
+        return self.window_slices(points, centre, xy, yaw, yaw_step, count, apart).finish()
+
+    def window_slices(
+        self,
+        points: NDArray[np.float64],
+        centre: NDArray[np.float64],
+        xy: float,
+        yaw: float,
+        yaw_step: float,
+        count: int,
+        apart: tuple[float, float],
+    ) -> SlicedSearch:
+        """:meth:`window_search`, to be run in slices (:class:`SlicedSearch`)."""
         cells = max(1, round(WINDOW_STEP / GLOBAL_GRID))
         n = math.floor(xy / WINDOW_STEP + 1e-9)
         off = WINDOW_STEP * np.arange(-n, n + 1)
@@ -154,7 +174,7 @@ class MapModel:
         inside[i, j] = self._clear(lattice.positions(GLOBAL_GRID))
         k = math.ceil(yaw / yaw_step)
         yaws = centre[2] + yaw_step * np.arange(-k, k + 1)
-        return best_poses(self.pyramid, lattice, _subsample(points), yaws, count, apart)
+        return SlicedSearch(self.pyramid, lattice, _subsample(points), yaws, count, apart)
 
     def _clear(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Whether each position of ``xy`` is on the likelihood grid and not inside a wall."""

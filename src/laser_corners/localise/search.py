@@ -4,7 +4,9 @@ states of :class:`~laser_corners.localise.Localiser`).
 On every scan the map's place index (corner keypoints of the last metres, :mod:`.places`)
 proposes poses; where it has none for ``places.fallback_travel`` (or the map has no index),
 every ``global_every`` scans the exhaustive search over the whole map
-(:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) does. Each pose becomes a
+(:meth:`~laser_corners.localise.mapmodel.MapModel.global_slices`) starts, run in slices of
+``SLICE_NODES`` nodes a scan so that no scan waits on it; its answers come best first, each
+judged on the scan searched and carried to the current one by the odometry. Each pose becomes a
 hypothesis (``localise.hypotheses``), refined by ICP against the map's points and credited with
 the search's past scans it explains (``localise.history``). Every scan, every hypothesis is
 moved by the odometry step, aligned again and scored by its *agreement*; the winner
@@ -33,6 +35,7 @@ from laser_corners.localise.matcher import MapMatcher
 from laser_corners.localise.places import PlaceProposer
 from laser_corners.localise.window import Window
 from laser_corners.pose import compose_many, poses_apart
+from laser_corners.registration.global_search import SLICE_NODES, SlicedSearch, carried
 from laser_corners.registration.points import ScanPoints, scan_points, transform
 from laser_corners.scan import LaserScan
 
@@ -75,7 +78,13 @@ class GlobalSearch:
         """Odometry travel (m, turns 0.5 m per radian) of the search so far."""
         self.scans = 0
         self.search_ms: list[float] = []
-        """Milliseconds of every exhaustive correlative search (global or window)."""
+        """Milliseconds of every slice of an exhaustive correlative search (global or window):
+        what it cost a scan."""
+        self.slice_nodes = SLICE_NODES
+        """Nodes of the running exhaustive search spent per scan (:class:`SlicedSearch`)."""
+        self.running: tuple[SlicedSearch, tuple, int] | None = None
+        """The exhaustive search under way, the scan it searches (odometry, points, index,
+        the search's travel) and how many of its answers are hypotheses already."""
 
     def restart(self, pose: NDArray | None, index: int, window: Window | None) -> None:
         """A new search: from the lost track's predicted ``pose`` as the first hypothesis (a
@@ -84,6 +93,7 @@ class GlobalSearch:
         given."""
         self.hypotheses = [] if pose is None else [Hypothesis(np.asarray(pose).copy(), index)]
         self.window = window
+        self.running = None
         self.scans = 0
         self.travel = 0.0
         self.history.clear()
@@ -92,6 +102,7 @@ class GlobalSearch:
         """The search is over (a fix, or a pose given from outside)."""
         self.hypotheses = []
         self.window = None
+        self.running = None
 
     def step(
         self, scan: LaserScan, pts: ScanPoints, delta: NDArray, jump: bool, odo: NDArray, index: int
@@ -100,6 +111,7 @@ class GlobalSearch:
         opt = self.options
         if jump:
             self.hypotheses = []
+            self.running = None
             self.scans = 0
             self.history.clear()
             self.places.clear()
@@ -132,6 +144,7 @@ class GlobalSearch:
         self.window.move(delta, opt.odometry)
         if jump or not self.window.open(opt.reacquire_xy, opt.reacquire_yaw):
             self.window = None
+            self.running = None  # a window search: the global one starts anew
             for h in self.hypotheses:  # scored from now on as the global search scores
                 h.recent.clear()
 
@@ -172,14 +185,15 @@ class GlobalSearch:
     def _propose(self, scan: LaserScan, xy: NDArray, odo: NDArray, index: int) -> None:
         """New hypotheses: on every scan the place index's candidates (corner keypoints,
         ``localise.places``) when the map has an index and no lost track's window is open;
-        every ``global_every`` scans the exhaustive correlative search (the whole map, or
-        the window after a lost track) when there is no index, or inside a window, or once
-        the search has travelled ``places.fallback_travel`` with no hypothesis alive (too few
-        corners where the robot is)."""
+        the exhaustive correlative search (the whole map, or the window after a lost track)
+        when there is no index, or inside a window, or once the search has travelled
+        ``places.fallback_travel`` with no hypothesis alive (too few corners where the robot
+        is): started every ``global_every`` scans, run :attr:`slice_nodes` nodes a scan
+        (:meth:`_slice`)."""
         opt = self.options
         keypoints = self.window is None and self.places.usable
         due = self.scans % opt.global_every == 0
-        if not (keypoints or due):
+        if not (keypoints or due or self.running is not None):
             return
         mount = self.matcher.mount
         coarse = scan_points(scan, mount, opt.min_range, opt.max_range, GLOBAL_SPACING)
@@ -190,20 +204,43 @@ class GlobalSearch:
         fallback = not keypoints or (
             self.travel >= opt.places.fallback_travel and not self.hypotheses
         )
-        if fallback and due:
-            self.counts["searches"] += 1
-            start = time.perf_counter()
-            found = self._exhaustive(coarse.xy)
-            self.search_ms.append((time.perf_counter() - start) * 1e3)
-            self._spawn([guess for guess, _ in found], xy, odo, index)
+        if (fallback and due) or self.running is not None:
+            self._slice(coarse.xy, xy, odo, index)
 
-    def _exhaustive(self, xy: NDArray) -> list[tuple[NDArray[np.float64], float]]:
-        """The exhaustive correlative search: over the whole map, or inside the window."""
+    def _slice(self, coarse: NDArray, xy: NDArray, odo: NDArray, index: int) -> None:
+        """One slice of the exhaustive search (a new one on this scan when none runs). Its
+        answers come out best first and final (:class:`SlicedSearch`): each new one becomes
+        a hypothesis as it would have on the scan searched (:meth:`_fresh` on that scan),
+        carried to this scan by the odometry since
+        (:func:`~laser_corners.registration.global_search.carried`)."""
+        start = time.perf_counter()
+        if self.running is None:
+            self.counts["searches"] += 1
+            then = (np.array(odo, dtype=np.float64), xy, index, self.travel)
+            self.running = (self._exhaustive(coarse), then, 0)
+        search, (then_odo, then_xy, then_index, then_travel), used = self.running
+        search.advance(self.slice_nodes)
+        self.search_ms.append((time.perf_counter() - start) * 1e3)
+        guesses = [p for p, _ in search.result()[used:]]
+        self.running = None if search.done else (search, self.running[1], used + len(guesses))
+        if not guesses:
+            return
+        back = carried([h.pose for h in self.hypotheses], odo, then_odo)
+        fresh = self._fresh(guesses, back, then_xy, then_odo, then_index, then_travel)
+        for h, pose in zip(fresh, carried([h.pose for h in fresh], then_odo, odo), strict=True):
+            h.pose = pose
+            h.travel += self.travel - then_travel
+            h.scans += index - then_index
+        self.hypotheses = merged(self.hypotheses + fresh, self.options)
+
+    def _exhaustive(self, xy: NDArray) -> SlicedSearch:
+        """The exhaustive correlative search, to run in slices: over the whole map, or inside
+        the window."""
         opt = self.options
         model = self.matcher.model
         if self.window is None:
-            return model.global_search(xy, opt.global_yaw_step, opt.global_candidates)
-        return model.window_search(
+            return model.global_slices(xy, opt.global_yaw_step, opt.global_candidates)
+        return model.window_slices(
             xy,
             self.window.pose,
             *self.window.half_widths,
@@ -213,16 +250,32 @@ class GlobalSearch:
         )
 
     def _spawn(self, guesses: list[NDArray], xy: NDArray, odo: NDArray, index: int) -> None:
-        """Hypotheses from the guesses that ICP aligns to agree with the map without
+        """Hypotheses from the guesses on this scan (:meth:`_fresh`), merged with those
+        alive."""
+        poses = [h.pose for h in self.hypotheses]
+        fresh = self._fresh(guesses, poses, xy, odo, index, self.travel)
+        self.hypotheses = merged(self.hypotheses + fresh, self.options)
+
+    def _fresh(
+        self,
+        guesses: list[NDArray],
+        taken: list[NDArray],
+        xy: NDArray,
+        odo: NDArray,
+        index: int,
+        travel: float,
+    ) -> list[Hypothesis]:
+        """Hypotheses from the guesses of the scan ``index`` (points ``xy``, odometry
+        ``odo``, the search's ``travel`` then) that ICP aligns to agree with the map without
         contradicting its free space (counted in ``refused_free_space`` when not); guesses
-        where a hypothesis already is are skipped. Those of the global search are credited
-        with the past scans they explain (:meth:`_credit`)."""
+        near a pose of ``taken`` (the hypotheses alive, at that scan) are skipped. Those of
+        the global search are credited with the past scans they explain (:meth:`_credit`)."""
         opt = self.options
         prior = np.diag(1.0 / SPAWN_SIGMA**2)
         apart = (opt.distinct_xy, opt.distinct_yaw)
         fresh = []
         for guess in guesses:
-            if any(not poses_apart(guess, h.pose, *apart) for h in self.hypotheses):
+            if any(not poses_apart(guess, pose, *apart) for pose in taken):
                 continue
             aligned, agreement = self.matcher.align(xy, guess, prior)
             if agreement < opt.hypothesis_agreement:
@@ -233,20 +286,21 @@ class GlobalSearch:
                 continue
             h = Hypothesis(aligned.pose, index)
             if self.window is None:
-                self._credit(h, odo, index)
+                self._credit(h, odo, index, travel)
             h.remember(self._agreement(xy, h.pose, agreement), support, opt.recent_scans)
             fresh.append(h)
-        self.hypotheses = merged(self.hypotheses + fresh, opt)
+        return fresh
 
-    def _credit(self, h: Hypothesis, odo: NDArray, index: int) -> None:
-        """Credit a new hypothesis of the global search with the past scans it explains
-        (``SearchHistory.explained``): their agreements and shares join its recent ones,
-        their travel and scans its own (``localise.history``)."""
-        credited = self.history.explained(self.matcher, h.pose, odo, self.travel, index)
+    def _credit(self, h: Hypothesis, odo: NDArray, index: int, travel: float) -> None:
+        """Credit a new hypothesis of the global search at scan ``index`` (the search's
+        ``travel`` then) with the past scans it explains (``SearchHistory.explained``):
+        their agreements and shares join its recent ones, their travel and scans its own
+        (``localise.history``)."""
+        credited = self.history.explained(self.matcher, h.pose, odo, travel, index)
         if not credited:
             return
         for past in reversed(credited):
             h.remember(past.agreement, past.support, self.options.recent_scans)
-        h.travel = self.travel - credited[-1].scan.travel
+        h.travel = travel - credited[-1].scan.travel
         h.scans = index - credited[-1].scan.index
         self.counts["credited"] += 1

@@ -49,14 +49,33 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.correlative import ScoreGrid
 
-__all__ = ["LEVELS", "QUANT", "Lattice", "Pyramid", "best_poses"]
+__all__ = [
+    "LEVELS",
+    "QUANT",
+    "SLICE_NODES",
+    "Lattice",
+    "Pyramid",
+    "SlicedSearch",
+    "best_poses",
+    "carried",
+]
 
 LEVELS = 7
 """Pooled levels of a :class:`Pyramid` (blocks of 1 .. 64 lattice positions a side)."""
 QUANT = 255
 """Steps of a pooled score (0 .. 1) in a :class:`Pyramid`'s bytes."""
+SEED_BLOCKS = 4
+"""Top-level blocks bounded per node of a :class:`SlicedSearch`'s budget (a bound reads each
+point once, a node split reads it four times)."""
+SLICE_NODES = 4000
+"""Nodes of a :class:`SlicedSearch` spent per scan by its callers (localisation, SLAM
+relocalisation): about 3 µs a node on average with 120 points on this project's shared 2-core
+machine, some 12 ms a scan (``docs/relocalisation.md``). Fewer delay the answers: with 2,000,
+fr079's right pose came 12 scans after the scan searched, too late for a fix before a
+corridor (``tests/localise/test_places.py``)."""
 
 
 def _window_max(a: NDArray[np.float32], w: int, axis: int) -> NDArray[np.float32]:
@@ -280,7 +299,42 @@ def _cells(
 
 
 @numba.njit(cache=True, nogil=True)
-def _search(
+def _seed(
+    pyramid: tuple,
+    masks: tuple,
+    level: NDArray[np.int64],
+    cy: NDArray[np.int64],
+    cx: NDArray[np.int64],
+    m: int,
+    heap: tuple,
+    state: NDArray[np.int64],
+    budget: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], int]:
+    """Push the top-level blocks ``state[2] ..`` (flat over headings, then rows, then columns)
+    that hold an allowed position, at most ``budget`` of them looked at; the heap, its size in
+    ``state[0]``, the next block in ``state[2]``; returns the heap and the blocks looked at."""
+    score, data, offsets, shapes = pyramid
+    allowed, m_offsets, m_shapes = masks
+    keys, nodes = heap
+    top = level.shape[0] - 1
+    n_top = m_shapes[top, 0] * m_shapes[top, 1]
+    total = cy.shape[0] * n_top
+    spent = 0
+    while state[2] < total and spent < budget:
+        h, rest = state[2] // n_top, state[2] % n_top
+        a, b = rest // m_shapes[top, 1], rest % m_shapes[top, 1]
+        if allowed[m_offsets[top] + rest]:
+            key = _node_bound(score, data, offsets, shapes, level, cy[h], cx[h], m, top, a, b)
+            if key > 0.0:
+                keys, nodes = _push(keys, nodes, state[0], key, top, h, a, b)
+                state[0] += 1
+        state[2] += 1
+        spent += 1
+    return keys, nodes, spent
+
+
+@numba.njit(cache=True, nogil=True)
+def _advance(
     pyramid: tuple,
     masks: tuple,
     level: NDArray[np.int64],
@@ -288,34 +342,33 @@ def _search(
     cx: NDArray[np.int64],
     geometry: NDArray[np.float64],
     yaws: NDArray[np.float64],
-    count: int,
     apart: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The branch and bound (module notes): ``count`` distinct best poses and their score
-    sums. ``geometry``: lattice origin x, y, step (m), cells per step."""
+    heap: tuple,
+    state: NDArray[np.int64],
+    chosen: NDArray[np.float64],
+    scores: NDArray[np.float64],
+    budget: int,
+) -> tuple[NDArray[np.float64], NDArray[np.int64], int]:
+    """The branch and bound (module notes), resumed: at most ``budget`` nodes (a node
+    popped, or :data:`SEED_BLOCKS` top-level blocks bounded) from ``state`` (heap size,
+    answers, next top-level block), whose arrays it updates in place: the answers so far in
+    ``chosen`` / ``scores`` (pose, score sum). ``geometry``: lattice origin x, y, step (m),
+    cells per step. Returns the heap (grown) and the nodes spent; the same sequence of nodes
+    in one call or many."""
     score, data, offsets, shapes = pyramid
     allowed, m_offsets, m_shapes = masks
-    top = level.shape[0] - 1
     m = int(geometry[3])
-    keys = np.empty(1024)
-    nodes = np.empty((1024, 4), dtype=np.int64)
-    size = 0
-    for h in range(yaws.shape[0]):
-        for a in range(m_shapes[top, 0]):
-            for b in range(m_shapes[top, 1]):
-                if allowed[m_offsets[top] + a * m_shapes[top, 1] + b]:
-                    key = _node_bound(
-                        score, data, offsets, shapes, level, cy[h], cx[h], m, top, a, b
-                    )
-                    if key > 0.0:
-                        keys, nodes = _push(keys, nodes, size, key, top, h, a, b)
-                        size += 1
-    chosen = np.zeros((count, 3))
-    scores = np.zeros(count)
-    n_chosen = 0
+    # a top-level bound reads each point once, a node split four times: four to a node
+    blocks = SEED_BLOCKS * budget if budget < 2**60 else budget
+    keys, nodes, blocks = _seed(pyramid, masks, level, cy, cx, m, heap, state, blocks)
+    spent = (blocks + SEED_BLOCKS - 1) // SEED_BLOCKS
+    top = level.shape[0] - 1
+    seeded = state[2] >= cy.shape[0] * m_shapes[top, 0] * m_shapes[top, 1]
+    size, n_chosen = state[0], state[1]
     box = np.empty(5)
     four = np.empty(4)
-    while size > 0 and n_chosen < count:
+    while seeded and size > 0 and n_chosen < chosen.shape[0] and spent < budget:
+        spent += 1
         key = keys[0]
         d, h, a, b = nodes[0, 0], nodes[0, 1], nodes[0, 2], nodes[0, 3]
         _pop(keys, nodes, size)
@@ -344,7 +397,8 @@ def _search(
                     if allowed[m_offsets[d - 1] + ca * cols + cb]:
                         keys, nodes = _push(keys, nodes, size, bound, d - 1, h, ca, cb)
                         size += 1
-    return chosen[:n_chosen], scores[:n_chosen]
+    state[0], state[1] = size, n_chosen
+    return keys, nodes, spent
 
 
 @numba.njit(cache=True, nogil=True)
@@ -410,6 +464,92 @@ def _node_bound(
     return top / QUANT
 
 
+class SlicedSearch:
+    """:func:`best_poses` in slices: a branch and bound that keeps its heap between calls of
+    :meth:`advance`, each spending at most a budget of nodes, and gives the answers of the
+    one-shot search (the same nodes in the same order, however sliced) once :attr:`done`.
+
+    A node is a node taken from the heap (split into its four children, or a leaf scored:
+    four lookups a point) or :data:`SEED_BLOCKS` top-level blocks bounded (one each), so a
+    budget of nodes bounds the time of a slice whatever the map, while the answer does not
+    depend on the load.
+
+    Parameters
+    ----------
+    pyramid, lattice, points, yaws, count, apart
+        As :func:`best_poses`; the query is frozen at construction.
+    """
+
+    def __init__(
+        self,
+        pyramid: Pyramid,
+        lattice: Lattice,
+        points: NDArray[np.float64],
+        yaws: NDArray[np.float64],
+        count: int,
+        apart: tuple[float, float],
+    ) -> None:
+        grid = pyramid.grid
+        points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        yaws = np.ascontiguousarray(yaws, dtype=np.float64).ravel()
+        self.n_points = len(points)
+        self.nodes = 0
+        """Nodes spent so far."""
+        self.state = np.zeros(3, dtype=np.int64)  # heap size, answers, next top-level block
+        self.chosen = np.zeros((max(int(count), 0), 3))
+        self.scores = np.zeros(max(int(count), 0))
+        self._done = len(points) == 0 or len(yaws) == 0 or count < 1
+        if self._done or not lattice.allowed.any():
+            self._done = True
+            return
+        shift = np.asarray(lattice.origin, dtype=np.float64) - grid.origin
+        cy, cx = _cells(points, yaws, shift, grid.resolution)
+        step = lattice.cells * grid.resolution
+        geometry = np.array([lattice.origin[0], lattice.origin[1], step, lattice.cells], float)
+        self._kernel = (
+            (grid.score.ravel(), pyramid.data, pyramid.offsets, pyramid.shapes),
+            lattice.blocks,
+            _levels(lattice, pyramid),
+            cy,
+            cx,
+            geometry,
+            yaws,
+            np.array(apart, dtype=np.float64),
+        )
+        self._heap = (np.empty(1024), np.empty((1024, 4), dtype=np.int64))
+        shapes = lattice.blocks[2]
+        self._top_blocks = len(yaws) * int(np.prod(shapes[len(self._kernel[2]) - 1]))
+
+    @property
+    def done(self) -> bool:
+        """Whether the answers are final (:meth:`result`)."""
+        return self._done
+
+    def advance(self, budget: int) -> int:
+        """Go on for at most ``budget`` (>= 1) nodes; the nodes spent (0 once :attr:`done`)."""
+        if self._done:
+            return 0
+        keys, nodes, spent = _advance(
+            *self._kernel, self._heap, self.state, self.chosen, self.scores, int(budget)
+        )
+        self._heap = (keys, nodes)
+        self.nodes += spent
+        size, n_chosen = self.state[0], self.state[1]
+        seeded = self.state[2] >= self._top_blocks
+        self._done = bool(seeded and (size == 0 or n_chosen >= len(self.scores)))
+        return int(spent)
+
+    def finish(self) -> list[tuple[NDArray[np.float64], float]]:
+        """Go on to the end (no budget): the answers (:meth:`result`)."""
+        self.advance(np.iinfo(np.int64).max)
+        return self.result()
+
+    def result(self) -> list[tuple[NDArray[np.float64], float]]:
+        """The answers found so far (all of them once :attr:`done`): :func:`best_poses`'s."""
+        n = int(self.state[1])
+        return [(self.chosen[i].copy(), float(self.scores[i]) / self.n_points) for i in range(n)]
+
+
 def best_poses(
     pyramid: Pyramid,
     lattice: Lattice,
@@ -443,25 +583,15 @@ def best_poses(
         where no point scores are not answers: an empty scan or lattice, or a scan off the
         map, gives ``[]``.
     """
-    grid = pyramid.grid
-    points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
-    yaws = np.ascontiguousarray(yaws, dtype=np.float64).ravel()
-    if len(points) == 0 or len(yaws) == 0 or count < 1 or not lattice.allowed.any():
-        return []
-    level = _levels(lattice, pyramid)
-    shift = np.asarray(lattice.origin, dtype=np.float64) - grid.origin
-    cy, cx = _cells(points, yaws, shift, grid.resolution)
-    step = lattice.cells * grid.resolution
-    geometry = np.array([lattice.origin[0], lattice.origin[1], step, lattice.cells], float)
-    poses, sums = _search(
-        (grid.score.ravel(), pyramid.data, pyramid.offsets, pyramid.shapes),
-        lattice.blocks,
-        level,
-        cy,
-        cx,
-        geometry,
-        yaws,
-        int(count),
-        np.array(apart, dtype=np.float64),
-    )
-    return [(poses[i].copy(), float(sums[i]) / len(points)) for i in range(len(sums))]
+    return SlicedSearch(pyramid, lattice, points, yaws, count, apart).finish()
+
+
+def carried(
+    poses: list[NDArray[np.float64]], then: NDArray[np.float64], now: NDArray[np.float64]
+) -> list[NDArray[np.float64]]:
+    """Answers of a search of the scan at odometry ``then`` (map-frame poses of that scan)
+    carried to the scan at odometry ``now``: each composed with the motion between them
+    (``then`` and ``now`` in any one frame: the odometry's, or a segment's dead-reckoned
+    estimate)."""
+    motion = between_many(then, now)
+    return [compose_many(p, motion) for p in poses]

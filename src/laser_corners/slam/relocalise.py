@@ -14,12 +14,15 @@ back into the map built before it (:class:`Relocaliser`):
    keyframes; each candidate is moved by a bounded correlative check of the segment's last
    keyframes' points on a likelihood grid of the old map; the :data:`CANDIDATES` best are
    verified. Only when the index has nothing to propose (too few corners), on the first
-   :data:`FALLBACK_FIRST` attempts of a segment, the exhaustive search runs instead: the
+   :data:`FALLBACK_FIRST` attempts of a segment, the exhaustive search starts instead: the
    best distinct poses of the points on the likelihood grid, every heading, at positions
    within :data:`CENTER_WINDOW` of an old keyframe (thinned to :data:`CENTER_SPACING`), as
    scoring them all would find them, by the whole-map branch and bound
-   (:func:`~laser_corners.registration.global_search.best_poses`, its pooled grids made at
-   the old map's first exhaustive search).
+   (:class:`~laser_corners.registration.global_search.SlicedSearch`, its pooled grids made
+   at the old map's first exhaustive search). It runs in slices of ``SLICE_NODES`` nodes,
+   one a scan (:meth:`Relocaliser.advance`), so no scan waits on it; its answers, for the
+   keyframe it searched, are carried by the segment's estimate to the keyframes of the next
+   :data:`FALLBACK_FIRST` attempts and verified there.
 2. **Verify** each: the loop-closure verification (:func:`~laser_corners.slam.loops.verify`:
    a narrow correlative search and ICP against the nearest old keyframe's submap, overlap,
    degeneracy), then the share of the query on the whole old map (at least
@@ -53,7 +56,13 @@ from laser_corners.pose import (
 )
 from laser_corners.registration.align import PointMap, match_share
 from laser_corners.registration.correlative import ScoreGrid
-from laser_corners.registration.global_search import Lattice, Pyramid, best_poses
+from laser_corners.registration.global_search import (
+    SLICE_NODES,
+    Lattice,
+    Pyramid,
+    SlicedSearch,
+    carried,
+)
 from laser_corners.registration.place_index import PlaceIndex, dense_check
 from laser_corners.registration.points import ScanPoints, transform
 from laser_corners.slam.counts import SlamCounts
@@ -103,9 +112,10 @@ AGREE_XY = 0.3
 AGREE_YAW = 0.1
 """... and by less than this (rad)."""
 FALLBACK_FIRST = 4
-"""The exhaustive search (no candidate from the place index) runs on the first this many
+"""The exhaustive search (no candidate from the place index) starts on the first this many
 attempts of a lost segment only (a segment still lost after them is mapping new ground, or
-lies where the map has no corners: it is left to the index and the ordinary loop closure)."""
+lies where the map has no corners: it is left to the index and the ordinary loop closure);
+its answers are verified on this many attempts after it ends."""
 SEARCH_YAW_STEP = 0.02
 """Heading step (rad) of the exhaustive search (its candidates are verified by a finer search)."""
 
@@ -168,12 +178,15 @@ class OldMap:
     def search(self, query: NDArray[np.float64]) -> list[tuple[float, NDArray[np.float64]]]:
         """The :data:`CANDIDATES` best distinct poses of ``query`` (base frame) over the whole
         map, with their mean likelihood, best first."""
+        return [(score, pose) for pose, score in self.slices(query).finish()]
+
+    def slices(self, query: NDArray[np.float64]) -> SlicedSearch:
+        """:meth:`search`, to be run in slices."""
         pts = query[np.linspace(0, len(query) - 1, min(len(query), QUERY_POINTS)).astype(int)]
         if self.index is None:
             self.index = (Pyramid.build(self.grid), self.lattice())
         yaws = np.arange(-math.pi, math.pi, SEARCH_YAW_STEP)
-        found = best_poses(*self.index, pts, yaws, CANDIDATES, (DISTINCT_XY, DISTINCT_YAW))
-        return [(score, pose) for pose, score in found]
+        return SlicedSearch(*self.index, pts, yaws, CANDIDATES, (DISTINCT_XY, DISTINCT_YAW))
 
 
 OCCUPANCY_CELL = 0.05
@@ -246,6 +259,10 @@ class Relocaliser:
     """A prior map's keyframe count and occupancy (:meth:`OldMap.build`), when it has a grid."""
     counts: SlamCounts = field(default_factory=SlamCounts)
     """Counts ``relocalisations_attempted``, ``_accepted`` and ``_exhaustive``."""
+    running: tuple[SlicedSearch, int] | None = None
+    """The exhaustive search under way and the keyframe whose query it searches."""
+    answers: tuple[list[NDArray[np.float64]], int, int] | None = None
+    """The last exhaustive search's poses, the keyframe they are of, attempts left to them."""
 
     @property
     def lost(self) -> bool:
@@ -257,10 +274,23 @@ class Relocaliser:
         if k == 0:
             return
         self.start, self.attempts, self.old, self.pending = k, 0, None, None
+        self.running, self.answers = None, None
 
     def end(self) -> None:
         """The segment is back in the map (or closed by an ordinary loop closure)."""
         self.start, self.old, self.pending = None, None, None
+        self.running, self.answers = None, None
+
+    def advance(self) -> None:
+        """A scan between keyframes: the exhaustive search under way, if any, goes on by
+        :data:`~laser_corners.registration.global_search.SLICE_NODES` nodes."""
+        if self.running is None:
+            return
+        search, at = self.running
+        search.advance(SLICE_NODES)
+        if search.done:
+            self.running = None
+            self.answers = ([p for p, _ in search.result()], at, FALLBACK_FIRST)
 
     def attempt(
         self, k: int, points: list[ScanPoints], estimate: NDArray[np.float64]
@@ -297,8 +327,8 @@ class Relocaliser:
         return []
 
     def _candidates(self, k: int, query: NDArray, estimate: NDArray) -> list[NDArray]:
-        """Poses of keyframe ``k`` to verify: the place index's (dense-checked), else, on the
-        first :data:`FALLBACK_FIRST` attempts, the exhaustive search's."""
+        """Poses of keyframe ``k`` to verify: the place index's (dense-checked), else those of
+        the exhaustive search (:meth:`_exhaustive`)."""
         assert self.old is not None and self.start is not None
         if self.places is not None and self.options.places.enabled:
             opt = self.options.places
@@ -307,12 +337,28 @@ class Relocaliser:
             corners = self.places.keyframe_corners(own, estimate, estimate[k])
             found = self.places.candidates(corners, estimate, upto=self.start)
             if found:
+                self.running = None
                 checked = dense_check(found, self.old.grid, query, opt)
                 return [c.pose for c in checked[:CANDIDATES]]
-        if self.attempts > FALLBACK_FIRST:
+        return self._exhaustive(k, query, estimate)
+
+    def _exhaustive(self, k: int, query: NDArray, estimate: NDArray) -> list[NDArray]:
+        """The exhaustive search's poses for keyframe ``k``: a search is started (on the
+        query of ``k``) on the first :data:`FALLBACK_FIRST` attempts of a segment when none
+        runs and no answers are left, and goes on by ``SLICE_NODES`` nodes a scan
+        (:meth:`advance`); its answers, carried from the keyframe searched to ``k`` by the
+        segment's estimate, are verified on the next :data:`FALLBACK_FIRST` attempts (the
+        first and the one to agree with it among them)."""
+        assert self.old is not None
+        if self.running is None and self.answers is None and self.attempts <= FALLBACK_FIRST:
+            self.counts.relocalisations_exhaustive += 1
+            self.running = (self.old.slices(query), k)
+        self.advance()
+        if self.answers is None:
             return []
-        self.counts.relocalisations_exhaustive += 1
-        return [pose for _, pose in self.old.search(query)]
+        poses, at, left = self.answers
+        self.answers = (poses, at, left - 1) if left > 1 else None
+        return carried(poses, estimate[at], estimate[k])
 
     def _best(
         self, k: int, query: NDArray, points: list[ScanPoints], estimate: NDArray

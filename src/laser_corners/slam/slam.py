@@ -207,6 +207,8 @@ class Slam:
             moved = relative_pose(self._anchor, self.pose)
             if self.keyframer.due(moved, stamp, tracking.jumped, tracking.aligned):
                 self._keyframe(scan, pts, odo, stamp, kp)
+            else:  # a lost segment's exhaustive search goes on a slice a scan
+                self.closing.relocaliser.advance()
         self._last_odom, self._last_stamp = odo, stamp
         rel = np.array(relative_pose(self._anchor, self.pose))
         self.log.add(stamp, odo, len(self.kf) - 1, rel, pts.xy)
