@@ -31,7 +31,9 @@ from numpy.typing import NDArray
 from laser_corners.localise.history import SearchHistory
 from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
 from laser_corners.localise.local import LocalMap, explained_share
+from laser_corners.localise.mapmodel import MapModel
 from laser_corners.localise.matcher import MapMatcher
+from laser_corners.localise.options import LocaliseOptions
 from laser_corners.localise.places import PlaceProposer
 from laser_corners.localise.window import Window
 from laser_corners.pose import compose_many, poses_apart
@@ -39,7 +41,7 @@ from laser_corners.registration.global_search import SLICE_NODES, SlicedSearch, 
 from laser_corners.registration.points import ScanPoints, scan_points, transform
 from laser_corners.scan import LaserScan
 
-__all__ = ["GLOBAL_SPACING", "GlobalSearch"]
+__all__ = ["GLOBAL_SPACING", "GlobalSearch", "exhaustive_search"]
 
 GLOBAL_SPACING = 0.2
 """Spacing (m) of the scan points given to the global search."""
@@ -217,7 +219,8 @@ class GlobalSearch:
         if self.running is None:
             self.counts["searches"] += 1
             then = (np.array(odo, dtype=np.float64), xy, index, self.travel)
-            self.running = (self._exhaustive(coarse), then, 0)
+            model, window = self.matcher.model, self.window
+            self.running = (exhaustive_search(model, window, coarse, self.options), then, 0)
         search, (then_odo, then_xy, then_index, then_travel), used = self.running
         search.advance(self.slice_nodes)
         self.search_ms.append((time.perf_counter() - start) * 1e3)
@@ -232,22 +235,6 @@ class GlobalSearch:
             h.travel += self.travel - then_travel
             h.scans += index - then_index
         self.hypotheses = merged(self.hypotheses + fresh, self.options)
-
-    def _exhaustive(self, xy: NDArray) -> SlicedSearch:
-        """The exhaustive correlative search, to run in slices: over the whole map, or inside
-        the window."""
-        opt = self.options
-        model = self.matcher.model
-        if self.window is None:
-            return model.global_slices(xy, opt.global_yaw_step, opt.global_candidates)
-        return model.window_slices(
-            xy,
-            self.window.pose,
-            *self.window.half_widths,
-            opt.global_yaw_step,
-            opt.global_candidates,
-            (opt.distinct_xy, opt.distinct_yaw),
-        )
 
     def _spawn(self, guesses: list[NDArray], xy: NDArray, odo: NDArray, index: int) -> None:
         """Hypotheses from the guesses on this scan (:meth:`_fresh`), merged with those
@@ -304,3 +291,20 @@ class GlobalSearch:
         h.travel = travel - credited[-1].scan.travel
         h.scans = index - credited[-1].scan.index
         self.counts["credited"] += 1
+
+
+def exhaustive_search(
+    model: MapModel, window: Window | None, xy: NDArray, opt: LocaliseOptions
+) -> SlicedSearch:
+    """The exhaustive correlative search of the scan points ``xy``, to run in slices: over the
+    whole map of ``model``, or inside the lost track's ``window``."""
+    if window is None:
+        return model.global_slices(xy, opt.global_yaw_step, opt.global_candidates)
+    return model.window_slices(
+        xy,
+        window.pose,
+        *window.half_widths,
+        opt.global_yaw_step,
+        opt.global_candidates,
+        (opt.distinct_xy, opt.distinct_yaw),
+    )
