@@ -18,6 +18,7 @@ relative to the last keyframe, so their final pose follows the keyframe's final 
 from __future__ import annotations
 
 import time
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -44,6 +45,18 @@ __all__ = ["Slam"]
 FROZEN_REACH = 10.0
 """A run localising in a frozen map (``frozen``) tracks against the map's keyframes within
 this distance (m) of its pose, besides its own recent keyframes."""
+
+
+class _Placement(NamedTuple):
+    """What :meth:`Slam.place` asked for the next scan: the placed scan's base ``pose`` (map
+    frame), the ``sigmas`` of its prior, and its ``odometry`` when :meth:`Slam.add` did not
+    get that scan (None: the last scan given)."""
+
+    pose: NDArray[np.float64]
+    sigmas: tuple[float, float, float]
+    odometry: NDArray[np.float64] | None
+
+
 FULL_ESTIMATE_EVERY = 50
 """Every this many keyframes (and after every loop closure) all keyframe estimates are read
 back from iSAM2; in between only the recent ones."""
@@ -133,7 +146,7 @@ class Slam:
         self._last_stamp = -np.inf
         self._step = np.zeros(3)  # the last scan-to-scan motion of the estimate
         self._cov = np.diag([1e-6, 1e-6, 1e-8])  # the last keyframe's marginal
-        self._place: tuple | None = None  # place() next: pose, sigmas, odometry or None
+        self._place: _Placement | None = None  # place() asked for the next scan
         self._cut = False  # cut() asked for the next scan
 
     # ------------------------------------------------------------------ placing (frozen)
@@ -150,7 +163,7 @@ class Slam:
         when it was not given to :meth:`add` (a localiser feeds the engine only while it is
         placed); None: the last scan given (before the first scan: the first scan's pose)."""
         at = None if odometry is None else np.asarray(odometry, dtype=np.float64).reshape(3)
-        self._place = (np.asarray(pose, dtype=np.float64).reshape(3).copy(), sigmas, at)
+        self._place = _Placement(np.asarray(pose, dtype=np.float64).reshape(3).copy(), sigmas, at)
 
     def cut(self) -> None:
         """The next scan starts a new segment, not placed in the map (a localiser lost its
@@ -184,11 +197,12 @@ class Slam:
         if self.pose is None or self._place is not None or self._cut:
             first, placed = self.pose is None, self._place
             self._place, self._cut = None, False
-            step = np.zeros(3) if first else np.array(relative_pose(self._last_odom, odo))
+            if placed is not None and placed.odometry is not None:  # a scan add() did not get
+                step = np.array(relative_pose(placed.odometry, odo))
+            else:
+                step = np.zeros(3) if first else np.array(relative_pose(self._last_odom, odo))
             if placed is not None:
-                if placed[2] is not None:  # placed at a scan not given to add()
-                    step = np.array(relative_pose(placed[2], odo))
-                self.pose = np.array(compose(placed[0], step))
+                self.pose = np.array(compose(placed.pose, step))
             elif first:
                 self.pose = odo.copy() if self.initial_pose is None else self.initial_pose.copy()
             else:
@@ -235,7 +249,7 @@ class Slam:
         stamp: float,
         kp: Keypoints | None,
         first: bool = False,
-        placed: tuple | None = None,
+        placed: _Placement | None = None,
         cut: bool = False,
     ) -> None:
         """The scan at the tracked pose becomes keyframe ``k``: into the graph, loop closure
@@ -259,7 +273,7 @@ class Slam:
             aligned=tracking.aligned,
             kp=kp,
             cov=self._cov,
-            placed=None if placed is None else placed[1],
+            placed=None if placed is None else placed.sigmas,
         )
         if placed is not None:
             self.closing.unplaced = None
