@@ -101,3 +101,58 @@ def test_a_sliced_exhaustive_search_carries_its_answers_to_the_scan_it_ends_on(
     assert len(search.search_ms) >= 3 * search.counts["searches"]  # sliced over scans
     # the robot moved during a search, and its right answer came where the robot is now
     assert any(moved > 0.5 and err < 0.2 for moved, err in fresh_errors), fresh_errors
+
+
+def _no_corner_matches() -> LocaliseOptions:
+    # an index that never proposes (no descriptor is that close): where the robot sees too
+    # few corners, the exhaustive search must take over after places.fallback_travel
+    return LocaliseOptions().with_overrides(["places.max_descriptor_distance=1e-9"])
+
+
+def test_the_fallback_search_starts_as_soon_as_the_index_has_had_fallback_travel(
+    building_world,
+) -> None:
+    # the scan the fallback becomes due depends on the robot, not on the phase of a scan
+    # counter: started at the next multiple of global_every, it came up to global_every - 1
+    # scans late (aces, start 4428: 4 scans, 0.6 m, and the fix at 3.2 m of travel)
+    saved, truth = building_world
+    options = _no_corner_matches()
+    search = _search(saved, options)
+    drive = truth[150:450]
+    scans, odo = scans_along(building(), drive, 8), noisy_odometry(drive, 8)
+    due = None
+    for i, scan in enumerate(scans[:60]):
+        pts = scan_points(scan, np.zeros(3), 0.1, 30.0, options.point_spacing)
+        delta = np.zeros(3) if i == 0 else between_many(odo[i - 1], odo[i])
+        search.step(scan, pts, delta, False, odo[i], i)
+        if due is None and search.travel >= options.places.fallback_travel:
+            due = i
+        assert search.counts["searches"] == (due is not None), (i, due)
+        if due is not None:
+            break
+    assert due is not None and due % options.global_every != 0  # the case the old rule delays
+    assert search.counts["place_attempts"] == due + 1 and search.running is not None
+
+
+def test_the_fallback_search_is_not_started_again_within_global_every_scans(
+    building_world,
+) -> None:
+    # the other side of the rule: one exhaustive search at a time, and a new one only
+    # global_every scans after the last one started, however few hypotheses are alive
+    saved, truth = building_world
+    options = _no_corner_matches()
+    search = _search(saved, options)
+    search.slice_nodes = 10**9  # each search ends on the scan it starts
+    drive = truth[150:450]
+    scans, odo = scans_along(building(), drive, 8), noisy_odometry(drive, 8)
+    started = []
+    for i, scan in enumerate(scans[:40]):
+        pts = scan_points(scan, np.zeros(3), 0.1, 30.0, options.point_spacing)
+        delta = np.zeros(3) if i == 0 else between_many(odo[i - 1], odo[i])
+        before = search.counts["searches"]
+        search.hypotheses = []  # nothing alive: the fallback stays needed on every scan
+        search.step(scan, pts, delta, False, odo[i], i)
+        if search.counts["searches"] > before:
+            started.append(i)
+    assert len(started) >= 2
+    assert np.all(np.diff(started) == options.global_every), started

@@ -79,6 +79,8 @@ class GlobalSearch:
         self.travel = 0.0
         """Odometry travel (m, turns 0.5 m per radian) of the search so far."""
         self.scans = 0
+        self.started: int | None = None
+        """The search's scan count when the last exhaustive search started (None: none yet)."""
         self.search_ms: list[float] = []
         """Milliseconds of every slice of an exhaustive correlative search (global or window):
         what it cost a scan."""
@@ -97,6 +99,7 @@ class GlobalSearch:
         self.window = window
         self.running = None
         self.scans = 0
+        self.started = None
         self.travel = 0.0
         self.history.clear()
 
@@ -115,6 +118,7 @@ class GlobalSearch:
             self.hypotheses = []
             self.running = None
             self.scans = 0
+            self.started = None
             self.history.clear()
             self.places.clear()
         self._move_window(delta, jump)
@@ -190,11 +194,13 @@ class GlobalSearch:
         the exhaustive correlative search (the whole map, or the window after a lost track)
         when there is no index, or inside a window, or once the search has travelled
         ``places.fallback_travel`` with no hypothesis alive (too few corners where the robot
-        is): started every ``global_every`` scans, run :attr:`slice_nodes` nodes a scan
+        is): started on the first scan it is needed, then at most every ``global_every``
+        scans (a fixed phase of the scan count would delay it by up to ``global_every - 1``
+        scans, by when the search began), run :attr:`slice_nodes` nodes a scan
         (:meth:`_slice`)."""
         opt = self.options
         keypoints = self.window is None and self.places.usable
-        due = self.scans % opt.global_every == 0
+        due = self.started is None or self.scans - self.started >= opt.global_every
         if not (keypoints or due or self.running is not None):
             return
         mount = self.matcher.mount
@@ -218,6 +224,7 @@ class GlobalSearch:
         start = time.perf_counter()
         if self.running is None:
             self.counts["searches"] += 1
+            self.started = self.scans
             then = (np.array(odo, dtype=np.float64), xy, index, self.travel)
             model, window = self.matcher.model, self.window
             self.running = (exhaustive_search(model, window, coarse, self.options), then, 0)
