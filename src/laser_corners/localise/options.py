@@ -136,7 +136,8 @@ class LocaliseOptions(Options):
     lost_scans: int = Field(5, ge=1, le=1000)
     """This many scans in a row below ``track_agreement``: lost, back to global search."""
     global_every: int = Field(10, ge=1, le=1000)
-    """While searching, a global search over the whole map runs every n-th scan."""
+    """While searching, an exhaustive search (the whole map, or a lost track's window) starts
+    at most every n-th scan: the first on the first scan it is needed."""
     global_candidates: int = Field(16, ge=1, le=100)
     """Poses kept from one global search (best first, at least 1 m or 0.3 rad apart)."""
     global_resolution: float = Field(0.25, ge=0.05, le=2.0)

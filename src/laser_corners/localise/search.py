@@ -3,7 +3,8 @@ states of :class:`~laser_corners.localise.Localiser`).
 
 On every scan the map's place index (corner keypoints of the last metres, :mod:`.places`)
 proposes poses; where it has none for ``places.fallback_travel`` (or the map has no index),
-every ``global_every`` scans the exhaustive search over the whole map
+at most every ``global_every`` scans (the first as soon as it is needed) the exhaustive
+search over the whole map
 (:meth:`~laser_corners.localise.mapmodel.MapModel.global_slices`) starts, run in slices of
 ``SLICE_NODES`` nodes a scan so that no scan waits on it; its answers come best first, each
 judged on the scan searched and carried to the current one by the odometry. Each pose becomes a
