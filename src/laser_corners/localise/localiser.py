@@ -6,9 +6,9 @@ Three states (:attr:`Localiser.status`):
     No fix yet. On every scan the map's place index (corner keypoints of the last metres,
     :mod:`.places`) proposes poses; where it has none for ``places.fallback_travel`` (or the
     map has no index), at most every ``global_every`` scans the exhaustive search over the
-    whole map (:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) does. Each pose becomes
-    a hypothesis, refined by ICP against the map's points. Every scan, every hypothesis is
-    moved by the odometry step, aligned again (point-to-line ICP,
+    whole map (:meth:`~laser_corners.localise.mapmodel.MapModel.global_search`) does. Each
+    pose becomes a hypothesis, refined by ICP against the map's points. Every scan, every
+    hypothesis is moved by the odometry step, aligned again (point-to-line ICP,
     :func:`~laser_corners.registration.align.icp`) and scored by its *agreement*: the share of
     the scan's points within ``inlier_distance`` of a map point. Hypotheses whose recent agreement
     falls below ``hypothesis_agreement`` are dropped; two that meet are merged. The fix is
