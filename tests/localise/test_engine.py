@@ -163,3 +163,54 @@ def test_the_estimates_do_not_depend_on_the_odometrys_frame(engine_map) -> None:
     assert found == [i for i, e in enumerate(runs[1]) if e is not None]
     for i in found:
         np.testing.assert_allclose(runs[0][i].pose, runs[1][i].pose, atol=1e-6)
+
+
+def test_the_map_settles_a_disagreement_between_tracker_and_engine(engine_map) -> None:
+    # the map sides with the engine (it explains the scan at least as well there): the engine
+    # stands, confirmed; it is re-placed only after engine.gate_scans scans in a row on which
+    # the map explains the scan better at the tracker's pose
+    folder, truth = engine_map
+    options = LocaliseOptions().with_overrides(["engine.gate_scans=3"])
+    loc = Localiser(folder, options)
+    engine = loc.engine
+    assert engine is not None
+    scans, odo = scans_along(building(), truth, 18), noisy_odometry(truth, 18)
+    engine.place(truth[0], np.diag([0.05, 0.05, 0.02]) ** 2, odo[0])
+    engine.add(scans[1], odo[1], 0.1)
+    tracked = truth[1] + np.array([0.6, 0.0, 0.0])
+    assert engine.disagrees(tracked) and not engine.confirmed
+
+    def explains(tracker: float, engine: float):
+        return lambda pose: tracker if np.allclose(pose, tracked) else engine
+
+    assert engine.settle(tracked, explains(0.8, 0.8)) == "engine"  # a tie: the engine stands
+    assert engine.confirmed
+    sides = [engine.settle(tracked, explains(0.9, 0.6)) for _ in range(3)]
+    assert sides == ["tracker", "tracker", "replace"]
+    engine.settle(tracked, explains(0.9, 0.6))
+    assert engine.settle(tracked, explains(0.5, 0.6)) == "engine"  # the run is broken
+    assert [engine.settle(tracked, explains(0.9, 0.6)) for _ in range(3)][-1] == "replace"
+
+
+def test_an_engine_gone_astray_is_placed_again_where_the_map_is(engine_map) -> None:
+    # the engine moved 0.6 m off mid-drive (a wrong closure, say): the tracker, anchored in
+    # the map, disagrees, the map explains the scans better at its pose, and after
+    # engine.gate_scans scans the engine is placed again; the estimates are right again
+    folder, truth = engine_map
+    loc = Localiser(folder)
+    loc.set_pose(truth[0])
+    scans, odo = scans_along(building(), truth, 19), noisy_odometry(truth, 19)
+    estimates = []
+    for i, (s, o) in enumerate(zip(scans, odo, strict=True)):
+        if i == 40:
+            assert loc.engine is not None and loc.engine.confirmed
+            off = compose_many(truth[39], np.array([0.6, 0.0, 0.0]))
+            loc.engine.place(off, np.diag([0.05, 0.05, 0.02]) ** 2, odo[39])
+        estimates.append(loc.add(s, o, i / RATE))
+    assert loc.counts["engine_replaced"] == 1
+    gate = loc.options.engine.gate_scans
+    late = [e for e in estimates[40 + gate + 1 :] if e is not None]
+    d = [math.hypot(*between_many(truth[e.scan_index], e.pose)[:2]) for e in late]
+    assert len(late) > 0.9 * (len(truth) - 41 - gate) and max(d) < 0.1
+    early = [e for e in estimates[40 : 40 + gate] if e is not None]
+    assert all(math.hypot(*between_many(truth[e.scan_index], e.pose)[:2]) < 0.1 for e in early)

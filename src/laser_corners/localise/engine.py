@@ -4,11 +4,15 @@ The SLAM engine (:class:`~laser_corners.slam.Slam`) runs on the localiser's scan
 as its frozen prior (``frozen=True``): it tracks each scan against the map's keyframes near
 its pose and its own recent keyframes, makes keyframes, closes loops into the map and
 optimises; its pose is the online estimate. The localiser places it: at every fix of the
-global search (:meth:`EngineTrack.place`) and wherever the tracker, anchored in the map,
-disagrees with it by more than the gate (``engine.gate_xy`` / ``engine.gate_yaw``; counted
-``engine_replaced``). Until the first fix, and from an odometry or time jump
-(:meth:`EngineTrack.cut`) to the next fix, it is unplaced and not fed: the scans of the search
-cost it nothing, and no keyframe floats in a frame of its own.
+global search (:meth:`EngineTrack.place`) and where the tracker, anchored in the map,
+disagrees with it by more than the gate (``engine.gate_xy`` / ``engine.gate_yaw``) and the
+map sides with the tracker (:meth:`EngineTrack.settle`: on ``engine.gate_scans`` scans in a
+row the map explains the scan better at the tracker's pose; counted ``engine_replaced``).
+Where the map explains it at least as well at the engine's pose, the engine stands and the
+tracker follows it: a tracker sliding along a corridor, or one ICP outlier, no longer drags
+the engine (and the map's confirmation of it) away. Until the first fix, and from an odometry
+or time jump (:meth:`EngineTrack.cut`) to the next fix, it is unplaced and not fed: the scans
+of the search cost it nothing, and no keyframe floats in a frame of its own.
 Once a scan the map explains has confirmed it, where the map does not explain a scan (the
 robot drives out of it) the engine holds the pose (:meth:`EngineTrack.holds`, estimates
 ``"local"``) if the scan aligned to the engine's keyframes; the localiser also asks that the
@@ -23,6 +27,8 @@ keyframes are held by priors).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -84,6 +90,8 @@ class EngineTrack:
         self.placed = False
         """Whether the engine is placed in the map (from :meth:`place` to :meth:`cut`): only
         then is it fed scans (unplaced, its keyframes would float in a frame of their own)."""
+        self.outvoted = 0
+        """Tracked scans in a row on which the map sided with a disagreeing tracker."""
 
     def place(self, pose: NDArray, covariance: NDArray, odometry: NDArray | None) -> None:
         """The last scan was at ``pose`` (a fix, or the tracker where the engine disagrees;
@@ -91,7 +99,7 @@ class EngineTrack:
         scan): the next scan starts a new segment there, moved by the odometry step
         (:meth:`~laser_corners.slam.Slam.place`); not confirmed yet."""
         self.slam.place(pose, _sigmas(covariance), odometry)
-        self.placed, self.confirmed = True, False
+        self.placed, self.confirmed, self.outvoted = True, False, 0
 
     def cut(self) -> None:
         """The odometry or the stamps jumped: the engine is unplaced (and not fed) until the
@@ -114,8 +122,26 @@ class EngineTrack:
         d = between_many(pose, self.pose)
         opt = self.options
         far = math.hypot(d[0], d[1]) > opt.engine.gate_xy or abs(d[2]) > opt.engine.gate_yaw
-        self.confirmed |= not far
+        if not far:
+            self.confirmed, self.outvoted = True, 0
         return bool(far)
+
+    def settle(
+        self, tracked: NDArray, agreement: Callable[[NDArray], float]
+    ) -> Literal["engine", "tracker", "replace"]:
+        """The tracker, anchored in the map, disagrees with the placed engine on this scan
+        (:meth:`disagrees`): the map settles which pose the scan takes.
+
+        ``agreement(pose)``: the share of the scan's points near a map point at ``pose``.
+        ``"engine"`` where it is at least as high at the engine's pose (the engine stands,
+        confirmed by the map); else ``"tracker"``, or ``"replace"`` (re-place the engine at
+        ``tracked``) once that happened on ``engine.gate_scans`` scans in a row."""
+        assert self.pose is not None
+        if agreement(tracked) <= agreement(self.pose):
+            self.confirmed, self.outvoted = True, 0
+            return "engine"
+        self.outvoted += 1
+        return "replace" if self.outvoted >= self.options.engine.gate_scans else "tracker"
 
     def holds(self) -> bool:
         """Whether the engine alone may give this scan's pose: placed, confirmed by the map

@@ -242,7 +242,7 @@ class Localiser:
         else:
             estimate = self._search(scan, pts, delta, jump, odo, index, float(stamp))
         if self.engine is not None and estimate is not None:
-            estimate = self._engine(odo, estimate)
+            estimate = self._engine(odo, estimate, pts.xy)
         self.ms_per_scan.append((time.perf_counter() - start) * 1e3)
         if estimate is not None:
             self.counts["estimates"] += 1
@@ -257,17 +257,27 @@ class Localiser:
         support = self.tracker.matcher.support(self.engine.pose, xy)
         return support.conflict <= self.options.track_conflict
 
-    def _engine(self, odo: NDArray, estimate: LocaliserEstimate) -> LocaliserEstimate:
-        """This scan's estimate with the engine's pose (:mod:`.engine`); where the tracker,
-        anchored in the map, disagrees (a fix, or the engine went astray), the tracker's
-        pose, and the engine is placed there from the next scan on."""
-        assert self.engine is not None
+    def _engine(self, odo: NDArray, estimate: LocaliserEstimate, xy: NDArray) -> LocaliserEstimate:
+        """This scan's estimate with the engine's pose (:mod:`.engine`). Where the tracker,
+        anchored in the map, disagrees: at a fix (or with the engine unplaced), the tracker's
+        pose, and the engine is placed there from the next scan on; on a tracked scan the map
+        settles it (:meth:`.EngineTrack.settle`): the engine stands and the tracker follows
+        it, or the tracker's pose (the engine re-placed there after ``engine.gate_scans``)."""
+        engine = self.engine
+        assert engine is not None
         # a "local" estimate (mostly unmapped) is the engine's own, never a reason to re-place
-        if estimate.status != "local" and self.engine.disagrees(estimate.pose):
-            self.counts["engine_replaced"] += estimate.status == "tracking"
-            self.engine.place(estimate.pose, self.tracker.covariance, odo)
-            return estimate
-        return self.engine.estimate(estimate, odo)
+        if estimate.status == "local" or not engine.disagrees(estimate.pose):
+            return engine.estimate(estimate, odo)
+        if estimate.status == "tracking" and engine.pose is not None:
+            side = engine.settle(estimate.pose, lambda p: self.tracker.matcher.agreement(p, xy))
+            if side == "engine":  # the map sided with the engine: the tracker follows it
+                self.tracker.follow(engine.pose)
+                return engine.estimate(estimate, odo)
+            if side == "tracker":
+                return estimate
+            self.counts["engine_replaced"] += 1
+        engine.place(estimate.pose, self.tracker.covariance, odo)
+        return estimate
 
     def _lose(self, index: int) -> None:
         """Drop the fix: back to the search, with the predicted pose as the first hypothesis.

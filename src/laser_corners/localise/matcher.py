@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from laser_corners.localise.freespace import Support
 from laser_corners.localise.mapmodel import MapModel
 from laser_corners.localise.options import LocaliseOptions
-from laser_corners.registration.align import Alignment, icp
+from laser_corners.registration.align import Alignment, icp, match_share
 from laser_corners.registration.odometry import odometry_information
 
 __all__ = ["MapMatcher"]
@@ -57,6 +57,11 @@ class MapMatcher:
             overlap_map=self.model.every,
         )
         return aligned, aligned.overlap
+
+    def agreement(self, pose: NDArray, xy: NDArray) -> float:
+        """The share of the scan ``xy`` (base frame) at ``pose`` within ``inlier_distance`` of a
+        map point (no alignment)."""
+        return match_share(xy, self.model.every, pose, self.options.inlier_distance)
 
     def support(self, pose: NDArray, xy: NDArray) -> Support:
         """Outside / conflict shares of the scan ``xy`` at ``pose`` (``localise.freespace``)."""

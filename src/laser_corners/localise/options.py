@@ -36,10 +36,16 @@ class EngineOptions(Options):
         estimate and re-places the engine where the two disagree by more than the gate. Off:
         the tracker's own poses (and for a ``map_server`` map, which has no keyframe scans).
     gate_xy : float
-        The engine is re-placed at the tracker's pose when they differ by more than this (m)
-        on a scan the map explains ("tracking")...
+        The tracker and the engine disagree on a scan the map explains ("tracking") when they
+        differ by more than this (m)...
     gate_yaw : float
         ... or by more than this (rad).
+    gate_scans : int
+        The map settles a disagreement: where it explains the scan at least as well at the
+        engine's pose (its agreement there), the engine stands and the tracker follows it;
+        the engine is re-placed at the tracker's pose only after this many tracked scans in a
+        row that the map explains better at the tracker's (one scan the tracker slid on, a
+        corridor or an ICP outlier, does not move it).
 
     Examples
     --------
@@ -53,6 +59,7 @@ class EngineOptions(Options):
     enabled: bool = True
     gate_xy: float = Field(0.3, ge=0.0, le=100.0)
     gate_yaw: float = Field(0.05, ge=0.0, le=3.2)
+    gate_scans: int = Field(3, ge=1, le=1000)
 
 
 class SmoothOptions(Options):

@@ -30,7 +30,6 @@ from laser_corners.localise.estimate import LocaliserEstimate
 from laser_corners.localise.local import Fit, LocalMap, fuse
 from laser_corners.localise.matcher import MapMatcher
 from laser_corners.pose import between_many, compose_many, invert_many, rotate_covariance
-from laser_corners.registration.align import match_share
 from laser_corners.registration.points import ScanPoints, transform
 
 __all__ = ["Tracker"]
@@ -232,9 +231,9 @@ class Tracker:
         if local is None or local.overlap < LOCAL_SHARE:
             return self.fit(xy, aligned.pose, aligned.information, mapped, 0.0)
         pose, info = fuse(pred, prior, aligned, local)
-        inlier = self.options.inlier_distance
-        mapped = match_share(xy, self.matcher.model.every, pose, inlier)
-        return self.fit(xy, pose, info, mapped, self.local.share(xy, pose, inlier))
+        mapped = self.matcher.agreement(pose, xy)
+        local = self.local.share(xy, pose, self.options.inlier_distance)
+        return self.fit(xy, pose, info, mapped, local)
 
     def fit(self, xy: NDArray, pose: NDArray, info: NDArray, mapped: float, local: float) -> Fit:
         """A :class:`Fit` with the free-space support and unmapped share at ``pose``."""
