@@ -16,8 +16,9 @@ from laser_corners.registration.corners import (
     nearest_corners,
     scan_corners,
 )
-from laser_corners.registration.correlative import ScoreGrid
+from laser_corners.registration.correlative import ScoreGrid, search
 from laser_corners.registration.place_index import (
+    Candidate,
     PlaceIndex,
     PlaceOptions,
     build_index,
@@ -214,3 +215,26 @@ def test_query_keeps_the_corners_nearest_the_robot(mapped) -> None:
     far = np.sort(np.hypot(*query.xy.T))
     np.testing.assert_allclose(np.sort(np.hypot(*kept.xy.T)), far[:5])
     assert nearest_corners(query, len(query) + 1) is query
+
+
+def test_dense_check_keeps_the_best_scores_of_checking_every_candidate(mapped) -> None:
+    """The dense check skips what cannot enter the ``candidates`` best (a floor on each
+    search): the same poses and scores as searching around every candidate in full."""
+    world, poses, index = mapped
+    truth = np.array([8.0, 7.0, -2.0])
+    scan = scan_at(world, truth, 7)
+    found = index.candidates(_corners_of(scan, index), poses)
+    rng = np.random.default_rng(3)
+    found += [
+        Candidate(np.array([rng.uniform(1, 13), rng.uniform(1, 8), rng.uniform(-3, 3)]), 1)
+        for _ in range(40)
+    ]
+    grid = ScoreGrid.build(_map_points(world, poses), 0.05, 0.1, 1.0)
+    points = scan_points(scan, MOUNT, 0.1, 30.0, 0.2).xy
+    opt = PlaceOptions(candidates=5)
+    full = [search(grid, points, c.pose, opt.check_xy, opt.check_yaw) for c in found]
+    want = sorted(full, key=lambda sp: -sp[0])[: opt.candidates]
+    got = dense_check(found, grid, points, opt)
+    assert [c.score for c in got] == pytest.approx([sp[0] for sp in want], abs=1e-9)
+    np.testing.assert_allclose([c.pose for c in got], [sp[1] for sp in want])
+    assert _error(got[0].pose, truth)[0] < 0.1
