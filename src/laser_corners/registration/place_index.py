@@ -92,10 +92,10 @@ class PlaceOptions(Options):
         Query corners used at most (after merging): the ``max_query`` nearest the robot.
         The query's work grows with them (the descriptor pass linearly, the consensus as
         their square: each proposes ``matches`` poses that every one votes on), so a
-        corner-rich stretch (fr079: up to 87 corners in 3 m) would cost several times the
-        usual attempt; 40 is some three times what one scan of a corner-rich room sees,
-        and the nearest are those the newest scans saw from closest, on the shortest
-        odometry chain.
+        corner-rich stretch would cost several times the usual attempt (fr079: up to 115
+        corner observations in 3 m, more than 40 once merged; a median 10). 40 is some
+        three times what one scan of a corner-rich room sees, and the nearest are those the
+        newest scans saw from closest, on the shortest odometry chain.
     max_descriptor_distance : float
         Largest descriptor distance (csc L1) of a proposing match.
     max_opening_diff : float
