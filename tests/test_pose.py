@@ -15,6 +15,7 @@ from laser_corners.pose import (
     check_pose,
     compose,
     compose_many,
+    distinct_poses,
     invert,
     invert_many,
     pose_error,
@@ -124,3 +125,29 @@ def test_good_pose_passes_the_check() -> None:
     assert pose_problem((1.0, 2.0, 3.0)) is None
     checked = check_pose([[1, 2, 3]])
     assert checked.dtype == np.float64 and checked.tolist() == [1.0, 2.0, 3.0]
+
+
+def _distinct_reference(poses, order, count, xy, yaw) -> list[int]:
+    chosen: list[int] = []
+    for i in order:
+        if all(poses_apart(poses[i], poses[j], xy, yaw) for j in chosen):
+            chosen.append(int(i))
+            if len(chosen) == count:
+                break
+    return chosen
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_distinct_poses_is_the_greedy_pass_over_the_order(seed: int) -> None:
+    """The compiled pass takes the same poses as the pairwise loop it replaces (heading
+    differences across ±π included), in order, at most ``count``."""
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack(
+        [rng.uniform(0, 4, 600), rng.uniform(0, 4, 600), rng.uniform(-4, 4, 600)]
+    )
+    order = rng.permutation(600)
+    for count in (1, 10, 64, 600):
+        got = distinct_poses(poses, order, count, 1.0, 0.3)
+        assert got == _distinct_reference(poses, order, count, 1.0, 0.3)
+        assert len(got) <= count
+    assert distinct_poses(np.zeros((0, 3)), [], 5, 1.0, 0.3) == []

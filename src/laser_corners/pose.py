@@ -144,14 +144,33 @@ def distinct_poses(
     >>> distinct_poses([(0, 0, 0), (0.5, 0, 0), (2, 0, 0)], [0, 1, 2], 5, 1.0, 0.3)
     [0, 2]
     """
-    poses = np.asarray(poses, dtype=np.float64)
-    chosen: list[int] = []
-    for i in np.asarray(order, dtype=np.int64):
-        if all(poses_apart(poses[i], poses[j], xy, yaw) for j in chosen):
-            chosen.append(int(i))
-            if len(chosen) == count:
+    poses = np.ascontiguousarray(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+    order = np.ascontiguousarray(np.asarray(order, dtype=np.int64).reshape(-1))
+    return _distinct(poses, order, int(count), float(xy), float(yaw)).tolist()
+
+
+@nb.njit(cache=True, nogil=True)
+def _distinct(
+    poses: NDArray[np.float64], order: NDArray[np.int64], count: int, xy: float, yaw: float
+) -> NDArray[np.int64]:
+    """:func:`distinct_poses` compiled: the pairwise test of :func:`poses_apart` against every
+    pose taken, O(len(order) * count) without a Python call per pair."""
+    chosen = np.empty(min(count, order.shape[0]), dtype=np.int64)
+    n = 0
+    for i in order:
+        if n == count:
+            break
+        apart = True
+        for t in range(n):
+            j = chosen[t]
+            dyaw = abs((poses[i, 2] - poses[j, 2] + math.pi) % (2 * math.pi) - math.pi)
+            if math.hypot(poses[i, 0] - poses[j, 0], poses[i, 1] - poses[j, 1]) < xy and dyaw < yaw:
+                apart = False
                 break
-    return chosen
+        if apart:
+            chosen[n] = i
+            n += 1
+    return chosen[:n]
 
 
 def relative_pose(a: Pose2D, b: Pose2D) -> Pose2D:

@@ -120,3 +120,21 @@ def test_a_late_proposal_is_credited_with_the_scans_before_it(fr079) -> None:
     assert first is not None
     assert first < proposed_at + options.fix_travel - 0.25  # sooner than without the credit
     assert loc.counts["credited"] >= 1
+
+
+def test_a_corner_rich_stretch_costs_a_bounded_query_and_still_fixes(fr079) -> None:
+    """fr079 from scan 849: over 100 corner observations in the query's 3 m, more than 40
+    once merged. The query uses at most ``places.max_query`` of them (the cap is reached
+    here; the nearest the robot), each proposes ``matches`` poses,
+    at most ``checked`` go to the dense check; the fix still comes within 3 m, right."""
+    saved, scans, odo, ref = fr079
+    loc = Localiser(saved)
+    errors, first = _drive(loc, scans, odo, ref, np.arange(849, 1099))
+    assert first is not None and first <= 3.0
+    assert max(e[1] for e in errors) < 0.5 and max(e[2] for e in errors) < 5.0
+    opt = loc.options.places
+    work = loc.places.work
+    assert len(work) == len(loc.places.ms) > 0
+    assert max(w.corners for w in work) == opt.max_query
+    assert all(w.proposals <= w.corners * opt.matches for w in work)
+    assert all(w.checked <= opt.checked for w in work)

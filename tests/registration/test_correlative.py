@@ -32,8 +32,8 @@ def _exhaustive(grid: ScoreGrid, pts: np.ndarray, center: np.ndarray, n_xy: int,
     return best / len(pts), pose
 
 
-@pytest.mark.parametrize("seed", range(8))
-def test_branch_and_bound_finds_the_best_pose_of_the_lattice(seed: int) -> None:
+def _room(seed: int):
+    """A walled room with clutter, its grid, a true pose, the points seen there, a guess."""
     rng = np.random.default_rng(seed)
     walls = [np.column_stack([np.linspace(0, 8, 160), np.full(160, y)]) for y in (0.0, 5.0)]
     walls += [np.column_stack([np.full(100, x), np.linspace(0, 5, 100)]) for x in (0.0, 8.0)]
@@ -45,6 +45,12 @@ def test_branch_and_bound_finds_the_best_pose_of_the_lattice(seed: int) -> None:
     c, s = math.cos(truth[2]), math.sin(truth[2])
     pts = (xy[rng.choice(len(xy), 80, replace=False)] - truth[:2]) @ np.array([[c, -s], [s, c]])
     guess = truth + rng.uniform([-0.3, -0.3, -0.1], [0.3, 0.3, 0.1])
+    return grid, truth, pts, guess
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_branch_and_bound_finds_the_best_pose_of_the_lattice(seed: int) -> None:
+    grid, truth, pts, guess = _room(seed)
     score, pose = search(grid, pts, guess, 0.4, 0.12, yaw_step=0.02)
     n_yaw = math.ceil(0.12 / 0.02)
     yaws = guess[2] + 0.02 * np.arange(-n_yaw, n_yaw + 1)
@@ -52,3 +58,18 @@ def test_branch_and_bound_finds_the_best_pose_of_the_lattice(seed: int) -> None:
     assert score == pytest.approx(want_score, abs=1e-6)
     np.testing.assert_allclose(pose, want_pose, atol=1e-9)
     assert np.hypot(*(pose[:2] - truth[:2])) < 0.08  # and the lattice's best is the truth
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_floor_prunes_what_cannot_beat_it_and_keeps_what_can(seed: int) -> None:
+    """With ``floor`` below the window's best the answer is unchanged; at or above it the
+    search answers ``(floor, center)`` (nothing there beats it): what lets a caller keeping
+    the k best of many windows skip the rest of a window that cannot enter them."""
+    grid, _, pts, guess = _room(seed)
+    best, pose = search(grid, pts, guess, 0.4, 0.12, yaw_step=0.02)
+    below, same = search(grid, pts, guess, 0.4, 0.12, yaw_step=0.02, floor=best - 0.05)
+    assert below == pytest.approx(best, abs=1e-9)
+    np.testing.assert_allclose(same, pose)
+    above, center = search(grid, pts, guess, 0.4, 0.12, yaw_step=0.02, floor=best + 1e-3)
+    assert above == pytest.approx(best + 1e-3, abs=1e-9)
+    np.testing.assert_allclose(center, guess)

@@ -9,9 +9,16 @@ import pytest
 
 from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.corner_grid import VIEWS_PER_CORNER, CornerGrid
-from laser_corners.registration.corners import Corners, QueryBuffer, corner_detector, scan_corners
-from laser_corners.registration.correlative import ScoreGrid
+from laser_corners.registration.corners import (
+    Corners,
+    QueryBuffer,
+    corner_detector,
+    nearest_corners,
+    scan_corners,
+)
+from laser_corners.registration.correlative import ScoreGrid, search
 from laser_corners.registration.place_index import (
+    Candidate,
     PlaceIndex,
     PlaceOptions,
     build_index,
@@ -172,3 +179,62 @@ def test_damaged_index_arrays_are_refused(mapped) -> None:
         index_from_arrays(short, PlaceOptions())
     with pytest.raises(ValueError, match="inconsistent"):
         index_from_arrays(arrays, PlaceOptions(), n_keyframes=3)  # keyframes beyond the map's
+
+
+def test_a_corner_rich_query_is_capped_and_still_placed(mapped) -> None:
+    """A query of many corners (a long stretch of keyframes) costs at most ``max_query``
+    corners and ``max_query * matches`` proposed poses, whatever the map; the nearest
+    corners still place it."""
+    _, poses, index = mapped
+    opt = PlaceOptions(max_query=4)
+    capped = index_from_arrays(index_arrays(index), opt)
+    assert capped is not None
+    frame = poses[30]
+    query = capped.keyframe_corners(np.arange(18, 31), poses, frame)
+    assert len(query) > 5 * opt.max_query  # well over the cap
+    found = capped.candidates(query, poses)
+    work = capped.work
+    assert 0 < work.corners <= opt.max_query
+    assert work.proposals <= opt.max_query * opt.matches
+    assert work.checked == len(found) <= opt.checked
+    assert found and _error(found[0].pose, frame)[0] < 0.15  # before the dense check
+    # without the cap the same query uses more corners: the cap is what bounds it
+    free = index_from_arrays(index_arrays(index), PlaceOptions(max_query=1000))
+    assert free is not None
+    free.candidates(query, poses)
+    assert free.work.corners > opt.max_query
+
+
+def test_query_keeps_the_corners_nearest_the_robot(mapped) -> None:
+    _, poses, index = mapped
+    frame = poses[30]
+    query = index.keyframe_corners(np.arange(18, 31), poses, frame)
+    opt = PlaceOptions(max_query=5)
+    kept = nearest_corners(query, opt.max_query)
+    assert len(kept) == 5
+    far = np.sort(np.hypot(*query.xy.T))
+    np.testing.assert_allclose(np.sort(np.hypot(*kept.xy.T)), far[:5])
+    assert nearest_corners(query, len(query) + 1) is query
+
+
+def test_dense_check_keeps_the_best_scores_of_checking_every_candidate(mapped) -> None:
+    """The dense check skips what cannot enter the ``candidates`` best (a floor on each
+    search): the same poses and scores as searching around every candidate in full."""
+    world, poses, index = mapped
+    truth = np.array([8.0, 7.0, -2.0])
+    scan = scan_at(world, truth, 7)
+    found = index.candidates(_corners_of(scan, index), poses)
+    rng = np.random.default_rng(3)
+    found += [
+        Candidate(np.array([rng.uniform(1, 13), rng.uniform(1, 8), rng.uniform(-3, 3)]), 1)
+        for _ in range(40)
+    ]
+    grid = ScoreGrid.build(_map_points(world, poses), 0.05, 0.1, 1.0)
+    points = scan_points(scan, MOUNT, 0.1, 30.0, 0.2).xy
+    opt = PlaceOptions(candidates=5)
+    full = [search(grid, points, c.pose, opt.check_xy, opt.check_yaw) for c in found]
+    want = sorted(full, key=lambda sp: -sp[0])[: opt.candidates]
+    got = dense_check(found, grid, points, opt)
+    assert [c.score for c in got] == pytest.approx([sp[0] for sp in want], abs=1e-9)
+    np.testing.assert_allclose([c.pose for c in got], [sp[1] for sp in want])
+    assert _error(got[0].pose, truth)[0] < 0.1

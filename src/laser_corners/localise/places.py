@@ -20,7 +20,13 @@ from numpy.typing import NDArray
 from laser_corners.detector import CornerDetector
 from laser_corners.registration.corners import QueryBuffer, corner_detector, scan_corners
 from laser_corners.registration.correlative import ScoreGrid
-from laser_corners.registration.place_index import Candidate, PlaceIndex, PlaceOptions, dense_check
+from laser_corners.registration.place_index import (
+    Candidate,
+    PlaceIndex,
+    PlaceOptions,
+    QueryWork,
+    dense_check,
+)
 from laser_corners.scan import LaserScan
 
 __all__ = ["PlaceProposer"]
@@ -61,6 +67,9 @@ class PlaceProposer:
         self._detector: CornerDetector | None = None
         self.ms: list[float] = []
         """Milliseconds of every attempt (query + dense check)."""
+        self.work: list[QueryWork] = []
+        """The query's work of every attempt (:class:`QueryWork`: corners, proposals, poses
+        dense-checked), bounded by the options (``max_query``, ``matches``, ``checked``)."""
 
     @property
     def usable(self) -> bool:
@@ -92,5 +101,6 @@ class PlaceProposer:
         start = time.perf_counter()
         found = self.index.candidates(self.buffer.query(), self.poses)
         found = dense_check(found, self.grid, points, self.options)
+        self.work.append(self.index.work)
         self.ms.append((time.perf_counter() - start) * 1e3)
         return found

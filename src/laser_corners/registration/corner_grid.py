@@ -41,31 +41,41 @@ def nearest(
     of the ``k`` nearest distinct landmarks (``landmark``: each row's physical corner), among
     rows with opening angles within ``max_open`` and distance at most ``max_distance``
     (-1 where fewer qualify). Distinct landmarks: a corner seen from many keyframes must not
-    fill every place."""
+    fill every place. Only the landmarks a query row reached are ranked and reset: the cost
+    is that of the distances, not of the map's landmarks times ``k``."""
     nq = query.shape[0]
     found = np.full((nq, k), -1, dtype=np.int64)
-    best = np.empty(n_landmarks)
-    arg = np.empty(n_landmarks, dtype=np.int64)
+    best = np.full(n_landmarks, np.inf)
+    arg = np.full(n_landmarks, -1, dtype=np.int64)
+    reached = np.empty(n_landmarks, dtype=np.int64)
     for q in range(nq):
-        best[:] = np.inf
-        arg[:] = -1
+        n = 0
         for m in range(index.shape[0]):
             if abs(q_open[q] - m_open[m]) > max_open:
                 continue
             d = _l1(query[q], index[m])
             lm = landmark[m]
             if d <= max_distance and d < best[lm]:
+                if arg[lm] < 0:
+                    reached[n] = lm
+                    n += 1
                 best[lm] = d
                 arg[lm] = m
-        for j in range(k):  # the k smallest of best, by selection (k is small)
+        for j in range(k):  # the k smallest by selection (k is small), ties to the lower id
             pick = -1
-            for lm in range(n_landmarks):
-                if arg[lm] >= 0 and (pick < 0 or best[lm] < best[pick]):
+            for t in range(n):
+                lm = reached[t]
+                if arg[lm] < 0:
+                    continue
+                if pick < 0 or best[lm] < best[pick] or (best[lm] == best[pick] and lm < pick):
                     pick = lm
             if pick < 0:
                 break
             found[q, j] = arg[pick]
             arg[pick] = -1
+        for t in range(n):
+            best[reached[t]] = np.inf
+            arg[reached[t]] = -1
     return found
 
 

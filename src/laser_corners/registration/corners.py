@@ -21,7 +21,15 @@ from laser_corners.matching.descriptors import DescriptorParams, describe
 from laser_corners.pose import between_many, compose_many, wrap_angle
 from laser_corners.scan import LaserScan
 
-__all__ = ["KEEP_STEP", "Corners", "QueryBuffer", "corner_detector", "merge_close", "scan_corners"]
+__all__ = [
+    "KEEP_STEP",
+    "Corners",
+    "QueryBuffer",
+    "corner_detector",
+    "merge_close",
+    "nearest_corners",
+    "scan_corners",
+]
 
 
 @dataclass
@@ -110,6 +118,18 @@ def merge_close(corners: Corners, radius: float, yaw: float) -> Corners:
         if near.size:
             same = np.abs(wrap_angle(corners.orientation[near] - corners.orientation[i])) <= yaw
             keep[near[same]] = False
+    return Corners(
+        corners.xy[keep], corners.orientation[keep], corners.opening[keep], corners.descriptor[keep]
+    )
+
+
+def nearest_corners(corners: Corners, most: int) -> Corners:
+    """The ``most`` corners nearest the frame's origin (all of them, the same object, when
+    there are no more): a query's corners around the robot, which its newest scans saw from
+    closest and whose odometry chain is the shortest."""
+    if len(corners) <= most:
+        return corners
+    keep = np.sort(np.argsort(np.hypot(corners.xy[:, 0], corners.xy[:, 1]), kind="stable")[:most])
     return Corners(
         corners.xy[keep], corners.orientation[keep], corners.opening[keep], corners.descriptor[keep]
     )

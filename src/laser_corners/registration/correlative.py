@@ -87,14 +87,16 @@ def _best(
     center: NDArray[np.float64],
     n_xy: int,
     yaws: NDArray[np.float64],
+    floor: float,
 ) -> tuple[float, float, float, float]:
     """Best (score, x, y, yaw) of the lattice ``center + (i, j) * res``, ``|i|, |j| <= n_xy``,
     by branch and bound: per heading, every 2 x 2 block of lattice offsets is bounded from
     above on ``pooled`` (:func:`_pooled`), and the blocks are scored exactly in decreasing
     bound until the bound falls below the best score found. The same answer as scoring every
-    pose, for a fraction of the cost where the best pose stands out."""
+    pose, for a fraction of the cost where the best pose stands out. Only poses whose summed
+    score beats ``floor`` are looked at: when none does, ``floor`` and the center come back."""
     ny, nx = score.shape
-    best = -1.0
+    best = floor
     bx = center[0]
     by = center[1]
     byaw = center[2]
@@ -152,10 +154,13 @@ def search(
     window_xy: float,
     window_yaw: float,
     yaw_step: float | None = None,
+    floor: float = -1.0,
 ) -> tuple[float, NDArray[np.float64]]:
     """Best pose of ``points`` (base frame) in the window around ``center`` and its mean score;
     the heading step moves the farthest point by about a cell (0.008-0.05 rad) unless
-    ``yaw_step`` is given."""
+    ``yaw_step`` is given. Poses scoring at most ``floor`` (a mean score) are not looked for:
+    when none in the window beats it, ``(floor, center)`` is the answer (a caller keeping
+    the best of several windows skips what cannot enter them)."""
     res = grid.resolution
     center = check_pose(center, "correlative search center")
     if points.shape[0] == 0:
@@ -177,5 +182,6 @@ def search(
         np.asarray(center, dtype=np.float64),
         n_xy,
         yaws,
+        floor * points.shape[0],
     )
     return float(value), np.array([x, y, yaw])
