@@ -42,7 +42,10 @@ window's dead-reckoned pose; the localiser does not report these poses (no estim
 **Yardstick** (``--yardstick``): the full-log SLAM's own online estimates (each scan's pose as
 :meth:`~laser_corners.slam.Slam.add` returns it, before later loop closures correct it), scored
 on the later visit's relations: the best a causal estimator of this SLAM front end does on them
-with the whole log to map, beside the localiser's online ratio.
+with the whole log to map, beside the localiser's online ratio; and both again on the
+relations within the second half whose stamps are at most :data:`SHORT` s apart, where drift
+cannot matter: what giving an estimate at each scan, before the later scans are seen, costs
+against the final trajectory.
 
 **ROS 2 node** (``--ros2``): the later visit's second half again through the ROS 2 node's
 core in localise mode (:mod:`localise_ros2`: the bag's messages in log-time order through the
@@ -542,9 +545,28 @@ def run_log(name: str, args, options) -> dict:
     if args.yardstick:
         t_half = stamps[int(len(scans) * args.split)]
         rel = relations[(relations[:, 0] >= t_half) | (relations[:, 1] >= t_half)]
-        online = slam_online(scans, odo, stamps, saved.mount)
-        result["later"]["slam_online_trans"] = relation_metrics(stamps, online, rel).trans_mean
+        slam = slam_online(scans, odo, stamps, saved.mount)
+        result["later"]["slam_online_trans"] = relation_metrics(stamps, slam, rel).trans_mean
+        result["later"]["short"] = short_relations(relations, t_half, online, slam, stamps, traj)
     return result
+
+
+SHORT = 2.0
+"""Relations whose stamps are at most this far apart (s): the yardstick's short ones."""
+
+
+def short_relations(relations, t_half, online, slam, stamps, full_traj) -> dict:
+    """The relations within the second half at most :data:`SHORT` s apart, scored on the
+    localiser's online estimates, the full-log SLAM's online estimates and its final
+    trajectory: what an estimate given at each scan costs where drift cannot matter."""
+    rel = relations[(relations[:, 0] >= t_half) & (relations[:, 1] - relations[:, 0] <= SHORT)]
+    est_t, est_p = online
+    return {
+        "relations": len(rel),
+        "localiser": relation_metrics(est_t, est_p, rel).trans_mean,
+        "slam_online": relation_metrics(stamps, slam, rel).trans_mean,
+        "final": relation_metrics(full_traj[0], full_traj[1], rel).trans_mean,
+    }
 
 
 def agreement(cli, node) -> dict:
@@ -625,14 +647,19 @@ def yardstick_table(results: list[dict]) -> list[str]:
         return []
     lines = [
         "",
-        "| log | localiser online / full-log SLAM (final) | full-log SLAM online / final |",
-        "|---|---|---|",
+        "| log | localiser online / full-log SLAM (final) | full-log SLAM online / final "
+        f"| relations ≤ {SHORT:g} s apart in the second half: count, final m "
+        "| there: localiser online / final | there: full-log SLAM online / final |",
+        "|---|---|---|---|---|---|",
     ]
     for r in rows:
-        v = r["later"]
+        v, short = r["later"], r["later"]["short"]
         lines.append(
             f"| {r['log']} | {v['joined_trans'] / v['full_trans']:.2f} "
-            f"| {v['slam_online_trans'] / v['full_trans']:.2f} |"
+            f"| {v['slam_online_trans'] / v['full_trans']:.2f} "
+            f"| {short['relations']}, {short['final']:.4f} "
+            f"| {short['localiser'] / short['final']:.2f} "
+            f"| {short['slam_online'] / short['final']:.2f} |"
         )
     return lines
 
