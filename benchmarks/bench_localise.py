@@ -38,6 +38,8 @@ gives it) and leaves out the relations with a stamp before the first fix. *Gaps
 dead-reckoned in the window*: the interpolated score again, with the scans that have no
 estimate while a lost track's search window is open (``Localiser.window``, issue 20) given the
 window's dead-reckoned pose; the localiser does not report these poses (no estimate there).
+*First fix travel*: the search's travel (odometry, a turn counted as 0.5 m per radian, as
+``fix_travel`` counts it), and in brackets the metres driven (turns not counted).
 
 **Yardstick** (``--yardstick``): the full-log SLAM's own online estimates (each scan's pose as
 :meth:`~laser_corners.slam.Slam.add` returns it, before later loop closures correct it), scored
@@ -429,6 +431,9 @@ def later_visit(
         "held_trans": ours_held.trans_mean,
         "held_full_trans": full_held.trans_mean,
         "first_fix_travel": loc.fixes[0].travel if loc.fixes else None,
+        "first_fix_driven": driven(odo, half, given[loc.fixes[0].scan_index])
+        if loc.fixes
+        else None,
         "reacquired": loc.counts["reacquired"],
         "fixes": [
             {
@@ -457,6 +462,12 @@ def later_visit(
         "error_p95": float(np.percentile(err, 95)) if len(err) else None,
         "anchor_p95": float(np.percentile(anchor, 95)) if len(anchor) else None,
     }
+
+
+def driven(odo: np.ndarray, first: int, last: int) -> float:
+    """Metres driven (odometry translation, turns not counted) from scan ``first`` to ``last``:
+    the localiser's travel counts a turn as 0.5 m per radian."""
+    return float(np.hypot(*np.diff(odo[first : last + 1, :2], axis=0).T).sum())
 
 
 def smoothed_visit(slam, estimates, options, first_half, rel, spanning, full_traj) -> dict:
@@ -715,7 +726,7 @@ def later_table(results: list[dict]) -> list[str]:
         "| gaps dead-reckoned in the window: m, ratio (poses) | spanning m "
         "| posed relations (spanning) | posed: joined / full m, ratio "
         "| held relations: joined / full m, ratio "
-        "| first fix travel m | estimates / scans (local) | lost | wrong (local) "
+        "| first fix travel m (driven m) | estimates / scans (local) | lost | wrong (local) "
         "| error median / p95 m | error share: worst 5 % of relations, gap relations |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -726,7 +737,9 @@ def later_table(results: list[dict]) -> list[str]:
         ratio = v["joined_trans"] / v["full_trans"] if v["full_trans"] else math.nan
         node = r.get("later_ros2")
         node_ratio = f"{node['joined_trans'] / node['full_trans']:.2f}" if node else "-"
-        fix = "-" if v["first_fix_travel"] is None else f"{v['first_fix_travel']:.1f}"
+        fix = "-"
+        if v["first_fix_travel"] is not None:
+            fix = f"{v['first_fix_travel']:.1f} ({v['first_fix_driven']:.2f})"
         lines.append(
             f"| {r['log']} | {v['relations']} ({v['spanning']}) | {v['covered']} "
             f"| {v['joined_trans']:.4f} / {v['joined_rot']:.3f} "
