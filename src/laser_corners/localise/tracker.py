@@ -232,8 +232,9 @@ class Tracker:
             return self.fit(xy, aligned.pose, aligned.information, mapped, 0.0)
         pose, info = fuse(pred, prior, aligned, local)
         mapped = self.matcher.agreement(pose, xy)
-        local = self.local.share(xy, pose, self.options.inlier_distance)
-        return self.fit(xy, pose, info, mapped, local)
+        return self.fit(
+            xy, pose, info, mapped, self.local.share(xy, pose, self.options.inlier_distance)
+        )
 
     def fit(self, xy: NDArray, pose: NDArray, info: NDArray, mapped: float, local: float) -> Fit:
         """A :class:`Fit` with the free-space support and unmapped share at ``pose``."""
