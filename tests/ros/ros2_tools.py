@@ -1,11 +1,14 @@
 """Helpers of the ROS 2 node test (imported as ``ros2_tools``; rclpy is imported lazily).
 
 Message building from :class:`~laser_corners.LaserScan`, an output recorder, discovery probes,
-paced publishing, pose checks and bounded waits for processes and service answers.
+paced publishing, pose checks, bounded waits for processes, discovery and service answers,
+parameter calls, and the teardown and exit checks of a node a test started.
 """
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import threading
 import time
@@ -16,14 +19,19 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ros_helpers import FR079
+from ros_helpers import FR079, stop, wait_for
 
-from laser_corners import Keypoints, LaserScan
+from laser_corners import LaserScan
 from laser_corners.ros.convert import seconds_to_sec_nanosec
 
 RATE_HZ = 40.0  # publishing rate (as in the ROS 1 test)
 STARTUP_TIMEOUT = 45.0  # a loaded 2-core machine: python start, numba load, DDS discovery
 Key = tuple[int, int]
+REAL_DDS_MARKS = [  # the pytestmark of the tests over real DDS with fr079
+    pytest.mark.ros2,
+    pytest.mark.real,
+    pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),  # lark, via rosidl
+]
 
 
 def fr079_scans(n: int) -> list[LaserScan]:
@@ -118,21 +126,73 @@ def publish_paced(pub: Any, msgs: list[Any], published_at: dict[Key, float]) -> 
         pub.publish(msg)
 
 
-def check_poses(msg: Any, kps: Keypoints, key: Key) -> None:
-    got = np.array([[p.position.x, p.position.y] for p in msg.poses]).reshape(-1, 2)
-    assert got.shape == kps.xy.shape, f"scan {key}: {len(got)} poses, expected {len(kps)}"
-    np.testing.assert_allclose(got, kps.xy, rtol=0, atol=1e-9)
-    z = np.array([p.orientation.z for p in msg.poses])
-    w = np.array([p.orientation.w for p in msg.poses])
-    np.testing.assert_allclose(z, np.sin(kps.orientation / 2), rtol=0, atol=1e-9)
-    np.testing.assert_allclose(w, np.cos(kps.orientation / 2), rtol=0, atol=1e-9)
-
-
 def wait_exit(proc: subprocess.Popen[bytes], what: str) -> int:
     try:
         return proc.wait(timeout=STARTUP_TIMEOUT)
     except subprocess.TimeoutExpired:
         pytest.fail(f"the node kept running after {what}")
+
+
+def interrupt(proc: subprocess.Popen[bytes], sig: signal.Signals = signal.SIGINT) -> int:
+    """Send ``sig`` to the node ``proc``; its exit code (fail if it keeps running)."""
+    os.kill(proc.pid, sig)
+    return wait_exit(proc, sig.name)
+
+
+def check_clean_exit(returncode: int, log: str) -> None:
+    """The node exited with code 0 and no traceback in its ``log``."""
+    assert returncode == 0, log
+    assert "Traceback" not in log, log
+
+
+def one_error_line(log: str) -> str:
+    """The one line of ``log`` with ``error:`` (fail if there are none or several)."""
+    errors = [line for line in log.splitlines() if "error:" in line]
+    assert len(errors) == 1, log
+    return errors[0]
+
+
+def wait_discovered(
+    node: Any,
+    proc: subprocess.Popen[bytes],
+    what: str,
+    subscribers: tuple[str, ...] = (),
+    publishers: tuple[str, ...] = (),
+    timeout: float = STARTUP_TIMEOUT,
+) -> None:
+    """Wait until ``node`` sees a subscriber on each of ``subscribers`` and a publisher on
+    each of ``publishers`` (fail after ``timeout`` s or when ``proc`` exits)."""
+    wait_for(
+        lambda: (
+            all(node.count_subscribers(t) >= 1 for t in subscribers)
+            and all(node.count_publishers(t) >= 1 for t in publishers)
+        ),
+        timeout,
+        what,
+        proc,
+    )
+
+
+@contextmanager
+def torn_down(
+    node: Any,
+    proc: subprocess.Popen[bytes],
+    name: str,
+    subs: list[Any],
+    destroy: list[Callable[[], object]] | None = None,
+) -> Iterator[None]:
+    """Run a block; afterwards destroy ``subs`` on ``node``, call each of ``destroy`` (both
+    lists may grow in the block) and stop the node process ``proc``."""
+    try:
+        yield
+    finally:
+        try:
+            for sub in subs:
+                node.destroy_subscription(sub)
+            for fn in destroy or []:
+                fn()
+        finally:
+            stop(proc, name)
 
 
 def call_service(request: Callable[[], Any], what: str) -> Any:
@@ -145,6 +205,15 @@ def call_service(request: Callable[[], Any], what: str) -> Any:
         if future.done():
             return future.result()
     pytest.fail(f"no answer to {what}")
+
+
+def set_parameters(client: Any, **values: Any) -> list[Any]:
+    """Set parameters through ``client`` (an ``AsyncParameterClient``); the results
+    (successful, reason) in order."""
+    from rclpy.parameter import Parameter
+
+    params = [Parameter(k, value=v) for k, v in values.items()]
+    return list(call_service(lambda: client.set_parameters(params), "set_parameters").results)
 
 
 @contextmanager

@@ -6,6 +6,7 @@
 * :func:`spawn`: start a node (or roscore) in its own process group that dies with this
   process, also when pytest is killed with SIGKILL and no teardown runs;
 * :func:`wait_for`, :func:`stop`: bounded waits and teardown of the processes a test started;
+* :func:`check_poses`: a PoseArray (ROS 1 or ROS 2) carries the expected keypoints;
 * :func:`isolated_message_packages`: ROS 1 (genpy) and ROS 2 (rosidl) message packages have the
   same names (``sensor_msgs``, ``geometry_msgs``, ...); a test module imports one family and
   hands ``sys.modules`` back without it, so both test modules can run in one pytest process.
@@ -24,10 +25,11 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import IO, Any
 
+import numpy as np
 import pytest
 
 from conftest import die_with_parent
-from laser_corners import LaserScan
+from laser_corners import Keypoints, LaserScan
 from laser_corners.sim import corner_scan
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -57,6 +59,17 @@ def wait_for(
             pytest.fail(f"{what}: process exited with code {proc.returncode}")
         time.sleep(0.05)
     pytest.fail(f"timed out after {timeout:.0f} s waiting for {what}")
+
+
+def check_poses(msg: Any, kps: Keypoints, key: object) -> None:
+    """The poses of the PoseArray ``msg`` (answering scan ``key``) are the keypoints ``kps``."""
+    got = np.array([[p.position.x, p.position.y] for p in msg.poses]).reshape(-1, 2)
+    assert got.shape == kps.xy.shape, f"scan {key}: {len(got)} poses, expected {len(kps)}"
+    np.testing.assert_allclose(got, kps.xy, rtol=0, atol=1e-9)
+    z = np.array([p.orientation.z for p in msg.poses])
+    w = np.array([p.orientation.w for p in msg.poses])
+    np.testing.assert_allclose(z, np.sin(kps.orientation / 2), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(w, np.cos(kps.orientation / 2), rtol=0, atol=1e-9)
 
 
 def spawn(args: list[str], env: dict[str, str], log: IO[bytes]) -> subprocess.Popen[bytes]:

@@ -26,6 +26,7 @@ import pytest
 from ros_helpers import (
     FR079,
     REPO_ROOT,
+    check_poses,
     cli_command,
     isolated_message_packages,
     skip_or_fail,
@@ -102,6 +103,21 @@ class RosMaster:
         return any(t == topic and node in nodes for t, nodes in subscribers)
 
 
+def _ros1_env(uri: str, home: Path) -> dict[str, str]:
+    """This process's environment for a ROS 1 process: master ``uri``, home and logs in
+    ``home``, unbuffered output."""
+    env = dict(
+        os.environ,
+        ROS_MASTER_URI=uri,
+        ROS_IP="127.0.0.1",
+        ROS_HOME=str(home),
+        ROS_LOG_DIR=str(home / "log"),
+        PYTHONUNBUFFERED="1",
+    )
+    env.pop("ROS_HOSTNAME", None)
+    return env
+
+
 @pytest.fixture(scope="module")
 def master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]:
     """A real roscore on a free port, and this process as a rospy node talking to it.
@@ -119,15 +135,7 @@ def _run_master(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RosMaster]
     tmp = tmp_path_factory.mktemp("ros1")
     port = _free_port()
     uri = f"http://127.0.0.1:{port}"
-    env = dict(
-        os.environ,
-        ROS_MASTER_URI=uri,
-        ROS_IP="127.0.0.1",
-        ROS_HOME=str(tmp),
-        ROS_LOG_DIR=str(tmp / "log"),
-        PYTHONUNBUFFERED="1",
-    )
-    env.pop("ROS_HOSTNAME", None)
+    env = _ros1_env(uri, tmp)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     saved = {
         k: os.environ.get(k)
@@ -313,13 +321,7 @@ def test_node_publishes_library_keypoints_for_every_scan(master: RosMaster) -> N
     for key, (msg,) in received.items():
         assert msg.header.frame_id in frames
         kps = expected[key]
-        got = np.array([[p.position.x, p.position.y] for p in msg.poses]).reshape(-1, 2)
-        assert got.shape == kps.xy.shape, f"scan {key}: {len(got)} poses, expected {len(kps)}"
-        np.testing.assert_allclose(got, kps.xy, rtol=0, atol=1e-9)
-        z = np.array([p.orientation.z for p in msg.poses])
-        w = np.array([p.orientation.w for p in msg.poses])
-        np.testing.assert_allclose(z, np.sin(kps.orientation / 2), rtol=0, atol=1e-9)
-        np.testing.assert_allclose(w, np.cos(kps.orientation / 2), rtol=0, atol=1e-9)
+        check_poses(msg, kps, key)
         arrows = [m for m in markers[key].markers if m.type == 0 and m.action == 0]
         assert len(arrows) == len(kps)
 
@@ -407,15 +409,7 @@ def test_signal_while_waiting_for_master_exits_cleanly(tmp_path: Path, sig: sign
     """No master: rospy retries; Ctrl-C (or SIGTERM) ends it with one line and exit code 0."""
     _ros1()
     uri = f"http://127.0.0.1:{_free_port()}"  # nothing listens there
-    env = dict(
-        os.environ,
-        ROS_MASTER_URI=uri,
-        ROS_IP="127.0.0.1",
-        ROS_HOME=str(tmp_path),
-        ROS_LOG_DIR=str(tmp_path / "log"),
-        PYTHONUNBUFFERED="1",
-    )
-    env.pop("ROS_HOSTNAME", None)
+    env = _ros1_env(uri, tmp_path)
     out, err = tmp_path / "stdout.log", tmp_path / "stderr.log"
     with out.open("wb") as stdout, err.open("wb") as stderr:
         proc = subprocess.Popen(

@@ -9,9 +9,7 @@ on ``/tf`` (``nav_msgs/Odometry`` without ``tf2_msgs``).
 
 from __future__ import annotations
 
-import os
 import re
-import signal
 import threading
 import time
 from collections.abc import Iterator
@@ -21,34 +19,31 @@ from typing import Any
 
 import pytest
 from ros2_tools import (
+    REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
     call_service,
+    check_clean_exit,
+    interrupt,
     key_of,
     parameter_client,
     to_msg,
-    wait_exit,
 )
-from ros_helpers import isolated_message_packages, stop, wait_for
-from test_ros2_node import NAMESPACE, Ros2, _run_ros2
+from ros_helpers import wait_for
+from test_ros2_node import NAMESPACE, Ros2, isolated_ros2
 from test_ros2_slam_node import (
-    HAS_TF,
-    Received,
     Replay,
     _fr079,
     _offline_map,
     _probe_first,
-    _subscribe,
+    _running,
     _summary_counts,
+    _tf_args,
     _wait_matched,
 )
 
 pytest.importorskip("gtsam")
 
-pytestmark = [
-    pytest.mark.ros2,
-    pytest.mark.real,
-    pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),
-]
+pytestmark = REAL_DDS_MARKS
 
 SPEED = 5.0  # times real time
 N_SCANS = 200  # 43 s of fr079: 8.6 s at 5x
@@ -56,14 +51,7 @@ N_SCANS = 200  # 43 s of fr079: 8.6 s at 5x
 
 @pytest.fixture(scope="module")
 def ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
-    with isolated_message_packages():
-        yield from _run_ros2(tmp_path_factory)
-
-
-def _tf_args(mount: Any) -> list[str]:
-    if HAS_TF:
-        return []
-    return ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
+    yield from isolated_ros2(tmp_path_factory)
 
 
 def _play(replay: Replay, scans: list[Any], msgs: list[Any], first: int = 0) -> int:
@@ -107,14 +95,10 @@ def test_parameter_calls_are_answered_while_it_relocalises(ros2: Ros2, tmp_path:
     name = "lc_busy"
     args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'map'}", "-p", "fix_scans:=150"]
     args += ["-p", "places.min_votes:=2", "-p", "queue_size:=1000", *_tf_args(mount)]
-    proc = ros2.start(name, *args)
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
-    stack = ExitStack()
     latencies: list[float] = []
     remote = f"{NAMESPACE}/{name}/{name}"
-    try:
+    with _running(ros2, name, args, odometry, mount) as run, ExitStack() as stack:
+        got, proc, replay = run.got, run.proc, run.replay
         _wait_matched(ros2, name, proc)
         client = stack.enter_context(parameter_client(ros2.node, remote))
         names = ["fix_scans", "places.min_votes", "map"]
@@ -135,16 +119,9 @@ def test_parameter_calls_are_answered_while_it_relocalises(ros2: Ros2, tmp_path:
             time.sleep(0.2)
         player.join(timeout=60.0)
         time.sleep(2.0)
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        stack.close()
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     counts = _summary(log, "SIGINT")
     assert counts["before a fix"] >= 150, log  # it searched (fix_scans reached the localiser)
     assert len(latencies) >= 10, f"{len(latencies)} calls while relocalising: {log}"
@@ -164,12 +141,10 @@ def test_at_5x_every_scan_sent_is_processed_or_counted(ros2: Ros2, tmp_path: Pat
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name = "lc_fast"
-    proc = ros2.start(name, "-p", "mode:=slam", *_tf_args(mount))  # queue_size 50 (default)
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
+    args = ["-p", "mode:=slam", *_tf_args(mount)]  # queue_size 50 (default)
     probes = 0
-    try:
+    with _running(ros2, name, args, odometry, mount) as run:
+        got, proc, replay = run.got, run.proc, run.replay
         _wait_matched(ros2, name, proc)
         time.sleep(1.0)  # the node's side of the scan subscription (best effort) matches too
         while not got.count(keys[:1]):  # the first scan, until answered (discovery)
@@ -183,15 +158,9 @@ def test_at_5x_every_scan_sent_is_processed_or_counted(ros2: Ros2, tmp_path: Pat
                 time.sleep(0.05)
         sent = probes + _play(replay, scans, msgs, first=1)
         time.sleep(3.0)  # the last scans' tf_wait and the worker's queue
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     c = _summary(log, "SIGINT")
     arrived = c["scans"]
     # probes sent before the node's side matched never arrived (and are not DDS's losses)
@@ -217,13 +186,10 @@ def test_parameter_calls_are_answered_while_a_service_runs(ros2: Ros2, tmp_path:
     keys = [key_of(m.header.stamp) for m in msgs]
     name, output = "lc_serialize", tmp_path / "map"
     args = ["-p", "mode:=slam", "-p", f"output:={output}", "-p", "queue_size:=1000"]
-    proc = ros2.start(name, *args, *_tf_args(mount))
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
-    stack = ExitStack()
+    args += _tf_args(mount)
     latencies: list[float] = []
-    try:
+    with _running(ros2, name, args, odometry, mount) as run, ExitStack() as stack:
+        got, proc, replay = run.got, run.proc, run.replay
         _wait_matched(ros2, name, proc)
         _probe_first(replay, scans, msgs, keys, got, proc)
         _play(replay, scans, msgs, first=1)
@@ -243,16 +209,9 @@ def test_parameter_calls_are_answered_while_a_service_runs(ros2: Ros2, tmp_path:
             time.sleep(0.05)
         took = time.perf_counter() - began
         assert serialized.done() and serialized.result().success, "serialize_map"
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        stack.close()
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     assert took > 0.3, f"serialize_map took {took:.2f} s, too short to show anything: {latencies}"
     assert max(latencies) <= 200.0, f"parameter calls during serialize_map: {latencies} ms"
     assert len(latencies) >= 3, f"{len(latencies)} calls during serialize_map ({took:.2f} s)"

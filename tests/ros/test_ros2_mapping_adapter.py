@@ -101,11 +101,10 @@ def _transform(parent: str, child: str, stamp: float, pose: Any) -> Any:
     return ts
 
 
-def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None:
-    from ros2_tools import to_msg
-
+def _slam_adapter(monkeypatch: pytest.MonkeyPatch) -> tuple[Node, Any]:
+    """A slam-mode ``MappingAdapter`` on a recording :class:`Node`, with :class:`FakeTF` as
+    the ``TFMessage`` class, activated (it subscribes at activate, as a managed node)."""
     from laser_corners.ros import ros2_mapping
-    from laser_corners.ros.nav_convert import transform_of
 
     real = ros2_mapping.messages
 
@@ -117,7 +116,16 @@ def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None
     monkeypatch.setattr(ros2_mapping, "messages", with_tf)
     node = Node()
     adapter = ros2_mapping.MappingAdapter(node, {"mode": "slam"})
-    adapter.activate()  # subscribes (a managed node: at activate)
+    adapter.activate()
+    return node, adapter
+
+
+def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None:
+    from ros2_tools import to_msg
+
+    from laser_corners.ros.nav_convert import transform_of
+
+    node, adapter = _slam_adapter(monkeypatch)
     assert {"/tf", "/tf_static", "scan"} <= set(node.subs) and "/tf" in node.pubs
     assert "map_to_odom" not in node.pubs
 
@@ -160,19 +168,8 @@ def test_an_error_on_the_worker_is_logged_not_lost(ros2_messages: None, monkeypa
     skipped message (known errors) or an error line (others), counted, never a silent loss
     in an unread future, and the worker goes on."""
     from laser_corners.errors import InputError
-    from laser_corners.ros import ros2_mapping
 
-    real = ros2_mapping.messages
-
-    def with_tf() -> SimpleNamespace:
-        m = real()
-        m.tf = FakeTF
-        return m
-
-    monkeypatch.setattr(ros2_mapping, "messages", with_tf)
-    node = Node()
-    adapter = ros2_mapping.MappingAdapter(node, {"mode": "slam"})
-    adapter.activate()  # subscribes (a managed node: at activate)
+    node, adapter = _slam_adapter(monkeypatch)
     calls = []
 
     def refuse(transforms, static):

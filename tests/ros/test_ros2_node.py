@@ -28,20 +28,25 @@ import pytest
 import yaml
 from ros2_tools import (
     RATE_HZ,
+    REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
     Key,
     Outputs,
     call_service,
-    check_poses,
+    check_clean_exit,
     fr079_scans,
+    interrupt,
     key_of,
+    one_error_line,
     probe,
     publish_paced,
     to_msg,
+    wait_discovered,
     wait_exit,
 )
 from ros_helpers import (
     FR079,
+    check_poses,
     cli_command,
     isolated_message_packages,
     skip_or_fail,
@@ -53,11 +58,7 @@ from ros_helpers import (
 from laser_corners import CornerDetector, DetectorParams
 from laser_corners.presets import get_preset
 
-pytestmark = [
-    pytest.mark.ros2,
-    pytest.mark.real,
-    pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),  # lark, via rosidl
-]
+pytestmark = REAL_DDS_MARKS
 
 N_SCANS = 400  # scans of fr079 played (the first ones)
 NODE_OVERRIDES = {"merge_radius": 0.0, "min_points": 4}  # non-defaults: prove params flow
@@ -116,6 +117,12 @@ def _rclpy() -> Any:
 @pytest.fixture(scope="module")
 def ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
     """An rclpy context and node in this process, on a domain of its own."""
+    yield from isolated_ros2(tmp_path_factory)
+
+
+def isolated_ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
+    """The ``ros2`` fixture of a test module: :func:`_run_ros2` with the message packages
+    of ROS 2 imported only meanwhile (``isolated_message_packages``)."""
     with isolated_message_packages():
         yield from _run_ros2(tmp_path_factory)
 
@@ -231,8 +238,7 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
             "PoseArrays and MarkerArrays of phase 2",
             proc,
         )
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
+        returncode = interrupt(proc)
     finally:
         node.destroy_subscription(corners_sub)
         if marker_sub is not None:
@@ -241,8 +247,7 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
         stop(proc, name)
 
     log = ros2.log(name)
-    assert returncode == 0, log
-    assert "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     assert re.search(r"skipped a malformed scan: .*angle_increment", log), log
     assert (1, 0) not in out.corners, "the malformed scan produced output"
     summary = re.search(
@@ -358,8 +363,7 @@ def test_invalid_parameter_stops_node_with_one_line_error(
     log = ros2.log(name)
     assert returncode == 2, log
     assert "Traceback" not in log, log
-    errors = [line for line in log.splitlines() if "error:" in line]
-    assert len(errors) == 1 and message in errors[0], log
+    assert message in one_error_line(log), log
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
@@ -367,14 +371,8 @@ def test_signal_stops_node_cleanly(ros2: Ros2, sig: signal.Signals) -> None:
     """Ctrl-C or SIGTERM (ros2 launch, systemd, docker stop): exit 0, summary, no traceback."""
     name = f"lc_{sig.name.lower()}"
     proc = ros2.start(name)
-    wait_for(
-        lambda: ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1,
-        STARTUP_TIMEOUT,
-        "the node's scan subscription",
-        proc,
-    )
-    os.kill(proc.pid, sig)
-    returncode = wait_exit(proc, sig.name)
+    wait_discovered(ros2.node, proc, "the node's scan subscription", (ros2.topic(name, "scan"),))
+    returncode = interrupt(proc, sig)
     log = ros2.log(name)
     assert returncode == 0, log
     assert "Traceback" not in log and "Exception" not in log, log

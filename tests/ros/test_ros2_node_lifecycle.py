@@ -8,39 +8,37 @@ Set-up and replay helpers as ``test_ros2_slam_node.py`` (fr079's scans, its odom
 
 from __future__ import annotations
 
-import os
-import signal
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from ros2_tools import (
+    REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
     call_service,
+    check_clean_exit,
+    interrupt,
     key_of,
     parameter_client,
+    set_parameters,
     to_msg,
-    wait_exit,
+    torn_down,
+    wait_discovered,
 )
-from ros_helpers import isolated_message_packages, stop, wait_for
-from test_ros2_node import NAMESPACE, Ros2, _run_ros2
-from test_ros2_slam_node import HAS_TF, Received, Replay, _fr079, _subscribe
+from ros_helpers import wait_for
+from test_ros2_node import NAMESPACE, Ros2, isolated_ros2
+from test_ros2_slam_node import Replay, _fr079, _running, _tf_args
 
 pytest.importorskip("gtsam")
 
-pytestmark = [
-    pytest.mark.ros2,
-    pytest.mark.real,
-    pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),
-]
+pytestmark = REAL_DDS_MARKS
 
 
 @pytest.fixture(scope="module")
 def ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
-    with isolated_message_packages():
-        yield from _run_ros2(tmp_path_factory)
+    yield from isolated_ros2(tmp_path_factory)
 
 
 class Lifecycle:
@@ -83,12 +81,9 @@ class Lifecycle:
 
 
 def _set(ros2: Ros2, name: str, **values: Any) -> None:
-    from rclpy.parameter import Parameter
-
     with parameter_client(ros2.node, f"{NAMESPACE}/{name}/{name}") as client:
-        params = [Parameter(k, value=v) for k, v in values.items()]
-        result = call_service(lambda: client.set_parameters(params), "set_parameters")
-        assert all(r.successful for r in result.results), result.results
+        results = set_parameters(client, **values)
+        assert all(r.successful for r in results), results
 
 
 def _send(replay: Replay, scans: list[Any], msgs: list[Any], indices: range) -> None:
@@ -109,16 +104,13 @@ def test_a_managed_node_processes_scans_only_while_active(ros2: Ros2, tmp_path: 
     blocker.write_text("not a folder")
     name, output = "lc_managed", tmp_path / "map"
     args = ["-p", "mode:=slam", "-p", "lifecycle:=true", "-p", f"output:={blocker / 'x'}"]
-    if not HAS_TF:
-        args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
-    proc = ros2.start(name, *args)
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
+    args += _tf_args(mount)
     scan_topic = ros2.topic(name, "scan")
-    lifecycle = Lifecycle(ros2, name, proc)
-    states = [lifecycle.state()]
-    try:
+    with _running(ros2, name, args, odometry, mount) as run:
+        got, proc, replay = run.got, run.proc, run.replay
+        lifecycle = Lifecycle(ros2, name, proc)
+        run.destroy.append(lifecycle.destroy)
+        states = [lifecycle.state()]
         _send(replay, scans, msgs, range(0, 10))  # unconfigured: nobody takes them
         assert not lifecycle.transition("configure")  # output checked at configure: refused
         states.append(lifecycle.state())
@@ -130,9 +122,7 @@ def test_a_managed_node_processes_scans_only_while_active(ros2: Ros2, tmp_path: 
         assert not got.poses and ros2.node.count_subscribers(scan_topic) == 0
         assert lifecycle.transition("activate")
         states.append(lifecycle.state())
-        wait_for(
-            lambda: ros2.node.count_subscribers(scan_topic) >= 1, 10.0, "the subscription", proc
-        )
+        wait_discovered(ros2.node, proc, "the subscription", (scan_topic,), timeout=10.0)
         time.sleep(1.0)  # the node's side of it matches too
         replay.next_odom = 0
         _send(replay, scans, msgs, range(20, 40))  # active: mapped
@@ -145,16 +135,9 @@ def test_a_managed_node_processes_scans_only_while_active(ros2: Ros2, tmp_path: 
         assert len(got.poses) == before and ros2.node.count_subscribers(scan_topic) == 0
         assert lifecycle.transition("shutdown")  # summary, the map folder written
         states.append(lifecycle.state())
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        lifecycle.destroy()
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     assert states == [
         "unconfigured",
         "unconfigured",
@@ -174,15 +157,9 @@ def test_without_lifecycle_the_node_configures_and_activates_itself(ros2: Ros2) 
     say so (nav2's autostart)."""
     name = "lc_autostart"
     proc = ros2.start(name, "-p", "mode:=detector")
-    lifecycle = Lifecycle(ros2, name, proc)
-    try:
+    destroy: list[Callable[[], object]] = []
+    with torn_down(ros2.node, proc, name, [], destroy):
+        lifecycle = Lifecycle(ros2, name, proc)
+        destroy.append(lifecycle.destroy)
         assert lifecycle.state() == "active"
-        wait_for(
-            lambda: ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1,
-            STARTUP_TIMEOUT,
-            "the scan subscription",
-            proc,
-        )
-    finally:
-        lifecycle.destroy()
-        stop(proc, name)
+        wait_discovered(ros2.node, proc, "the scan subscription", (ros2.topic(name, "scan"),))

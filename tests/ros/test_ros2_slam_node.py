@@ -20,27 +20,39 @@ import re
 import signal
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from ros2_tools import RATE_HZ, STARTUP_TIMEOUT, Key, call_service, key_of, to_msg, wait_exit
-from ros_helpers import FR079, isolated_message_packages, skip_or_fail, stop, wait_for
-from test_ros2_node import Ros2, _run_ros2
+from ros2_tools import (
+    RATE_HZ,
+    REAL_DDS_MARKS,
+    STARTUP_TIMEOUT,
+    Key,
+    call_service,
+    check_clean_exit,
+    interrupt,
+    key_of,
+    one_error_line,
+    to_msg,
+    torn_down,
+    wait_discovered,
+    wait_exit,
+)
+from ros_helpers import FR079, isolated_message_packages, skip_or_fail, wait_for
+from test_ros2_node import Ros2, isolated_ros2
 
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.ros.convert import seconds_to_sec_nanosec
 
 pytest.importorskip("gtsam")
 
-pytestmark = [
-    pytest.mark.ros2,
-    pytest.mark.real,
-    pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),
-]
+pytestmark = REAL_DDS_MARKS
 
 N_SCANS = 300  # the first 64 s of fr079
 HAS_TF = importlib.util.find_spec("tf2_msgs") is not None
@@ -49,8 +61,7 @@ TOLERANCE = 0.1  # the node's default transform_tolerance: map -> odom is future
 
 @pytest.fixture(scope="module")
 def ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
-    with isolated_message_packages():
-        yield from _run_ros2(tmp_path_factory)
+    yield from isolated_ros2(tmp_path_factory)
 
 
 def _fr079(n: int) -> tuple[list[Any], list[tuple[float, Any]], tuple[float, float, float]]:
@@ -229,12 +240,11 @@ class Replay:
             self.node.destroy_publisher(self.static_pub)
 
 
-def _start_slam(ros2: Ros2, name: str, mount, output: Path) -> Any:
-    args = ["-p", "mode:=slam", "-p", "map_period:=1.0", "-p", f"output:={output}"]
-    args += ["-p", f"queue_size:={N_SCANS}"]
-    if not HAS_TF:
-        args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
-    return ros2.start(name, *args)
+def _tf_args(mount: Any, tf: bool = HAS_TF) -> list[str]:
+    """The node's odometry parameters: none with /tf; without it the topic and the mount."""
+    if tf:
+        return []
+    return ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
 
 
 def _reference_poses(scans: list[Any], mount) -> np.ndarray:
@@ -305,16 +315,46 @@ def _check_metadata(got: Received, grid: Any) -> None:
     assert meta.origin.position.y == pytest.approx(grid.info.origin.position.y)
 
 
+@dataclass
+class Run:
+    """A node a test started, our subscriptions to it (``subs``), the replay into it and
+    what else to destroy at teardown (``destroy``)."""
+
+    proc: Any
+    got: Received
+    replay: Replay
+    subs: list[Any]
+    destroy: list[Callable[[], object]]
+
+
+@contextmanager
+def _running(
+    ros2: Ros2,
+    name: str,
+    args: list[str],
+    odometry: list[tuple[float, Any]],
+    mount: Any,
+    env: dict[str, str] | None = None,
+    tf: bool = HAS_TF,
+    tolerance: float = TOLERANCE,
+) -> Iterator[Run]:
+    """Start the node ``name`` with ``args``, subscribe its pose and map -> odom, replay
+    into it; afterwards destroy all that and stop the node."""
+    proc = ros2.start(name, *args, env=env)
+    subs: list[Any] = []
+    destroy: list[Callable[[], object]] = []
+    with torn_down(ros2.node, proc, name, subs, destroy):
+        got = Received(tolerance, tf)
+        subs += _subscribe(ros2, name, got, tf)
+        replay = Replay(ros2, name, odometry, mount, tf)
+        destroy.append(replay.destroy)
+        yield Run(proc, got, replay, subs, destroy)
+
+
 def _wait_matched(ros2: Ros2, name: str, proc: Any) -> None:
-    wait_for(
-        lambda: (
-            ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1
-            and ros2.node.count_publishers(ros2.topic(name, "pose")) >= 1
-        ),
-        STARTUP_TIMEOUT,
-        "the node's scan subscription and pose publisher",
-        proc,
-    )
+    subscribers, publishers = (ros2.topic(name, "scan"),), (ros2.topic(name, "pose"),)
+    what = "the node's scan subscription and pose publisher"
+    wait_discovered(ros2.node, proc, what, subscribers, publishers)
 
 
 def _probe_first(replay: Replay, scans, msgs, keys, got: Received, proc: Any, also=None) -> None:
@@ -344,6 +384,14 @@ def _play_rest(replay: Replay, scans, msgs, keys) -> dict[Key, float]:
         replay.scan_pub.publish(msg)
     replay.odometry_until(np.inf)
     return published_at
+
+
+def _play_all(ros2: Ros2, name: str, run: Run, scans, msgs, keys) -> None:
+    """Wait for discovery, probe with the first scan, play the rest; wait for every pose."""
+    _wait_matched(ros2, name, run.proc)
+    _probe_first(run.replay, scans, msgs, keys, run.got, run.proc)
+    _play_rest(run.replay, scans, msgs, keys)
+    wait_for(lambda: run.got.count(keys) == len(keys), 60.0, "a pose for every scan", run.proc)
 
 
 def _interpolate(samples: list[tuple[float, np.ndarray]], stamp: float) -> np.ndarray:
@@ -390,28 +438,20 @@ def test_slam_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name, output = "lc_slam", tmp_path / "map"
-    proc = _start_slam(ros2, name, mount, output)
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
-    try:
-        _wait_matched(ros2, name, proc)
-        _probe_first(replay, scans, msgs, keys, got, proc)
-        published_at = _play_rest(replay, scans, msgs, keys)
-        wait_for(lambda: got.count(keys) == N_SCANS, 60.0, "a pose for every scan", proc)
+    args = ["-p", "mode:=slam", "-p", "map_period:=1.0", "-p", f"output:={output}"]
+    args += ["-p", f"queue_size:={N_SCANS}", *_tf_args(mount)]
+    with _running(ros2, name, args, odometry, mount) as run:
+        got = run.got
+        _wait_matched(ros2, name, run.proc)
+        _probe_first(run.replay, scans, msgs, keys, got, run.proc)
+        published_at = _play_rest(run.replay, scans, msgs, keys)
+        wait_for(lambda: got.count(keys) == N_SCANS, 60.0, "a pose for every scan", run.proc)
         time.sleep(1.5)  # one map_period after the last keyframe: the final grid
-        subs += _latched_map(ros2, name, got, proc)  # a late subscriber gets it
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+        run.subs += _latched_map(ros2, name, got, run.proc)  # a late subscriber gets it
+        returncode = interrupt(run.proc)
 
     log = ros2.log(name)
-    assert returncode == 0, log
-    assert "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     summary = re.search(r"stopped by SIGINT: (\d+) scans, (\d+) processed, (\d+) without", log)
     assert summary, log
     assert int(summary.group(2)) >= N_SCANS and int(summary.group(3)) == 0, log
@@ -468,19 +508,16 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
     name = "lc_localise"
     args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'map'}"]
     args += ["-p", f"queue_size:={N_SCANS}", "-p", "transform_tolerance:=0.25"]
-    if not HAS_TF:
-        args += ["-p", "odom_topic:=odom", "-p", f"mount:=[{', '.join(map(str, mount))}]"]
-    proc = ros2.start(name, *args)
-    got = Received(tolerance=0.25)
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
+    args += _tf_args(mount)
     initial = fill_pose_with_covariance(
         PoseWithCovarianceStamped(), truth[0], np.diag([0.01, 0.01, 0.003])
     )
     initial.header.frame_id = "map"
-    initial_pub = ros2.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", 10)
-    try:
-        subs += _latched_map(ros2, name, got, proc)  # at start: the saved map.pgm
+    with _running(ros2, name, args, odometry, mount, tolerance=0.25) as run:
+        got, proc, replay = run.got, run.proc, run.replay
+        initial_pub = ros2.node.create_publisher(PoseWithCovarianceStamped, "/initialpose", 10)
+        run.destroy.append(lambda: ros2.node.destroy_publisher(initial_pub))
+        run.subs += _latched_map(ros2, name, got, proc)  # at start: the saved map.pgm
         _wait_matched(ros2, name, proc)
         # no fix without it on the first scan: an answer proves /initialpose arrived
         _probe_first(replay, scans, msgs, keys, got, proc, lambda: initial_pub.publish(initial))
@@ -490,18 +527,10 @@ def test_localise_mode_end_to_end(ros2: Ros2, tmp_path: Path) -> None:
         assert restarted.success, restarted.message
         refused = _trigger(ros2, name, "serialize_map", proc)  # the map is the input here
         assert not refused.success and "mode slam" in refused.message, refused.message
-        os.kill(proc.pid, signal.SIGTERM)
-        returncode = wait_exit(proc, "SIGTERM")
-    finally:
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        ros2.node.destroy_publisher(initial_pub)
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc, signal.SIGTERM)
 
     log = ros2.log(name)
-    assert returncode == 0, log
-    assert "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     assert re.search(r"initial pose \[.*\] applied", log), log
     assert "reinitialize_global_localization: global search from the next scan" in log, log
     # every step of the core runs on the worker: no callback waits for it
@@ -545,8 +574,7 @@ def test_mapping_modes_refuse_bad_parameters(ros2: Ros2, args: list[str], messag
     log = ros2.log(name)
     assert returncode == 2, log
     assert "Traceback" not in log, log
-    errors = [line for line in log.splitlines() if "error:" in line]
-    assert len(errors) == 1 and message in errors[0], log
+    assert message in one_error_line(log), log
 
 
 def test_tf2_msgs_is_importable() -> None:
@@ -581,9 +609,8 @@ def test_without_tf2_msgs_slam_mode_needs_an_odometry_topic(
     returncode = wait_exit(proc, "mode slam without tf2_msgs")
     log = ros2.log(name)
     assert returncode == 2, log
-    errors = [line for line in log.splitlines() if "error:" in line]
-    assert len(errors) == 1 and "-p odom_topic:=/odom" in errors[0], log
-    assert "build_tf2_msgs.sh" in errors[0], log
+    error = one_error_line(log)
+    assert "-p odom_topic:=/odom" in error and "build_tf2_msgs.sh" in error, log
 
 
 def test_without_tf2_msgs_map_to_odom_goes_to_a_topic(
@@ -596,26 +623,13 @@ def test_without_tf2_msgs_map_to_odom_goes_to_a_topic(
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name = "lc_fallback"
-    args = ["-p", "mode:=slam", "-p", "odom_topic:=odom", "-p", f"queue_size:={n}"]
-    args += ["-p", f"mount:=[{', '.join(map(str, mount))}]"]
-    proc = ros2.start(name, *args, env=hidden_tf2_msgs)
-    got = Received(tf=False)
-    subs = _subscribe(ros2, name, got, tf=False)
-    replay = Replay(ros2, name, odometry, mount, tf=False)
-    try:
-        _wait_matched(ros2, name, proc)
-        _probe_first(replay, scans, msgs, keys, got, proc)
-        _play_rest(replay, scans, msgs, keys)
-        wait_for(lambda: got.count(keys) == n, 60.0, "a pose for every scan", proc)
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+    args = ["-p", "mode:=slam", "-p", f"queue_size:={n}", *_tf_args(mount, tf=False)]
+    with _running(ros2, name, args, odometry, mount, env=hidden_tf2_msgs, tf=False) as run:
+        got = run.got
+        _play_all(ros2, name, run, scans, msgs, keys)
+        returncode = interrupt(run.proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     assert log.count("tf2_msgs is not importable") == 1, log
     assert "map -> odom goes to" in log and "map_to_odom" in log, log
     _check_pose_messages(got, keys, scans, odometry)
@@ -647,17 +661,12 @@ def test_missing_odometry_is_never_silent(ros2: Ros2, case: str) -> None:
     if case == "wrong base_frame":
         args += ["-p", "base_frame:=base_footprint"]
     proc = ros2.start(name, *args)
-    replay = Replay(ros2, name, odometry, mount)
-    try:
-        wait_for(
-            lambda: (
-                ros2.node.count_subscribers(ros2.topic(name, "scan")) >= 1
-                and ros2.node.count_subscribers("/tf") >= 1
-            ),
-            STARTUP_TIMEOUT,
-            "the node's scan and /tf subscriptions",
-            proc,
-        )
+    destroy: list[Callable[[], object]] = []
+    with torn_down(ros2.node, proc, name, [], destroy):
+        replay = Replay(ros2, name, odometry, mount)
+        destroy.append(replay.destroy)
+        topics = (ros2.topic(name, "scan"), "/tf")
+        wait_discovered(ros2.node, proc, "the node's scan and /tf subscriptions", topics)
         time.sleep(0.5)  # our side matched; give the node's side a moment (best effort)
         start = time.perf_counter()
         for i, msg in enumerate(msgs):
@@ -667,13 +676,9 @@ def test_missing_odometry_is_never_silent(ros2: Ros2, case: str) -> None:
             replay.scan_pub.publish(msg)
         wait_for(lambda: "no odometry for" in ros2.log(name), 10.0, "the warning", proc)
         time.sleep(1.0)  # the last scans' tf_wait: dropped, not waiting
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     warnings = _warnings(log)
     topic = ros2.topic(name, "scan")
     lost = [w for w in warnings if "no odometry for" in w]
@@ -717,12 +722,10 @@ def test_slam_services_write_the_map_while_running(ros2: Ros2, tmp_path: Path) -
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name, output = "lc_services", tmp_path / "live"
-    proc = ros2.start(name, "-p", "mode:=slam", "-p", f"output:={output}", "-p", "queue_size:=60")
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
+    args = ["-p", "mode:=slam", "-p", f"output:={output}", "-p", "queue_size:=60"]
     first = 40  # then the services; then the rest: mapping goes on after serialize_map
-    try:
+    with _running(ros2, name, args, odometry, mount) as run:
+        got, proc, replay = run.got, run.proc, run.replay
         _wait_matched(ros2, name, proc)
         _probe_first(replay, scans, msgs, keys, got, proc)
         _play_rest(replay, scans[:first], msgs[:first], keys[:first])
@@ -744,15 +747,9 @@ def test_slam_services_write_the_map_while_running(ros2: Ros2, tmp_path: Path) -
             time.sleep(1.0 / RATE_HZ)
         replay.odometry_until(np.inf)
         wait_for(lambda: got.count(keys) == n, 60.0, "poses after serialize_map", proc)
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+        returncode = interrupt(proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     assert f"save_map: wrote {output / 'map.yaml'}" in log, log
     _check_pose_messages(got, keys, scans, odometry)  # the poses after it still fit the tf
     assert len(load_map(output)) > len(saved_map)  # the folder of the whole run at SIGINT
@@ -768,8 +765,7 @@ def test_an_unwritable_output_stops_the_node_at_start(ros2: Ros2, tmp_path: Path
     returncode = wait_exit(proc, "an unwritable output")
     log = ros2.log(name)
     assert returncode == 2 and "Traceback" not in log, log
-    errors = [line for line in log.splitlines() if "error:" in line]
-    assert len(errors) == 1 and f"output {blocker / 'map'}" in errors[0], log
+    assert f"output {blocker / 'map'}" in one_error_line(log), log
     assert time.monotonic() - started < STARTUP_TIMEOUT
 
 
@@ -781,25 +777,13 @@ def test_an_odometry_jump_is_never_silent(ros2: Ros2) -> None:
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name = "lc_jump"
-    proc = ros2.start(name, "-p", "mode:=slam", "-p", f"queue_size:={n}")
-    got = Received()
-    subs = _subscribe(ros2, name, got)
-    replay = Replay(ros2, name, odometry, mount)
-    replay.jump = ((scans[19].stamp + scans[20].stamp) / 2.0, 5.0)
-    try:
-        _wait_matched(ros2, name, proc)
-        _probe_first(replay, scans, msgs, keys, got, proc)
-        _play_rest(replay, scans, msgs, keys)
-        wait_for(lambda: got.count(keys) == n, 60.0, "a pose for every scan", proc)
-        os.kill(proc.pid, signal.SIGINT)
-        returncode = wait_exit(proc, "SIGINT")
-    finally:
-        for sub in subs:
-            ros2.node.destroy_subscription(sub)
-        replay.destroy()
-        stop(proc, name)
+    args = ["-p", "mode:=slam", "-p", f"queue_size:={n}"]
+    with _running(ros2, name, args, odometry, mount) as run:
+        run.replay.jump = ((scans[19].stamp + scans[20].stamp) / 2.0, 5.0)
+        _play_all(ros2, name, run, scans, msgs, keys)
+        returncode = interrupt(run.proc)
     log = ros2.log(name)
-    assert returncode == 0 and "Traceback" not in log, log
+    check_clean_exit(returncode, log)
     jumps = [w for w in _warnings(log) if "odometry jumped" in w]
     assert len(jumps) == 1 and "odom -> base_link from /tf; max_odom_jump 1 m" in jumps[0], log
     found = re.search(r"odometry jumped (\d+\.\d+) m", jumps[0])
