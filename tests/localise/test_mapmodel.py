@@ -66,7 +66,8 @@ def test_the_global_search_finds_the_true_pose_among_distinct_candidates(model_w
 def test_the_window_search_stays_in_its_window(model_world) -> None:
     model, truth = model_world
     centre = truth[120] + np.array([0.3, -0.2, 0.05])
-    found = model.window_search(_points(truth, 120), centre, 1.0, 0.2, 0.02, 4, (0.5, 0.1))
+    search = model.window_slices(_points(truth, 120), centre, 1.0, 0.2, 0.02, 4, (0.5, 0.1))
+    found = search.finish()
     assert found
     assert math.hypot(*(found[0][0][:2] - truth[120, :2])) < 0.3
     for p, _ in found:

@@ -135,25 +135,6 @@ class MapModel:
         pts = _subsample(points)
         return SlicedSearch(self.pyramid, self.lattice, pts, yaws, count, (1.0, 0.3))
 
-    def window_search(
-        self,
-        points: NDArray[np.float64],
-        centre: NDArray[np.float64],
-        xy: float,
-        yaw: float,
-        yaw_step: float,
-        count: int,
-        apart: tuple[float, float],
-    ) -> list[tuple[NDArray[np.float64], float]]:
-        """The global search restricted to a window: the ``count`` best poses of ``points``
-        (base frame) within ``xy`` (m, a disc) and ``yaw`` (rad) of ``centre``, on a lattice of
-        :data:`WINDOW_STEP` clear of the walls, at least ``apart`` (m, rad) apart.
-
-        Used after a lost track, around its dead-reckoned pose: the prior excludes the
-        look-alikes elsewhere in the map, and the lattice does not need a keyframe nearby.
-        """
-        return self.window_slices(points, centre, xy, yaw, yaw_step, count, apart).finish()
-
     def window_slices(
         self,
         points: NDArray[np.float64],
@@ -164,7 +145,14 @@ class MapModel:
         count: int,
         apart: tuple[float, float],
     ) -> SlicedSearch:
-        """:meth:`window_search`, to be run in slices (:class:`SlicedSearch`)."""
+        """The global search restricted to a window, to be run in slices
+        (:class:`SlicedSearch`; ``.finish()`` runs it whole): the ``count`` best poses of
+        ``points`` (base frame) within ``xy`` (m, a disc) and ``yaw`` (rad) of ``centre``, on
+        a lattice of :data:`WINDOW_STEP` clear of the walls, at least ``apart`` (m, rad) apart.
+
+        Used after a lost track, around its dead-reckoned pose: the prior excludes the
+        look-alikes elsewhere in the map, and the lattice does not need a keyframe nearby.
+        """
         cells = max(1, round(WINDOW_STEP / GLOBAL_GRID))
         n = math.floor(xy / WINDOW_STEP + 1e-9)
         off = WINDOW_STEP * np.arange(-n, n + 1)

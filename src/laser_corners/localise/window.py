@@ -8,7 +8,7 @@ odometry keeps moving it: the *dead-reckoned* pose. Its uncertainty grows with t
 rather than average out) by the odometry noise per metre travelled and per radian turned, the
 heading's uncertainty also moving the position by the distance driven. While its 3σ stays
 under the localiser's limits, the search after a loss looks for the robot only inside it
-(:meth:`~laser_corners.localise.mapmodel.MapModel.window_search`): a look-alike elsewhere in
+(:meth:`~laser_corners.localise.mapmodel.MapModel.window_slices`): a look-alike elsewhere in
 the map cannot compete, so a shorter travel suffices to tell the hypotheses inside the window
 apart. A robot carried away (a kidnap the odometry does not show) is not in the window: its
 hypotheses there do not agree with the map well enough to become a fix, the window grows past
