@@ -238,3 +238,24 @@ def test_dense_check_keeps_the_best_scores_of_checking_every_candidate(mapped) -
     assert [c.score for c in got] == pytest.approx([sp[0] for sp in want], abs=1e-9)
     np.testing.assert_allclose([c.pose for c in got], [sp[1] for sp in want])
     assert _error(got[0].pose, truth)[0] < 0.1
+
+
+def _answer(found: list[Candidate]) -> list[tuple]:
+    return [(tuple(np.round(c.pose, 9)), c.votes) for c in found]
+
+
+def test_options_replaced_after_a_query_are_used_by_the_next(mapped) -> None:
+    """The localiser's proposer replaces the index's options (``PlaceProposer``): the next
+    query must use the new consensus radius and yaw, not a grid cached with the old ones."""
+    _, poses, index = mapped
+    query = index.keyframe_corners(np.arange(18, 31), poses, poses[30])
+    old, new = PlaceOptions(), PlaceOptions(consensus_radius=1.5, consensus_yaw=1.0)
+    reused = index_from_arrays(index_arrays(index), old)
+    assert reused is not None
+    before = _answer(reused.candidates(query, poses))
+    reused.options = new
+    fresh = index_from_arrays(index_arrays(index), new)
+    assert fresh is not None
+    expected = _answer(fresh.candidates(query, poses))
+    assert expected != before  # the options change the answer here
+    assert _answer(reused.candidates(query, poses)) == expected

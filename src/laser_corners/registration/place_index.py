@@ -239,14 +239,14 @@ class PlaceIndex:
 
     def _grid(self, poses: NDArray[np.float64], upto: int | None) -> CornerGrid | None:
         """The map corners at ``poses`` (before keyframe ``upto``) bucketed for the consensus;
-        remade only when the poses, ``upto`` or the corners changed."""
+        remade only when the poses, ``upto``, the corners or the consensus options (the
+        grid's radius and yaw; a caller may replace :attr:`options`) changed."""
         self._flush()
-        key = (
-            np.asarray(poses, dtype=np.float64).tobytes() + str((upto, len(self.keyframe))).encode()
-        )
+        opt = self.options
+        made_of = (upto, len(self.keyframe), opt.consensus_radius, opt.consensus_yaw)
+        key = np.asarray(poses, dtype=np.float64).tobytes() + repr(made_of).encode()
         if self._cache is None or self._cache[0] != key:
             mapped = self.map_corners(poses, upto)
-            opt = self.options
             grid = (
                 CornerGrid.build(mapped, opt.consensus_radius, opt.consensus_yaw)
                 if len(mapped)
