@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from laser_corners.errors import InputError, InvalidParamsError
-from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise import LocaliseOptions, Localiser, SmoothOptions, estimate, run_localise
 from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.mapfolder import FORMAT_VERSION, load_map, save_map_data
 from laser_corners.sim import SICK_LMS_1DEG, World
+from laser_corners.sim.export import simulate_sequence, write_bag
 from laser_corners.slam import SlamOptions
 
 RATE = 10.0
@@ -137,7 +138,39 @@ def test_tracking_from_an_initial_pose_is_accurate_and_cheap(building_map) -> No
     # map -> odom composes the odometry into the estimate
     e = estimates[-1]
     np.testing.assert_allclose(compose_many(e.map_to_odom, odo[-1]), e.pose, atol=1e-9)
-    assert np.median(loc.ms_per_scan[5:]) < 20.0  # loose: a shared test machine
+    assert np.median(list(loc.ms_per_scan)[5:]) < 20.0  # loose: a shared test machine
+
+
+def test_a_long_run_keeps_the_newest_times_per_scan(building_map, monkeypatch) -> None:
+    """The ROS 2 node's localiser runs for days: it keeps the last ``TIMINGS_KEPT`` scans'
+    times, not one a scan forever; the scans are counted."""
+    monkeypatch.setattr(estimate, "TIMINGS_KEPT", 6)
+    folder, truth = building_map
+    drive = truth[:20]
+    loc = Localiser(folder)
+    loc.set_pose(drive[0])
+    feed = zip(scans_along(building(), drive, 9), noisy_odometry(drive, 9), strict=True)
+    kept, checked = [], 0
+    for i, (scan, odo) in enumerate(feed):
+        loc.add(scan, odo, i / RATE)
+        if len(kept) == 6:  # one scan more: the oldest time dropped, the newest appended
+            assert list(loc.ms_per_scan)[:-1] == kept[1:]
+            checked += 1
+        kept = list(loc.ms_per_scan)
+    assert len(loc.ms_per_scan) == 6 and checked == len(drive) - 6
+    assert loc.counts["scans"] == len(drive)
+
+
+def test_a_recordings_run_reports_every_scans_time(building_map, monkeypatch, tmp_path) -> None:
+    """``run_localise`` gives every scan's time, whatever the localiser keeps."""
+    monkeypatch.setattr(estimate, "TIMINGS_KEPT", 5)
+    folder, truth = building_map
+    drive = truth[:30]
+    rng = np.random.default_rng(3)
+    write_bag(simulate_sequence(building(), SICK_LMS_1DEG, drive, 0.01, rng), tmp_path / "a.bag")
+    options = LocaliseOptions(smooth=SmoothOptions(enabled=False))
+    run = run_localise(folder, tmp_path / "a.bag", options, initial_pose=drive[0])
+    assert len(run.ms_per_scan) == len(drive) and np.all(run.ms_per_scan > 0)
 
 
 def travel_to(drive: np.ndarray, index: int) -> float:

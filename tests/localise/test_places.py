@@ -1,6 +1,6 @@
 """The localiser's global search by corners (``localise.places``) on a real log: fr079.bag's
 first 1,500 scans mapped, then localised with no initial pose from scans in the middle, and
-across a 20 m odometry jump."""
+across a 20 m odometry jump; the attempts' records (bounded) in the simulated building."""
 
 from __future__ import annotations
 
@@ -12,12 +12,18 @@ import pytest
 
 pytest.importorskip("gtsam")
 
+from test_localiser import building, loaded_building, noisy_odometry, scans_along
+
 from conftest import real_file
-from laser_corners.localise import LocaliseOptions, Localiser
+from laser_corners.localise import LocaliseOptions, Localiser, estimate
+from laser_corners.localise.mapmodel import MapModel
+from laser_corners.localise.places import PlaceProposer
+from laser_corners.localise.search import GLOBAL_SPACING
 from laser_corners.pipeline.recording import open_recording
 from laser_corners.pose import between_many, compose_many
 from laser_corners.registration.mapfolder import load_map
 from laser_corners.registration.place_index import PlaceOptions
+from laser_corners.registration.points import scan_points
 from laser_corners.slam import run_slam
 from laser_corners.slam.output import SlamRunInfo
 from laser_corners.viz.slam_report import write_slam_outputs
@@ -138,3 +144,40 @@ def test_a_corner_rich_stretch_costs_a_bounded_query_and_still_fixes(fr079) -> N
     assert max(w.corners for w in work) == opt.max_query
     assert all(w.proposals <= w.corners * opt.matches for w in work)
     assert all(w.checked <= opt.checked for w in work)
+
+
+@pytest.fixture(scope="module")
+def building_world(tmp_path_factory):
+    return loaded_building(tmp_path_factory)
+
+
+def _proposer(saved) -> PlaceProposer:
+    options = LocaliseOptions()
+    grid = MapModel(saved, options).grid
+    return PlaceProposer(saved.places, saved.poses, grid, np.zeros(3), options.places)
+
+
+def test_attempt_records_keep_the_newest_timings_kept(building_world, monkeypatch) -> None:
+    """A localiser running for days keeps the last ``TIMINGS_KEPT`` attempts' times and work,
+    not one an attempt forever: the newest, as an unbounded record's last ones."""
+    saved, truth = building_world
+    drive = truth[:40]  # the query grows from 2 corners to 4
+    scans, odo = scans_along(building(), drive, 8), noisy_odometry(drive, 8)
+    unbounded = _proposer(saved)
+    monkeypatch.setattr(estimate, "TIMINGS_KEPT", 4)
+    bounded = _proposer(saved)
+    assert bounded.usable
+    kept, checked = [], 0
+    for scan, o in zip(scans, odo, strict=True):
+        points = scan_points(scan, np.zeros(3), 0.1, 30.0, GLOBAL_SPACING).xy
+        for proposer in (unbounded, bounded):
+            proposer.observe(scan, o)
+            proposer.propose(points)
+        if len(kept) == 4:  # one attempt more: the oldest time dropped, the newest appended
+            assert list(bounded.ms)[:-1] == kept[1:]
+            checked += 1
+        kept = list(bounded.ms)
+    assert len(unbounded.ms) == len(unbounded.work) == len(drive) and checked > 30
+    assert len(bounded.ms) == len(bounded.work) == 4
+    work = list(unbounded.work)
+    assert work[:4] != work[-4:] and list(bounded.work) == work[-4:]

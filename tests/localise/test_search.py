@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from test_localiser import building, loaded_building, noisy_odometry, scans_along
 
-from laser_corners.localise import LocaliseOptions
+from laser_corners.localise import LocaliseOptions, estimate
 from laser_corners.localise.local import LocalMap
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
 from laser_corners.localise.matcher import MapMatcher
@@ -27,9 +27,8 @@ def _search(saved, options) -> GlobalSearch:
     model = MapModel(saved, options)
     matcher = MapMatcher(model, options, np.zeros(3))
     places = PlaceProposer(saved.places, saved.poses, model.grid, np.zeros(3), options.places)
-    counts = dict.fromkeys(
-        ("searches", "place_attempts", "credited", "refused_free_space", "refused_history"), 0
-    )
+    keys = ("searches", "search_slices", "place_attempts", "credited")
+    counts = dict.fromkeys((*keys, "refused_free_space", "refused_history"), 0)
     return GlobalSearch(matcher, places, LocalMap(model.grid, GLOBAL_SIGMA), counts)
 
 
@@ -101,6 +100,31 @@ def test_a_sliced_exhaustive_search_carries_its_answers_to_the_scan_it_ends_on(
     assert len(search.search_ms) >= 3 * search.counts["searches"]  # sliced over scans
     # the robot moved during a search, and its right answer came where the robot is now
     assert any(moved > 0.5 and err < 0.2 for moved, err in fresh_errors), fresh_errors
+
+
+def test_slice_times_keep_the_newest_and_the_counter_counts_every_slice(
+    building_world, monkeypatch
+) -> None:
+    # a localiser running for days keeps the last TIMINGS_KEPT slice times, not one a scan
+    # forever; how many slices ran comes from the counter
+    monkeypatch.setattr(estimate, "TIMINGS_KEPT", 5)
+    saved, truth = building_world
+    search = _search(saved, LocaliseOptions().with_overrides(["places.enabled=false"]))
+    search.slice_nodes = 40
+    drive = truth[150:180]
+    scans, odo = scans_along(building(), drive, 8), noisy_odometry(drive, 8)
+    kept, checked = [], 0
+    for i, scan in enumerate(scans):
+        pts = scan_points(scan, np.zeros(3), 0.1, 30.0, search.options.point_spacing)
+        delta = np.zeros(3) if i == 0 else between_many(odo[i - 1], odo[i])
+        slices = search.counts["search_slices"]
+        search.step(scan, pts, delta, False, odo[i], i)
+        if search.counts["search_slices"] > slices and len(kept) == 5:
+            # one slice more: the oldest time dropped, this slice's appended
+            assert list(search.search_ms)[:-1] == kept[1:]
+            checked += 1
+        kept = list(search.search_ms)
+    assert search.counts["search_slices"] > 10 and len(search.search_ms) == 5 and checked > 5
 
 
 def _no_corner_matches() -> LocaliseOptions:

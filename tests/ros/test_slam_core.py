@@ -17,7 +17,13 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
-from laser_corners.localise import EngineOptions, LocaliseOptions, Localiser, SmoothOptions
+from laser_corners.localise import (
+    EngineOptions,
+    LocaliseOptions,
+    Localiser,
+    SmoothOptions,
+    estimate,
+)
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.registration.mapfolder import load_map
 from laser_corners.registration.odometry import OdometryNoise
@@ -272,6 +278,26 @@ def _feed(core: MappingCore, truth: np.ndarray, scans: list, start: int = 0) -> 
         core.book.add_odometry("odom", "base_link", (i + 0.5) / RATE, truth[i])
         out += core.add_scan(scan)
     return out
+
+
+def test_a_long_run_keeps_the_newest_times_and_says_so(monkeypatch) -> None:
+    """A node runs for days: the last ``TIMINGS_KEPT`` scans' times are kept (the newest), the
+    processed scans counted, and the summary says its timing is of the last ones."""
+    truth, scans = _drive(12)
+    short = _core(mount=list(MOUNT))
+    _feed(short, truth, scans[:4])
+    assert len(short.counts.ms) == short.counts.processed == 4
+    assert "ms/scan mean" in short.summary() and "last" not in short.summary()
+    monkeypatch.setattr(estimate, "TIMINGS_KEPT", 5)
+    core = _core(mount=list(MOUNT))
+    kept = []
+    for i in range(len(scans)):
+        _feed(core, truth[: i + 1], scans[: i + 1], start=i)
+        if len(kept) == 5:  # one scan more: the oldest time dropped, the newest appended
+            assert list(core.counts.ms) == [*kept[1:], core.last.ms]
+        kept = list(core.counts.ms)
+    assert len(core.counts.ms) == 5 and core.counts.processed == len(scans)
+    assert "ms/scan mean" in core.summary() and "(last 5 scans)" in core.summary()
 
 
 @pytest.fixture(scope="module")

@@ -1,13 +1,33 @@
-"""What the localiser gives: :class:`LocaliserEstimate` per scan, :class:`Fix` per fix."""
+"""What the localiser gives: :class:`LocaliserEstimate` per scan, :class:`Fix` per fix, and
+its timing records (:func:`timing_record`: the last :data:`TIMINGS_KEPT` only)."""
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Fix", "LocaliserEstimate"]
+__all__ = ["TIMINGS_KEPT", "Fix", "LocaliserEstimate", "timing_record"]
+
+TIMINGS_KEPT = 10_000
+"""Entries a timing record keeps (:func:`timing_record`): the last 10,000 attempts, slices or
+scans. A localiser running for days in the ROS 2 node would otherwise keep one per scan
+without bound; how many there were comes from a counter, never from a record's length."""
+
+
+def timing_record() -> deque[Any]:
+    """An empty record of per-attempt (or per-scan) timings that keeps the last
+    :data:`TIMINGS_KEPT` entries (the value when it is made), dropping the oldest.
+
+    Returns
+    -------
+    collections.deque
+        Empty, ``maxlen`` :data:`TIMINGS_KEPT`.
+    """
+    return deque(maxlen=TIMINGS_KEPT)
 
 
 @dataclass

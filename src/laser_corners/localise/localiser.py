@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from enum import Enum
 from pathlib import Path
 
@@ -63,7 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from laser_corners.localise.engine import EngineTrack
-from laser_corners.localise.estimate import Fix, LocaliserEstimate
+from laser_corners.localise.estimate import Fix, LocaliserEstimate, timing_record
 from laser_corners.localise.hypotheses import Hypothesis
 from laser_corners.localise.local import LocalMap
 from laser_corners.localise.mapmodel import GLOBAL_SIGMA, MapModel
@@ -85,6 +86,7 @@ COUNT_KEYS = (
     "estimates",
     "lost",
     "searches",
+    "search_slices",
     "no_agreement",
     "recoveries",
     "refused_free_space",
@@ -144,7 +146,10 @@ class Localiser:
         self.map = MapModel(saved, self.options)
         self.counts = dict.fromkeys(COUNT_KEYS, 0)
         self.fixes: list[Fix] = []
-        self.ms_per_scan: list[float] = []
+        self.ms_per_scan: deque[float] = timing_record()
+        """Milliseconds of :meth:`add` for the last 10,000 scans
+        (:data:`~laser_corners.localise.estimate.TIMINGS_KEPT`; a whole recording's:
+        :func:`~laser_corners.localise.run.run_localise`), oldest first."""
         self.local = LocalMap(self.map.grid, GLOBAL_SIGMA)
         """Recent scans' points the map does not explain (tracking into unmapped space)."""
         matcher = MapMatcher(self.map, self.options, self.mount)
@@ -188,10 +193,11 @@ class Localiser:
         return self.search.places
 
     @property
-    def search_ms(self) -> list[float]:
-        """Milliseconds of every slice of an exhaustive correlative search (global or
-        window): one a scan while a search runs (``registration.global_search.SLICE_NODES``
-        nodes at most)."""
+    def search_ms(self) -> deque[float]:
+        """Milliseconds of the last 10,000 slices of an exhaustive correlative search (global
+        or window; :data:`~laser_corners.localise.estimate.TIMINGS_KEPT`): one a scan while a
+        search runs (``registration.global_search.SLICE_NODES`` nodes at most); how many ran:
+        ``counts["search_slices"]``."""
         return self.search.search_ms
 
     def set_pose(self, pose: ArrayLike, covariance: ArrayLike | None = None) -> None:

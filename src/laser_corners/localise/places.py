@@ -6,18 +6,20 @@
 candidate is moved by a bounded correlative check on the map's likelihood grid
 (:func:`~laser_corners.registration.place_index.dense_check`). The localiser then treats the
 candidates as it treats the exhaustive search's poses: hypotheses refined by ICP and followed
-until one wins (``localise.hypotheses``). An attempt costs milliseconds (its times are kept
-in :attr:`PlaceProposer.ms`), so it runs on every scan of a search.
+until one wins (``localise.hypotheses``). An attempt costs milliseconds (the last 10,000 attempts'
+times are kept in :attr:`PlaceProposer.ms`), so it runs on every scan of a search.
 """
 
 from __future__ import annotations
 
 import time
+from collections import deque
 
 import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.detector import CornerDetector
+from laser_corners.localise.estimate import timing_record
 from laser_corners.registration.corners import QueryBuffer, corner_detector, scan_corners
 from laser_corners.registration.correlative import ScoreGrid
 from laser_corners.registration.place_index import (
@@ -65,11 +67,13 @@ class PlaceProposer:
         self.options = options
         self.buffer = QueryBuffer(options.query_travel)
         self._detector: CornerDetector | None = None
-        self.ms: list[float] = []
-        """Milliseconds of every attempt (query + dense check)."""
-        self.work: list[QueryWork] = []
-        """The query's work of every attempt (:class:`QueryWork`: corners, proposals, poses
-        dense-checked), bounded by the options (``max_query``, ``matches``, ``checked``)."""
+        self.ms: deque[float] = timing_record()
+        """Milliseconds of the last 10,000 attempts (query + dense check;
+        :data:`~laser_corners.localise.estimate.TIMINGS_KEPT`), oldest first."""
+        self.work: deque[QueryWork] = timing_record()
+        """The query's work of the last 10,000 attempts (:class:`QueryWork`: corners,
+        proposals, poses dense-checked), bounded by the options (``max_query``, ``matches``,
+        ``checked``); in step with :attr:`ms`."""
 
     @property
     def usable(self) -> bool:

@@ -77,6 +77,8 @@ class LocaliseRun:
         ``scans, estimates, lost, searches, no_agreement, recoveries, refused_free_space,
         skipped_no_odometry, scans_read`` (the recording's scans read, from index 0 on).
     ms_per_scan : ndarray
+        Milliseconds of :meth:`Localiser.add` for every scan given (the whole run; the
+        localiser itself keeps the last ``TIMINGS_KEPT``).
     odometry_stamps, odometry : ndarray
         Stamp and base odometry of every scan given.
     interrupted : bool
@@ -245,11 +247,13 @@ def _loop(loc, slam, rec, span, callbacks, watch: _Watch) -> LocaliseRun:
     index: list[int] = []
     positions: list[int] = []
     odometry: list[NDArray] = []
+    ms: list[float] = []  # every scan's: the localiser keeps the last TIMINGS_KEPT only
     feed = OdometryFeed()
     try:
         for i, scan, base in odometry_scans(rec, feed, *span):
             feed.at = i
             estimate = loc.add(scan, base, float(scan.stamp))
+            ms.append(loc.ms_per_scan[-1])
             if slam is not None:
                 slam.add(scan, base, float(scan.stamp))
             index.append(i)
@@ -279,7 +283,7 @@ def _loop(loc, slam, rec, span, callbacks, watch: _Watch) -> LocaliseRun:
             if f.scan_index < len(index)
         ],
         counts,
-        np.asarray(loc.ms_per_scan, dtype=np.float64),
+        np.asarray(ms, dtype=np.float64),
         np.asarray(stamps, dtype=np.float64),
         np.asarray(odometry, dtype=np.float64).reshape(-1, 3),
         feed.interrupted,

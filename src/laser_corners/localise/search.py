@@ -25,10 +25,12 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 
 import numpy as np
 from numpy.typing import NDArray
 
+from laser_corners.localise.estimate import timing_record
 from laser_corners.localise.history import SearchHistory
 from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
 from laser_corners.localise.local import LocalMap, explained_share
@@ -61,8 +63,8 @@ class GlobalSearch:
     local : LocalMap
         Tells the scan points the map does not explain (the window's agreement).
     counts : dict
-        The localiser's counters (``searches``, ``place_attempts``, ``credited``,
-        ``refused_free_space``, ``refused_history``), updated here.
+        The localiser's counters (``searches``, ``search_slices``, ``place_attempts``,
+        ``credited``, ``refused_free_space``, ``refused_history``), updated here.
     """
 
     def __init__(
@@ -82,9 +84,9 @@ class GlobalSearch:
         self.scans = 0
         self.started: int | None = None
         """The search's scan count when the last exhaustive search started (None: none yet)."""
-        self.search_ms: list[float] = []
-        """Milliseconds of every slice of an exhaustive correlative search (global or window):
-        what it cost a scan."""
+        self.search_ms: deque[float] = timing_record()
+        """Milliseconds of the last 10,000 (``TIMINGS_KEPT``) exhaustive search slices, global
+        or window: what each cost a scan (how many ran: ``counts["search_slices"]``)."""
         self.slice_nodes = SLICE_NODES
         """Nodes of the running exhaustive search spent per scan (:class:`SlicedSearch`)."""
         self.running: tuple[SlicedSearch, tuple, int] | None = None
@@ -231,6 +233,7 @@ class GlobalSearch:
             self.running = (exhaustive_search(model, window, coarse, self.options), then, 0)
         search, (then_odo, then_xy, then_index, then_travel), used = self.running
         search.advance(self.slice_nodes)
+        self.counts["search_slices"] += 1
         self.search_ms.append((time.perf_counter() - start) * 1e3)
         guesses = [p for p, _ in search.result()[used:]]
         self.running = None if search.done else (search, self.running[1], used + len(guesses))

@@ -35,6 +35,7 @@ from laser_corners.errors import OutputError
 from laser_corners.io.occupancy import OccupancyGrid, write_map
 from laser_corners.io.poses import StreamingTrack, frame_name
 from laser_corners.localise import Localiser
+from laser_corners.localise.estimate import timing_record
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.registration.mapfolder import SavedMap, load_map
 from laser_corners.ros.mapping_config import MAPPING_OPTIONS, MappingConfig, check_output
@@ -162,15 +163,16 @@ class Update:
 @dataclass
 class Counts:
     """Scans arrived, processed, dropped (no odometry in time), malformed, and without an
-    estimate (localise: no fix yet, or the scan disagreed with the map); per-scan times (ms).
-    Every scan that arrived is in one of these or still waiting."""
+    estimate (localise: no fix yet, or the scan disagreed with the map); the per-scan times
+    (ms) of the last 10,000 processed (``localise.estimate.TIMINGS_KEPT``: a node runs for
+    days). Every scan that arrived is in one of these or still waiting."""
 
     scans: int = 0
     processed: int = 0
     no_odometry: int = 0
     malformed: int = 0
     no_fix: int = 0
-    ms: list[float] = field(default_factory=list)
+    ms: deque[float] = field(default_factory=timing_record)
 
 
 class MapViews:
@@ -431,6 +433,8 @@ class MappingCore(MapViews):
             if ms.size
             else ""
         )
+        if ms.size < c.processed:  # a long run: the times kept are the last ones
+            timing += f" (last {ms.size} scans)"
         w = self.watch
         return (
             f"{c.scans} scans, {c.processed} processed, {c.no_odometry} without odometry, "
