@@ -1,129 +1,160 @@
-"""Helpers of the ROS 2 node test (imported as ``ros2_tools``; rclpy is imported lazily).
+"""Helpers of the ROS 2 node tests for the node's process (imported as ``ros2_tools``; rclpy
+is imported lazily).
 
-Message building from :class:`~laser_corners.LaserScan`, an output recorder, discovery probes,
-paced publishing, pose checks, bounded waits for processes, discovery and service answers,
-parameter calls, and the teardown and exit checks of a node a test started.
+This process's rclpy node on a domain of its own (:class:`Ros2`, :func:`isolated_ros2`), the
+node processes a test starts, bounded waits for processes, discovery and service answers,
+Trigger and parameter calls, and the teardown, exit and log checks of a node a test started.
+What goes to the node and comes back (messages, replays, outputs) is in ``ros2_replay``.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from itertools import islice
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
-from ros_helpers import FR079, stop, wait_for
+from ros_helpers import (
+    FR079,
+    cli_command,
+    isolated_message_packages,
+    skip_or_fail,
+    spawn,
+    stop,
+    wait_for,
+)
 
-from laser_corners import LaserScan
-from laser_corners.ros.convert import seconds_to_sec_nanosec
-
-RATE_HZ = 40.0  # publishing rate (as in the ROS 1 test)
 STARTUP_TIMEOUT = 45.0  # a loaded 2-core machine: python start, numba load, DDS discovery
-Key = tuple[int, int]
 REAL_DDS_MARKS = [  # the pytestmark of the tests over real DDS with fr079
     pytest.mark.ros2,
     pytest.mark.real,
     pytest.mark.filterwarnings("ignore:module 'sre_:DeprecationWarning"),  # lark, via rosidl
 ]
+DOMAIN_ID = 1 + os.getpid() % 101
+NAMESPACE = f"/lc_test_{os.getpid()}"
 
 
-def fr079_scans(n: int) -> list[LaserScan]:
-    from laser_corners.io import open_scans
+@dataclass
+class Ros2:
+    """This process's rclpy node and the node processes a test starts."""
 
-    return list(islice(open_scans(FR079), n))
+    rclpy: Any
+    node: Any
+    env: dict[str, str]
+    tmp: Path
+    processes: list[tuple[subprocess.Popen[bytes], str]] = field(default_factory=list)
 
+    def start(
+        self, name: str, *ros_args: str, env: dict[str, str] | None = None
+    ) -> subprocess.Popen[bytes]:
+        """``laser-corners ros2`` as node ``name`` in its own namespace (``env``: variables
+        to set besides the test's); stopped at teardown."""
+        args = cli_command(
+            "ros2",
+            "--ros-args",
+            "-r",
+            f"__ns:={NAMESPACE}/{name}",
+            "-r",
+            f"__node:={name}",
+            *ros_args,
+        )
+        with (self.tmp / f"{name}.log").open("wb") as log:
+            proc = spawn(args, {**self.env, **(env or {})}, log)
+        self.processes.append((proc, name))
+        return proc
 
-def to_msg(scan: LaserScan, stamp: Key | None = None) -> Any:
-    """A ROS 2 sensor_msgs/LaserScan with the scan's fields (stamp overridable)."""
-    from sensor_msgs.msg import LaserScan as LaserScanMsg
+    def log(self, name: str) -> str:
+        return (self.tmp / f"{name}.log").read_text(errors="replace")
 
-    msg = LaserScanMsg()
-    sec, nanosec = stamp if stamp is not None else seconds_to_sec_nanosec(scan.stamp)
-    msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
-    msg.header.frame_id = scan.frame_id
-    msg.angle_min = float(scan.angle_min)
-    msg.angle_increment = float(scan.angle_increment)
-    msg.angle_max = float(scan.angle_min + (scan.n_beams - 1) * scan.angle_increment)
-    msg.range_min, msg.range_max = float(scan.range_min), float(scan.range_max)
-    msg.ranges = np.asarray(scan.ranges, dtype=np.float32).tolist()
-    return msg
+    @staticmethod
+    def topic(name: str, topic: str) -> str:
+        return f"{NAMESPACE}/{name}/{topic}"
 
-
-def key_of(stamp: Any) -> Key:
-    return (int(stamp.sec), int(stamp.nanosec))
-
-
-class Outputs:
-    """What the node published, by input stamp, with receive times (thread-safe)."""
-
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.corners: dict[Key, list[Any]] = {}
-        self.order: list[Key] = []
-        self.markers: dict[Key, list[Any]] = {}
-        self.n_marker_arrays = 0
-        self.received_at: dict[Key, float] = {}
-
-    def on_corners(self, msg: Any) -> None:
-        now = time.perf_counter()
-        key = key_of(msg.header.stamp)
-        with self.lock:
-            self.corners.setdefault(key, []).append(msg)
-            self.order.append(key)
-            self.received_at.setdefault(key, now)
-
-    def on_markers(self, msg: Any) -> None:
-        with self.lock:
-            self.n_marker_arrays += 1
-            if msg.markers:
-                self.markers.setdefault(key_of(msg.markers[0].header.stamp), []).append(msg)
-
-    def count(self, keys: list[Key], markers: bool = False) -> int:
-        table = self.markers if markers else self.corners
-        with self.lock:
-            return sum(k in table for k in keys)
+    @staticmethod
+    def node_path(name: str) -> str:
+        """The full name of the node ``name`` a test started (its parameter and lifecycle
+        services are below it)."""
+        return f"{NAMESPACE}/{name}/{name}"
 
 
-def probe(
-    pub: Any, scan: LaserScan, sec: int, answered: Callable[[Key], bool], proc: Any, what: str
-) -> int:
-    """Publish copies of ``scan`` stamped ``(sec, k)`` until one is ``answered``; return how
-    many were sent.
+def rclpy_or_skip() -> Any:
+    """rclpy, or skip (fail in CI) with the reason."""
+    from laser_corners.errors import MissingDependencyError
+    from laser_corners.ros.ros2_node import import_rclpy
 
-    An answer proves the whole path is matched: our publisher -> the node's subscription, and
-    the node's publisher -> our subscription (DDS discovery is asynchronous on each side).
-    """
-    deadline = time.monotonic() + STARTUP_TIMEOUT
-    k = 0
-    while time.monotonic() < deadline:
-        pub.publish(to_msg(scan, (sec, k)))
-        k += 1
-        inner = time.monotonic() + 0.2
-        while time.monotonic() < inner:
-            if any(answered((sec, i)) for i in range(k)):
-                return k
-            time.sleep(0.01)
-        if proc.poll() is not None:
-            pytest.fail(f"{what}: the node exited with code {proc.returncode}")
-    pytest.fail(f"timed out after {STARTUP_TIMEOUT:.0f} s waiting for {what}")
+    try:
+        return import_rclpy()
+    except MissingDependencyError as exc:
+        skip_or_fail(f"{exc}; install with: pip install -e '.[ros2]'")
 
 
-def publish_paced(pub: Any, msgs: list[Any], published_at: dict[Key, float]) -> None:
-    period = 1.0 / RATE_HZ
-    start = time.perf_counter()
-    for i, msg in enumerate(msgs):
-        delay = start + i * period - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
-        published_at[key_of(msg.header.stamp)] = time.perf_counter()
-        pub.publish(msg)
+def isolated_ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
+    """The ``ros2`` fixture of a test module: :func:`run_ros2` with the message packages
+    of ROS 2 imported only meanwhile (``isolated_message_packages``)."""
+    with isolated_message_packages():
+        yield from run_ros2(tmp_path_factory)
+
+
+def run_ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
+    rclpy = rclpy_or_skip()
+    if not FR079.is_file():
+        pytest.skip(f"real data file not found: {FR079} (expected ../shared/data/real)")
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    tmp = tmp_path_factory.mktemp("ros2")
+    ros_env = {
+        "ROS_DOMAIN_ID": str(DOMAIN_ID),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "ROS_LOG_DIR": str(tmp / "log"),
+        "RCUTILS_COLORIZED_OUTPUT": "0",
+    }
+    env = dict(os.environ, PYTHONUNBUFFERED="1", **ros_env)
+    for name in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS"):
+        env.pop(name, None)
+    saved = {k: os.environ.get(k) for k in (*ros_env, "ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS")}
+    os.environ.update(ros_env)
+    for name in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS"):
+        os.environ.pop(name, None)
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=DOMAIN_ID, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node("lc_test", namespace=NAMESPACE, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    spinner = threading.Thread(target=_spin, args=(executor,), daemon=True)
+    spinner.start()
+    ros = Ros2(rclpy, node, env, tmp)
+    try:
+        yield ros
+    finally:
+        for proc, name in reversed(ros.processes):
+            stop(proc, name)
+        executor.shutdown(timeout_sec=5.0)
+        node.destroy_node()
+        rclpy.shutdown(context=context)
+        spinner.join(timeout=5.0)
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
+def _spin(executor: Any) -> None:
+    from rclpy.executors import ExternalShutdownException
+
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
 
 
 def wait_exit(proc: subprocess.Popen[bytes], what: str) -> int:
@@ -230,3 +261,32 @@ def parameter_client(node: Any, remote: str) -> Iterator[Any]:
         for name, value in vars(client).items():
             if name.endswith("_client"):
                 node.destroy_client(value)
+
+
+def wait_matched(ros2: Ros2, name: str, proc: Any) -> None:
+    """Wait until the node ``name``'s scan subscription and pose publisher are discovered."""
+    subscribers, publishers = (ros2.topic(name, "scan"),), (ros2.topic(name, "pose"),)
+    what = "the node's scan subscription and pose publisher"
+    wait_discovered(ros2.node, proc, what, subscribers, publishers)
+
+
+def call_trigger(ros2: Ros2, name: str, service: str, proc: Any) -> Any:
+    """Call the node's ``std_srvs/Trigger`` service ``service``; the response."""
+    from std_srvs.srv import Trigger
+
+    client = ros2.node.create_client(Trigger, ros2.topic(name, service))
+    try:
+        wait_for(client.service_is_ready, STARTUP_TIMEOUT, f"the {service} service", proc)
+        return call_service(lambda: client.call_async(Trigger.Request()), service)
+    finally:
+        ros2.node.destroy_client(client)
+
+
+def summary_counts(log: str, signal_name: str) -> dict[str, int]:
+    """The scan counts of the node's shutdown line."""
+    line = re.search(rf"stopped by {signal_name}: .*", log)
+    assert line, log
+    names = ("scans", "processed", "without odometry", "malformed", "still waiting")
+    found = {n: re.search(rf"(\d+) {n}\b", line.group(0)) for n in names}
+    assert all(found.values()), line.group(0)
+    return {n: int(m.group(1)) for n, m in found.items()}

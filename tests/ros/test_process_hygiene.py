@@ -80,7 +80,7 @@ def _command(what: str, tmp: Path) -> tuple[list[str], dict[str, str], str]:
     if what.startswith("ros2"):
         if importlib.util.find_spec("rclpy") is None:  # not imported here: the node imports it
             skip_or_fail("rclpy not installed; install with: pip install -e '.[ros2]'")
-        domain = 1 + (os.getpid() + 50) % 101  # not the domain of test_ros2_node.py
+        domain = 1 + (os.getpid() + 50) % 101  # not the domain of ros2_tools.DOMAIN_ID
         env.update(ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
         if what == "ros2 slam node":  # the mapping mode (gtsam, a timer, more subscriptions)
             mode = ["--ros-args", "-p", "mode:=slam", "-p", "odom_topic:=odom"]

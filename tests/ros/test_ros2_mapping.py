@@ -2,9 +2,9 @@
 fr079 replayed at 5x real time (a slice of the bag), parameter calls answered while the node
 relocalises, every scan sent processed or counted, the callbacks' worst case.
 
-Same set-up as ``test_ros2_slam_node.py`` (whose replay helpers this uses): the node runs as
-a ``laser-corners ros2`` subprocess, this process publishes the bag's scans and its odometry
-on ``/tf`` (``nav_msgs/Odometry`` without ``tf2_msgs``).
+Same set-up as ``test_ros2_slam_node.py`` (the replay helpers of ``ros2_replay``): the node
+runs as a ``laser-corners ros2`` subprocess, this process publishes the bag's scans and its
+odometry on ``/tf`` (``nav_msgs/Odometry`` without ``tf2_msgs``).
 """
 
 from __future__ import annotations
@@ -18,28 +18,29 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from ros2_replay import (
+    Replay,
+    fr079_with_odometry,
+    key_of,
+    offline_map,
+    probe_first,
+    running,
+    tf_args,
+    to_msg,
+)
 from ros2_tools import (
     REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
+    Ros2,
     call_service,
     check_clean_exit,
     interrupt,
-    key_of,
+    isolated_ros2,
     parameter_client,
-    to_msg,
+    summary_counts,
+    wait_matched,
 )
 from ros_helpers import wait_for
-from test_ros2_node import NAMESPACE, Ros2, isolated_ros2
-from test_ros2_slam_node import (
-    Replay,
-    _fr079,
-    _offline_map,
-    _probe_first,
-    _running,
-    _summary_counts,
-    _tf_args,
-    _wait_matched,
-)
 
 pytest.importorskip("gtsam")
 
@@ -70,7 +71,7 @@ def _play(replay: Replay, scans: list[Any], msgs: list[Any], first: int = 0) -> 
 
 def _summary(log: str, signal_name: str) -> dict[str, float]:
     """Every count of the node's shutdown line."""
-    counts: dict[str, float] = dict(_summary_counts(log, signal_name))
+    counts: dict[str, float] = dict(summary_counts(log, signal_name))
     line = re.search(rf"stopped by {signal_name}: .*", log).group(0)
     for name, pattern in {
         "before a fix": r"(\d+) before a fix",
@@ -89,17 +90,17 @@ def test_parameter_calls_are_answered_while_it_relocalises(ros2: Ros2, tmp_path:
     GetParameters calls meanwhile are answered within 200 ms each (the issue measured
     0.5-2.4 s when the search ran in the callback). ``fix_scans:=150`` (a LocaliseOptions
     field as a parameter) keeps it searching for the first 150 scans at least."""
-    scans, odometry, mount = _fr079(N_SCANS)
-    _offline_map(scans, tmp_path / "map")
+    scans, odometry, mount = fr079_with_odometry(N_SCANS)
+    offline_map(scans, tmp_path / "map")
     msgs = [to_msg(s) for s in scans]
     name = "lc_busy"
     args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'map'}", "-p", "fix_scans:=150"]
-    args += ["-p", "places.min_votes:=2", "-p", "queue_size:=1000", *_tf_args(mount)]
+    args += ["-p", "places.min_votes:=2", "-p", "queue_size:=1000", *tf_args(mount)]
     latencies: list[float] = []
-    remote = f"{NAMESPACE}/{name}/{name}"
-    with _running(ros2, name, args, odometry, mount) as run, ExitStack() as stack:
+    remote = ros2.node_path(name)
+    with running(ros2, name, args, odometry, mount) as run, ExitStack() as stack:
         got, proc, replay = run.got, run.proc, run.replay
-        _wait_matched(ros2, name, proc)
+        wait_matched(ros2, name, proc)
         client = stack.enter_context(parameter_client(ros2.node, remote))
         names = ["fix_scans", "places.min_votes", "map"]
         values = call_service(lambda: client.get_parameters(names), "get_parameters").values
@@ -137,15 +138,15 @@ def test_at_5x_every_scan_sent_is_processed_or_counted(ros2: Ros2, tmp_path: Pat
     """slam, fr079 at 5x real time: sent = arrived + dropped while busy + lost on the way,
     arrived = processed + without odometry + malformed + waiting + before a fix, and no
     callback took over 50 ms."""
-    scans, odometry, mount = _fr079(N_SCANS)
+    scans, odometry, mount = fr079_with_odometry(N_SCANS)
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name = "lc_fast"
-    args = ["-p", "mode:=slam", *_tf_args(mount)]  # queue_size 50 (default)
+    args = ["-p", "mode:=slam", *tf_args(mount)]  # queue_size 50 (default)
     probes = 0
-    with _running(ros2, name, args, odometry, mount) as run:
+    with running(ros2, name, args, odometry, mount) as run:
         got, proc, replay = run.got, run.proc, run.replay
-        _wait_matched(ros2, name, proc)
+        wait_matched(ros2, name, proc)
         time.sleep(1.0)  # the node's side of the scan subscription (best effort) matches too
         while not got.count(keys[:1]):  # the first scan, until answered (discovery)
             assert probes < 10 and proc.poll() is None, "no pose for the first scan"
@@ -181,20 +182,20 @@ def test_parameter_calls_are_answered_while_a_service_runs(ros2: Ros2, tmp_path:
     within 200 ms each (the service's wait for the worker no longer holds the executor)."""
     from std_srvs.srv import Trigger
 
-    scans, odometry, mount = _fr079(300)
+    scans, odometry, mount = fr079_with_odometry(300)
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name, output = "lc_serialize", tmp_path / "map"
     args = ["-p", "mode:=slam", "-p", f"output:={output}", "-p", "queue_size:=1000"]
-    args += _tf_args(mount)
+    args += tf_args(mount)
     latencies: list[float] = []
-    with _running(ros2, name, args, odometry, mount) as run, ExitStack() as stack:
+    with running(ros2, name, args, odometry, mount) as run, ExitStack() as stack:
         got, proc, replay = run.got, run.proc, run.replay
-        _wait_matched(ros2, name, proc)
-        _probe_first(replay, scans, msgs, keys, got, proc)
+        wait_matched(ros2, name, proc)
+        probe_first(replay, scans, msgs, keys, got, proc)
         _play(replay, scans, msgs, first=1)
         wait_for(lambda: got.count(keys[-1:]) == 1, 60.0, "a pose for the last scan", proc)
-        client = stack.enter_context(parameter_client(ros2.node, f"{NAMESPACE}/{name}/{name}"))
+        client = stack.enter_context(parameter_client(ros2.node, ros2.node_path(name)))
         trigger = ros2.node.create_client(Trigger, ros2.topic(name, "serialize_map"))
         stack.callback(ros2.node.destroy_client, trigger)
         wait_for(trigger.service_is_ready, STARTUP_TIMEOUT, "serialize_map", proc)

@@ -121,7 +121,7 @@ def _slam_adapter(monkeypatch: pytest.MonkeyPatch) -> tuple[Node, Any]:
 
 
 def test_slam_mode_reads_and_writes_tf(ros2_messages: None, monkeypatch) -> None:
-    from ros2_tools import to_msg
+    from ros2_replay import to_msg
 
     from laser_corners.ros.nav_convert import transform_of
 

@@ -12,45 +12,30 @@ skip, and fail in CI.
 
 from __future__ import annotations
 
-import os
 import re
 import signal
-import subprocess
-import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+from ros2_replay import RATE_HZ, Key, Outputs, fr079_scans, key_of, probe, publish_paced, to_msg
 from ros2_tools import (
-    RATE_HZ,
     REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
-    Key,
-    Outputs,
+    Ros2,
     call_service,
     check_clean_exit,
-    fr079_scans,
     interrupt,
-    key_of,
+    isolated_ros2,
     one_error_line,
-    probe,
-    publish_paced,
-    to_msg,
     wait_discovered,
     wait_exit,
 )
 from ros_helpers import (
-    FR079,
     check_poses,
-    cli_command,
-    isolated_message_packages,
-    skip_or_fail,
-    spawn,
     stop,
     wait_for,
 )
@@ -62,123 +47,12 @@ pytestmark = REAL_DDS_MARKS
 
 N_SCANS = 400  # scans of fr079 played (the first ones)
 NODE_OVERRIDES = {"merge_radius": 0.0, "min_points": 4}  # non-defaults: prove params flow
-DOMAIN_ID = 1 + os.getpid() % 101
-NAMESPACE = f"/lc_test_{os.getpid()}"
-
-
-@dataclass
-class Ros2:
-    """This process's rclpy node and the node processes a test starts."""
-
-    rclpy: Any
-    node: Any
-    env: dict[str, str]
-    tmp: Path
-    processes: list[tuple[subprocess.Popen[bytes], str]] = field(default_factory=list)
-
-    def start(
-        self, name: str, *ros_args: str, env: dict[str, str] | None = None
-    ) -> subprocess.Popen[bytes]:
-        """``laser-corners ros2`` as node ``name`` in its own namespace (``env``: variables
-        to set besides the test's); stopped at teardown."""
-        args = cli_command(
-            "ros2",
-            "--ros-args",
-            "-r",
-            f"__ns:={NAMESPACE}/{name}",
-            "-r",
-            f"__node:={name}",
-            *ros_args,
-        )
-        with (self.tmp / f"{name}.log").open("wb") as log:
-            proc = spawn(args, {**self.env, **(env or {})}, log)
-        self.processes.append((proc, name))
-        return proc
-
-    def log(self, name: str) -> str:
-        return (self.tmp / f"{name}.log").read_text(errors="replace")
-
-    @staticmethod
-    def topic(name: str, topic: str) -> str:
-        return f"{NAMESPACE}/{name}/{topic}"
-
-
-def _rclpy() -> Any:
-    """rclpy, or skip (fail in CI) with the reason."""
-    from laser_corners.errors import MissingDependencyError
-    from laser_corners.ros.ros2_node import import_rclpy
-
-    try:
-        return import_rclpy()
-    except MissingDependencyError as exc:
-        skip_or_fail(f"{exc}; install with: pip install -e '.[ros2]'")
 
 
 @pytest.fixture(scope="module")
 def ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
     """An rclpy context and node in this process, on a domain of its own."""
     yield from isolated_ros2(tmp_path_factory)
-
-
-def isolated_ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
-    """The ``ros2`` fixture of a test module: :func:`_run_ros2` with the message packages
-    of ROS 2 imported only meanwhile (``isolated_message_packages``)."""
-    with isolated_message_packages():
-        yield from _run_ros2(tmp_path_factory)
-
-
-def _run_ros2(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ros2]:
-    rclpy = _rclpy()
-    if not FR079.is_file():
-        pytest.skip(f"real data file not found: {FR079} (expected ../shared/data/real)")
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.signals import SignalHandlerOptions
-
-    tmp = tmp_path_factory.mktemp("ros2")
-    ros_env = {
-        "ROS_DOMAIN_ID": str(DOMAIN_ID),
-        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        "ROS_LOG_DIR": str(tmp / "log"),
-        "RCUTILS_COLORIZED_OUTPUT": "0",
-    }
-    env = dict(os.environ, PYTHONUNBUFFERED="1", **ros_env)
-    for name in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS"):
-        env.pop(name, None)
-    saved = {k: os.environ.get(k) for k in (*ros_env, "ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS")}
-    os.environ.update(ros_env)
-    for name in ("ROS_LOCALHOST_ONLY", "ROS_STATIC_PEERS"):
-        os.environ.pop(name, None)
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=DOMAIN_ID, signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node("lc_test", namespace=NAMESPACE, context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=_spin, args=(executor,), daemon=True)
-    spinner.start()
-    ros = Ros2(rclpy, node, env, tmp)
-    try:
-        yield ros
-    finally:
-        for proc, name in reversed(ros.processes):
-            stop(proc, name)
-        executor.shutdown(timeout_sec=5.0)
-        node.destroy_node()
-        rclpy.shutdown(context=context)
-        spinner.join(timeout=5.0)
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
-def _spin(executor: Any) -> None:
-    from rclpy.executors import ExternalShutdownException
-
-    try:
-        executor.spin()
-    except ExternalShutdownException:
-        pass
 
 
 def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Path) -> None:
@@ -310,7 +184,7 @@ def test_parameters_set_at_run_time(ros2: Ros2) -> None:
     node = ros2.node
     sub = node.create_subscription(PoseArray, ros2.topic(name, "corners"), out.on_corners, 100)
     pub = node.create_publisher(LaserScanMsg, ros2.topic(name, "scan"), 100)
-    client = AsyncParameterClient(node, f"{NAMESPACE}/{name}/{name}")
+    client = AsyncParameterClient(node, ros2.node_path(name))
     try:
         assert client.wait_for_services(timeout_sec=STARTUP_TIMEOUT), "no parameter services"
         refused = {"min_points": 1, "preset": "no_such_preset", "max_angle_deg": "wide"}

@@ -2,7 +2,7 @@
 (issue 33): ``-p lifecycle:=true``, transitions driven with ``lifecycle_msgs/srv/ChangeState``
 as nav2's lifecycle manager sends them; scans are processed only while active.
 
-Set-up and replay helpers as ``test_ros2_slam_node.py`` (fr079's scans, its odometry on
+Set-up and replay helpers of ``ros2_tools`` and ``ros2_replay`` (fr079's scans, its odometry on
 ``/tf``, the node as a ``laser-corners ros2`` subprocess).
 """
 
@@ -14,22 +14,21 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from ros2_replay import Replay, fr079_with_odometry, key_of, running, tf_args, to_msg
 from ros2_tools import (
     REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
+    Ros2,
     call_service,
     check_clean_exit,
     interrupt,
-    key_of,
+    isolated_ros2,
     parameter_client,
     set_parameters,
-    to_msg,
     torn_down,
     wait_discovered,
 )
 from ros_helpers import wait_for
-from test_ros2_node import NAMESPACE, Ros2, isolated_ros2
-from test_ros2_slam_node import Replay, _fr079, _running, _tf_args
 
 pytest.importorskip("gtsam")
 
@@ -49,7 +48,7 @@ class Lifecycle:
         from lifecycle_msgs.srv import ChangeState, GetState
 
         self.node, self.ChangeState, self.GetState = ros2.node, ChangeState, GetState
-        base = f"{NAMESPACE}/{name}/{name}"
+        base = ros2.node_path(name)
         self.change = ros2.node.create_client(ChangeState, f"{base}/change_state")
         self.get = ros2.node.create_client(GetState, f"{base}/get_state")
         for client in (self.change, self.get):
@@ -81,7 +80,7 @@ class Lifecycle:
 
 
 def _set(ros2: Ros2, name: str, **values: Any) -> None:
-    with parameter_client(ros2.node, f"{NAMESPACE}/{name}/{name}") as client:
+    with parameter_client(ros2.node, ros2.node_path(name)) as client:
         results = set_parameters(client, **values)
         assert all(r.successful for r in results), results
 
@@ -97,16 +96,16 @@ def test_a_managed_node_processes_scans_only_while_active(ros2: Ros2, tmp_path: 
     """unconfigured -> (configure fails on a bad output, stays) -> configure -> inactive ->
     activate -> active -> deactivate -> inactive -> shutdown (the map folder written); scans
     sent while not active give no pose, nor does the node subscribe them then."""
-    scans, odometry, mount = _fr079(60)
+    scans, odometry, mount = fr079_with_odometry(60)
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     blocker = tmp_path / "a_file"
     blocker.write_text("not a folder")
     name, output = "lc_managed", tmp_path / "map"
     args = ["-p", "mode:=slam", "-p", "lifecycle:=true", "-p", f"output:={blocker / 'x'}"]
-    args += _tf_args(mount)
+    args += tf_args(mount)
     scan_topic = ros2.topic(name, "scan")
-    with _running(ros2, name, args, odometry, mount) as run:
+    with running(ros2, name, args, odometry, mount) as run:
         got, proc, replay = run.got, run.proc, run.replay
         lifecycle = Lifecycle(ros2, name, proc)
         run.destroy.append(lifecycle.destroy)

@@ -1,7 +1,7 @@
 """The localise mode's run-time map and pose over real DDS (issue 33 item 3): the ``map``
 parameter set while running + the ``deserialize_map`` Trigger load another map (slam_toolbox's
 deserialize_map, map_server's load_map); AMCL's ``set_initial_pose`` / ``initial_pose.*``
-parameters set the pose. Set-up and replay helpers as ``test_ros2_slam_node.py``.
+parameters set the pose. Set-up and replay helpers of ``ros2_tools`` and ``ros2_replay``.
 """
 
 from __future__ import annotations
@@ -13,28 +13,29 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ros2_tools import (
-    REAL_DDS_MARKS,
-    check_clean_exit,
-    interrupt,
+from ros2_replay import (
+    fr079_with_odometry,
     key_of,
-    parameter_client,
-    set_parameters,
+    latched_map,
+    offline_map,
+    play_rest,
+    probe_first,
+    running,
+    tf_args,
     to_msg,
 )
-from ros_helpers import wait_for
-from test_ros2_node import NAMESPACE, Ros2, isolated_ros2
-from test_ros2_slam_node import (
-    _fr079,
-    _latched_map,
-    _offline_map,
-    _play_rest,
-    _probe_first,
-    _running,
-    _tf_args,
-    _trigger,
-    _wait_matched,
+from ros2_tools import (
+    REAL_DDS_MARKS,
+    Ros2,
+    call_trigger,
+    check_clean_exit,
+    interrupt,
+    isolated_ros2,
+    parameter_client,
+    set_parameters,
+    wait_matched,
 )
+from ros_helpers import wait_for
 
 pytest.importorskip("gtsam")
 
@@ -53,34 +54,34 @@ def test_a_map_loaded_and_a_pose_set_while_running(ros2: Ros2, tmp_path: Path) -
     line and A stays; ``map`` set to a map_server map.yaml -> deserialize_map loads it and
     /map is republished; set_initial_pose + initial_pose.* -> the localiser tracks from there
     (no pose on the first scan otherwise); a start-only parameter is refused at run time."""
-    scans, odometry, mount = _fr079(N_SCANS)
-    truth = _offline_map(scans, tmp_path / "a")
+    scans, odometry, mount = fr079_with_odometry(N_SCANS)
+    truth = offline_map(scans, tmp_path / "a")
     msgs = [to_msg(s) for s in scans]
     keys = [key_of(m.header.stamp) for m in msgs]
     name, other = "lc_load", tmp_path / "a" / "map.yaml"
     args = ["-p", "mode:=localise", "-p", f"map:={tmp_path / 'a'}", "-p", "queue_size:=200"]
-    args += _tf_args(mount)
-    with _running(ros2, name, args, odometry, mount) as run:
+    args += tf_args(mount)
+    with running(ros2, name, args, odometry, mount) as run:
         got, proc, replay = run.got, run.proc, run.replay
-        run.subs += _latched_map(ros2, name, got, proc)  # map A, at start
-        _wait_matched(ros2, name, proc)
-        with parameter_client(ros2.node, f"{NAMESPACE}/{name}/{name}") as client:
+        run.subs += latched_map(ros2, name, got, proc)  # map A, at start
+        wait_matched(ros2, name, proc)
+        with parameter_client(ros2.node, ros2.node_path(name)) as client:
             (refused,) = set_parameters(client, fix_scans=3)
             assert not refused.successful and "read at start only" in refused.reason
             assert all(r.successful for r in set_parameters(client, map="/nonexistent/b"))
-            missing = _trigger(ros2, name, "deserialize_map", proc)
+            missing = call_trigger(ros2, name, "deserialize_map", proc)
             assert not missing.success and "/nonexistent/b" in missing.message, missing
             assert "\n" not in missing.message
             assert all(r.successful for r in set_parameters(client, map=str(other)))
-            loaded = _trigger(ros2, name, "deserialize_map", proc)
+            loaded = call_trigger(ros2, name, "deserialize_map", proc)
             assert loaded.success and f"loaded {other}" in loaded.message, loaded.message
             wait_for(lambda: len(got.grids) >= 2, 10.0, "the loaded map on /map", proc)
             x, y, yaw = (float(v) for v in truth[0])
             pose = {"initial_pose.x": x, "initial_pose.y": y, "initial_pose.yaw": yaw}
             results = set_parameters(client, **pose, set_initial_pose=True)
             assert all(r.successful for r in results), results
-        _probe_first(replay, scans, msgs, keys, got, proc)  # a pose at once: from the params
-        _play_rest(replay, scans, msgs, keys)
+        probe_first(replay, scans, msgs, keys, got, proc)  # a pose at once: from the params
+        play_rest(replay, scans, msgs, keys)
         wait_for(lambda: got.count(keys[-1:]) == 1, 60.0, "a pose for the last scan", proc)
         time.sleep(0.5)
         returncode = interrupt(proc)
