@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import bisect
+import math
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from laser_corners.io.poses import PoseTrack, StreamingTrack, interp_at
+from laser_corners.io.poses import FORGET_BATCH, PoseTrack, StreamingTrack, interp_at
 
 
 def test_streaming_track_unwraps_yaw_exactly_as_np_unwrap() -> None:
@@ -46,6 +47,77 @@ def test_streaming_track_unwraps_yaw_exactly_as_np_unwrap() -> None:
     # the list interpolation is np.interp's, bit for bit (samples, between them, outside)
     for stamp in [*np.linspace(-0.7, 40.6, 301).tolist(), *ordered[:, 0].tolist()]:
         assert in_order.pose(stamp, "laser") == reference.pose(stamp, "laser")
+
+
+def _walk(n: int, seed: int) -> list[tuple[float, float, float, float]]:
+    """Odometry at 50 Hz in arrival order: a seeded random walk whose yaw wraps around
+    often (and now and then jumps by more than pi), one sample in 20 arriving up to 5
+    samples late."""
+    rng = np.random.default_rng(seed)
+    steps = rng.uniform(-0.8, 0.8, n)
+    steps[rng.random(n) < 0.01] += 3.5
+    yaw = np.angle(np.exp(1j * np.cumsum(steps)))
+    xy = np.cumsum(rng.normal(0.0, 0.01, (n, 2)), axis=0)
+    stamps = 1.2e9 + 0.02 * np.arange(n)
+    rows = zip(stamps.tolist(), xy.tolist(), yaw.tolist(), strict=True)
+    samples = [(t, x, y, a) for t, (x, y), a in rows]
+    order = np.arange(n, dtype=np.float64)
+    late = rng.random(n) < 0.05
+    order[late] += rng.uniform(1.0, 5.0, late.sum())
+    return [samples[i] for i in np.argsort(order, kind="stable")]
+
+
+def _tracks() -> tuple[StreamingTrack, StreamingTrack]:
+    tracks = StreamingTrack(), StreamingTrack()
+    for track in tracks:
+        track.add_transforms([("base", "laser", (0.1, 0.0, 0.5))], is_static=True)
+    return tracks
+
+
+def test_forgetting_keeps_the_poses_after_the_horizon_bit_for_bit() -> None:
+    """A track that forgets the samples 20 s before the newest gives the poses of one that
+    keeps them all (yaw wraps, late samples, a pending rebuild when forgetting or not), and
+    holds a bounded number of samples."""
+    whole, kept = _tracks()
+    rng = np.random.default_rng(12)
+    newest, dropped, held = -math.inf, [], []
+    for i, sample in enumerate(_walk(20_000, seed=11)):
+        assert whole.add_odometry("odom", "base", sample)
+        assert kept.add_odometry("odom", "base", sample)
+        newest = max(newest, sample[0])
+        if i % 25:
+            continue
+        horizon = newest - 20.0
+        dropped.append(kept.forget_before(horizon))
+        held.append(kept.n_kept)
+        if rng.random() < 0.5:  # else the next forget_before finds a rebuild pending
+            for stamp in [horizon, *rng.uniform(horizon, newest + 0.6, 8).tolist()]:
+                assert kept.pose(stamp, "laser") == whole.pose(stamp, "laser")
+    assert sum(dropped) == whole.n_kept - kept.n_kept > 0
+    assert sum(1 for n in dropped if n) >= 10  # forgotten in batches, not once
+    assert min(n for n in dropped if n) >= FORGET_BATCH
+    assert max(held) <= 2 * (20.0 * 50 + 25) + FORGET_BATCH  # see forget_before
+    first = kept.first_stamp
+    assert first is not None and first <= horizon
+    for stamp in np.linspace(first, newest + 0.6, 500).tolist():
+        assert kept.pose(stamp, "laser") == whole.pose(stamp, "laser")
+    assert kept.pose(first - 0.01, "laser") is None  # forgotten
+    assert whole.pose(first - 0.01, "laser") is not None
+
+
+def test_a_sample_older_than_those_kept_is_not_taken() -> None:
+    track = _tracks()[0]
+    samples = [(0.02 * i, 0.0, 0.0, 0.0) for i in range(3 * FORGET_BATCH)]
+    for sample in samples:
+        track.add_odometry("odom", "base", sample)
+    assert track.forget_before(samples[FORGET_BATCH // 2][0]) == 0  # too few: kept for now
+    assert track.n_kept == len(samples)
+    assert track.forget_before(samples[2 * FORGET_BATCH][0]) == 2 * FORGET_BATCH
+    assert track.first_stamp == samples[2 * FORGET_BATCH][0]
+    assert not track.add_odometry("odom", "base", (0.5, 1.0, 1.0, 1.0))
+    assert track.n_kept == FORGET_BATCH
+    assert track.add_odometry("odom", "base", (0.02 * 2500 + 0.01, 1.0, 1.0, 1.0))  # late
+    assert track.n_kept == FORGET_BATCH + 1
 
 
 def test_interp_at_is_np_interp_bit_for_bit() -> None:

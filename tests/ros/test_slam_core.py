@@ -17,6 +17,7 @@ pytest.importorskip("gtsam")
 
 from laser_corners.errors import InputError, InvalidParamsError, InvalidScanError
 from laser_corners.io.occupancy import OccupancyGrid
+from laser_corners.io.poses import FORGET_BATCH
 from laser_corners.localise import (
     EngineOptions,
     LocaliseOptions,
@@ -37,7 +38,13 @@ from laser_corners.ros.nav_convert import (
     pose_with_covariance_of,
     transform_of,
 )
-from laser_corners.ros.slam_core import MappingConfig, MappingCore, OdometryBook, map_to_odom
+from laser_corners.ros.slam_core import (
+    ODOMETRY_KEPT_S,
+    MappingConfig,
+    MappingCore,
+    OdometryBook,
+    map_to_odom,
+)
 from laser_corners.sim import SICK_LMS_1DEG, World
 
 RATE = 10.0
@@ -298,6 +305,82 @@ def test_a_long_run_keeps_the_newest_times_and_says_so(monkeypatch) -> None:
         kept = list(core.counts.ms)
     assert len(core.counts.ms) == 5 and core.counts.processed == len(scans)
     assert "ms/scan mean" in core.summary() and "(last 5 scans)" in core.summary()
+
+
+ODOM_RATE = 50.0
+
+
+def _standing(core: MappingCore, n: int, scan_every: float) -> list[int]:
+    """``n`` odometry samples at :data:`ODOM_RATE` Hz of a robot standing still, a scan
+    every ``scan_every`` seconds (stamped between two samples); the odometry samples the
+    book holds after each scan."""
+    truth, scans = _drive(1)
+    held = []
+    every = round(scan_every * ODOM_RATE)
+    for i in range(n):
+        core.book.add_odometry("odom", "base_link", i / ODOM_RATE, truth[0])
+        if i and i % every == 0:
+            scan = dataclasses.replace(scans[0], stamp=(i - 0.5) / ODOM_RATE)
+            core.add_scan(scan)
+            held.append(core.book.n_kept)
+    return held
+
+
+def test_a_long_run_keeps_a_bounded_odometry_store() -> None:
+    """A node runs for days: 200,000 odometry samples (66 minutes at 50 Hz) and the book
+    holds those of about ``ODOMETRY_KEPT_S`` before the last scan, not all of them."""
+    core = _core(mount=list(MOUNT))
+    held = _standing(core, 200_000, 20.0)
+    assert core.counts.processed == len(held) and core.counts.no_odometry == 0
+    assert core.book.n_odometry == 200_000  # a counter: everything taken
+    assert core.book.n_kept == core.book.track.n_kept
+    bound = 2 * (ODOMETRY_KEPT_S + 20.0) * ODOM_RATE + FORGET_BATCH  # forget_before's
+    assert max(held) <= bound, max(held)
+    assert core.book.span is not None and core.book.span[1] == (200_000 - 1) / ODOM_RATE
+
+
+def test_a_scan_older_than_the_odometry_kept_is_dropped() -> None:
+    """A scan stamped before the odometry kept is dropped and counted as without odometry,
+    and the watch's warning names its stamp and the odometry in hand."""
+    clock = Clock()
+    core = _core(clock, mount=list(MOUNT))
+    _standing(core, 15_000, 20.0)  # 300 s
+    processed, last = core.counts.processed, core.last.stamp
+    first = core.book.span[0]
+    assert 0.0 < first <= last - ODOMETRY_KEPT_S  # forgotten before, kept after the horizon
+    _, scans = _drive(1)
+    old = dataclasses.replace(scans[0], stamp=first - 0.1)
+    assert core.add_scan(old) == []
+    assert core.counts.no_odometry == 1 and core.counts.processed == processed
+    clock.now += 100.0
+    (text,) = [w for w in core.watch.warnings(core.book) if "dropped" in w]
+    assert f"at stamp {old.stamp:.3f} s" in text and f"{first:.3f} .. " in text
+
+
+def test_a_forgetting_book_gives_the_poses_after_its_horizon() -> None:
+    """Two books take the same odometry (republished samples among it); one forgets the
+    samples before 80 s: its poses from 80 s on are the other's, republished old samples
+    are not taken again."""
+    rng = np.random.default_rng(4)
+    whole, kept = OdometryBook(), OdometryBook()
+    n = 5_000
+    yaw = np.angle(np.exp(1j * np.cumsum(rng.uniform(-1.0, 1.0, n))))
+    poses = np.column_stack([rng.normal(0, 1, (n, 2)).cumsum(axis=0), yaw])
+    for i, pose in enumerate(poses):
+        for book in (whole, kept):
+            book.add_odometry("odom", "base_link", i / ODOM_RATE, pose)
+            if i % 7 == 0 and i > 3:  # a republished sample
+                book.add_odometry("odom", "base_link", (i - 3) / ODOM_RATE, poses[i - 3])
+    assert kept.forget_before(80.0) == 80.0 * ODOM_RATE
+    assert kept.n_kept == n - 80.0 * ODOM_RATE and whole.n_kept == n
+    assert kept.span == (80.0, (n - 1) / ODOM_RATE) and whole.span[0] == 0.0
+    for stamp in rng.uniform(80.0, n / ODOM_RATE + 0.4, 300):
+        np.testing.assert_array_equal(kept.base_pose(stamp), whole.base_pose(stamp))
+    assert kept.base_pose(79.99) is None and whole.base_pose(79.99) is not None
+    for book in (whole, kept):
+        book.add_odometry("odom", "base_link", 10.0, (7.0, 7.0, 0.0))  # republished
+    assert kept.n_odometry == whole.n_odometry == n and kept.n_kept == n - 4_000
+    assert kept.span[0] == 80.0
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,9 @@ every :data:`WARN_PERIOD` seconds per kind (the counts go on meanwhile):
   seconds, naming the odometry source and the frame pairs seen on it;
 * ``frames``: odometry (``nav_msgs/Odometry`` or ``/tf`` transforms) arrives, but none in the
   configured ``odom_frame`` / ``base_frame``, naming the pairs seen;
-* ``dropped``: scans dropped without odometry (after ``tf_wait``), with the stamps of the
-  last dropped scan and of the odometry the node has;
+* ``dropped``: scans dropped without odometry (after ``tf_wait``, or stamped before the
+  odometry kept: the core forgets what is older than ``ODOMETRY_KEPT_S`` before its last
+  processed scan), with the stamps of the last dropped scan and of the odometry the node has;
 * ``jump`` (slam): the odometry moved more than ``max_odom_jump`` metres between consecutive
   processed scans.
 """

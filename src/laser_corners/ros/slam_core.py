@@ -7,7 +7,8 @@ without ROS:
   parameter when invalid);
 * :class:`OdometryBook`: odometry (``odom -> base`` from ``/tf`` or ``nav_msgs/Odometry``) and
   the static transforms, kept per stamp (:class:`~laser_corners.io.poses.StreamingTrack`:
-  linear interpolation at the scan stamp, the laser mount from the static tree);
+  linear interpolation at the scan stamp, the laser mount from the static tree), the last
+  :data:`ODOMETRY_KEPT_S` seconds before the last processed scan (a node runs for days);
 * :class:`MappingCore`: pairs each scan with the odometry at its stamp (a scan waits until
   odometry after its stamp is in, at most ``tf_wait`` seconds after it arrived), runs
   :class:`~laser_corners.slam.Slam` or the ``Localiser`` on it and computes ``map -> odom``
@@ -47,6 +48,7 @@ from laser_corners.slam.slam import Slam
 
 __all__ = [
     "MAPPING_OPTIONS",
+    "ODOMETRY_KEPT_S",
     "MapViews",
     "MappingConfig",
     "MappingCore",
@@ -55,6 +57,13 @@ __all__ = [
     "check_output",
     "map_to_odom",
 ]
+
+ODOMETRY_KEPT_S = 60.0
+"""Seconds of odometry kept at least before the stamp of the last processed scan (the book
+forgets in batches: it holds up to about twice this, see ``StreamingTrack.forget_before``).
+Far beyond ROS's default 10 s tf buffer: scans come out in arrival order, so a later scan
+stamped a minute before the last processed one is a clock jump or a bag replayed again; a
+scan older than the odometry kept is dropped and counted as without odometry."""
 
 
 def map_to_odom(pose: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -73,6 +82,11 @@ class OdometryBook:
     odom_frame, base_frame : str
         The odometry frames ("" = those of the first ``nav_msgs/Odometry``, or the first
         ``/tf`` transform whose child has a static child, e.g. ``odom -> base_link``).
+
+    Notes
+    -----
+    A sample costs about 270 bytes: 230 in the track, 40 in the set of stamps that drops
+    republished samples (1.2 GB a day at 50 Hz): :meth:`forget_before` bounds both.
     """
 
     def __init__(self, odom_frame: str = "", base_frame: str = "") -> None:
@@ -81,11 +95,13 @@ class OdometryBook:
         self.base_frame = frame_name(base_frame)
         self._dynamic: list[tuple[str, str, float, tuple[float, float, float]]] = []
         self.n_odometry = 0
-        self._stamps: set[float] = set()
+        """Odometry samples taken in total (a counter: forgetting does not lower it)."""
+        self._stamps: set[float] = set()  # those of the samples kept
         self.on_input: Callable[[str, str], None] = lambda parent, child: None
         """Called with the frames of every odometry-like input (the watch counts them)."""
         self.span: tuple[float, float] | None = None
-        """First and last stamp of the odometry samples taken."""
+        """First and last stamp of the odometry samples kept (the first moves on as
+        :meth:`forget_before` drops old samples)."""
 
     def add_odometry(
         self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
@@ -97,11 +113,29 @@ class OdometryBook:
         self.base_frame = self.base_frame or base
         if (odom, base) != (self.odom_frame, self.base_frame) or stamp in self._stamps:
             return  # another odometry, or a sample we have (a republished one)
+        if not self.track.add_odometry(odom, base, (float(stamp), *map(float, pose))):
+            return  # older than the samples kept: forgotten
         self._stamps.add(stamp)
-        self.track.add_odometry(odom, base, (float(stamp), *map(float, pose)))
         self.n_odometry += 1
         first, last = self.span if self.span is not None else (stamp, stamp)
         self.span = (min(first, float(stamp)), max(last, float(stamp)))
+
+    @property
+    def n_kept(self) -> int:
+        """The odometry samples held now (in the track; the set of stamps holds theirs)."""
+        return len(self._stamps)
+
+    def forget_before(self, stamp: float) -> int:
+        """Forget the samples older than ``stamp`` but the newest at or before it (in the
+        track, :meth:`~laser_corners.io.poses.StreamingTrack.forget_before`: only in batches,
+        O(1) a sample, and their stamps); the pose at ``stamp`` and after stays, before the
+        samples kept there is none. Returns how many were dropped."""
+        dropped = self.track.forget_before(stamp)
+        first = self.track.first_stamp
+        if dropped and first is not None and self.span is not None:
+            self._stamps = {kept for kept in self._stamps if kept >= first}
+            self.span = (first, self.span[1])
+        return dropped
 
     def add_transforms(
         self, transforms: list[tuple[str, str, float, tuple[float, float, float]]], static: bool
@@ -350,6 +384,7 @@ class MappingCore(MapViews):
                 self.watch.dropped(scan.stamp, self.counts.no_odometry, self.book)
                 continue
             update = self._process(scan, odom)
+            self.book.forget_before(scan.stamp - ODOMETRY_KEPT_S)  # slam and localise
             if update is not None:
                 out.append(update)
         return out
