@@ -357,6 +357,20 @@ def test_a_scan_older_than_the_odometry_kept_is_dropped() -> None:
     assert f"at stamp {old.stamp:.3f} s" in text and f"{first:.3f} .. " in text
 
 
+def test_odometry_from_a_clock_jumped_back_starts_the_store_anew() -> None:
+    """A bag played in a loop: after 300 s the clock starts again at 0 with the same data.
+    The scans of the second pass get odometry (the book starts anew once
+    ``CLOCK_JUMP_SAMPLES`` samples in a row are older than those kept), not dropped."""
+    core = _core(mount=list(MOUNT))
+    _standing(core, 15_000, 20.0)
+    first_pass = core.counts.processed
+    assert core.book.span[0] > 0.0  # the first pass's oldest samples are forgotten
+    _standing(core, 15_000, 20.0)
+    assert core.book.clock_jumps == 1
+    assert core.counts.processed >= 2 * first_pass - 1
+    assert core.counts.no_odometry <= 1
+
+
 def test_a_forgetting_book_gives_the_poses_after_its_horizon() -> None:
     """Two books take the same odometry (republished samples among it); one forgets the
     samples before 80 s: its poses from 80 s on are the other's, republished old samples

@@ -265,6 +265,14 @@ class StreamingTrack:
         self._yaw.append(yaw)
         return True
 
+    def restart(self) -> None:
+        """Forget every odometry sample, keep the transforms (the clock jumped back: a bag
+        played again, a simulation restarted)."""
+        self._samples, self._t, self._x, self._y, self._yaw = [], [], [], [], []
+        self._correction = self._first_correction = 0.0
+        self._forgotten = 0
+        self._rebuild = False
+
     @property
     def n_kept(self) -> int:
         """The odometry samples held now (all those added, less the forgotten ones)."""

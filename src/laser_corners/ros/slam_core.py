@@ -47,6 +47,7 @@ from laser_corners.slam.output import SlamRunInfo, peak_rss_mb, write_slam_map
 from laser_corners.slam.slam import Slam
 
 __all__ = [
+    "CLOCK_JUMP_SAMPLES",
     "MAPPING_OPTIONS",
     "ODOMETRY_KEPT_S",
     "MapViews",
@@ -63,7 +64,13 @@ ODOMETRY_KEPT_S = 60.0
 forgets in batches: it holds up to about twice this, see ``StreamingTrack.forget_before``).
 Far beyond ROS's default 10 s tf buffer: scans come out in arrival order, so a later scan
 stamped a minute before the last processed one is a clock jump or a bag replayed again; a
-scan older than the odometry kept is dropped and counted as without odometry."""
+scan older than the odometry kept is dropped and counted as without odometry, and odometry
+older than that kept, :data:`CLOCK_JUMP_SAMPLES` samples in a row, starts the book anew."""
+
+CLOCK_JUMP_SAMPLES = 10
+"""Odometry samples in a row older than those kept after which the book starts anew (the
+clock jumped back, as when a bag is played in a loop; tf2 clears its buffer then); fewer are
+stray late samples, not taken."""
 
 
 def map_to_odom(pose: NDArray[np.float64], odom: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -97,6 +104,10 @@ class OdometryBook:
         self.n_odometry = 0
         """Odometry samples taken in total (a counter: forgetting does not lower it)."""
         self._stamps: set[float] = set()  # those of the samples kept
+        self._stale = 0  # samples in a row older than those kept
+        self.clock_jumps = 0
+        """Times the store started anew: :data:`CLOCK_JUMP_SAMPLES` samples in a row older
+        than those kept (the clock jumped back: a bag played in a loop)."""
         self.on_input: Callable[[str, str], None] = lambda parent, child: None
         """Called with the frames of every odometry-like input (the watch counts them)."""
         self.span: tuple[float, float] | None = None
@@ -113,8 +124,17 @@ class OdometryBook:
         self.base_frame = self.base_frame or base
         if (odom, base) != (self.odom_frame, self.base_frame) or stamp in self._stamps:
             return  # another odometry, or a sample we have (a republished one)
-        if not self.track.add_odometry(odom, base, (float(stamp), *map(float, pose))):
-            return  # older than the samples kept: forgotten
+        sample = (float(stamp), *map(float, pose))
+        if not self.track.add_odometry(odom, base, sample):
+            self._stale += 1  # older than the samples kept
+            if self._stale < CLOCK_JUMP_SAMPLES:
+                return  # a stray late sample: forgotten
+            self.track.restart()  # the clock jumped back: start anew, as tf2 does
+            self._stamps.clear()
+            self.span = None
+            self.clock_jumps += 1
+            self.track.add_odometry(odom, base, sample)
+        self._stale = 0
         self._stamps.add(stamp)
         self.n_odometry += 1
         first, last = self.span if self.span is not None else (stamp, stamp)
