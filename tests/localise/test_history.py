@@ -66,3 +66,36 @@ def test_replay_keeps_the_guess_where_icp_disagrees() -> None:
     assert out[1].agreement == pytest.approx(0.2)
     expected = compose_many(invert_many([1.0, 0.0, 0.0]), np.zeros(3))
     assert np.allclose(out[1].pose, expected)  # dead reckoning, not the poor alignment
+
+
+def _fits(shares: list[tuple[float, float]]) -> bool:
+    """``SearchHistory.fits`` over kept scans whose (outside, conflict) shares are
+    ``shares``, oldest first, with the default thresholds (``max_outside`` 0.5,
+    ``max_conflict`` 0.2, ``track_conflict`` 0.5 over ``conflict_scans`` 10)."""
+    history = SearchHistory(keep=100.0, step=0.0)
+    odometry = np.column_stack([np.arange(len(shares), dtype=float), np.zeros((len(shares), 2))])
+    _fill(history, odometry, 1.0)
+    matcher = _matcher()
+    matcher.support = lambda pose, xy: Support(*shares[round(pose[0])], 1.0)
+    matcher.options = SimpleNamespace(
+        hypothesis_agreement=0.5,
+        max_outside=0.5,
+        max_conflict=0.2,
+        track_conflict=0.5,
+        conflict_scans=10,
+    )
+    return history.fits(matcher, odometry[-1], odometry[-1])
+
+
+def test_fits_ends_at_a_scan_from_unknown_space() -> None:
+    # the robot came from where the map saw nothing (outside, no contradiction): what the
+    # chain says before it is dead reckoning, contradicting or not
+    older = [(0.1, 0.9)] * 20 + [(0.8, 0.05)] * 3
+    assert _fits(older + [(0.05, 0.1)] * 15)
+    assert not _fits([(0.05, 0.9)] * 20 + [(0.05, 0.1)] * 15)  # contradicting in the map
+
+
+def test_fits_counts_scans_both_outside_and_contradicting_the_map() -> None:
+    # a look-alike that fits the last metres, chained back further, half outside the map
+    # and seeing through its walls: evidence against it, not a way out of the check
+    assert not _fits([(0.6, 0.65)] * 20 + [(0.05, 0.15)] * 15)
