@@ -239,10 +239,11 @@ class LocaliseOptions(Options):
     trusted and the scan is searched for around the last pose with a wide prior."""
     time_jump: float = Field(5.0, ge=0.1, le=1e6)
     """A gap (s) between scan stamps larger than this is treated like an odometry jump."""
-    give_up_travel: float = Field(50.0, ge=0.0, le=1e6)
+    give_up_travel: float = Field(150.0, ge=0.0, le=1e6)
     """Odometry travel (m) without any estimate (no fix, no accepted initial pose) after which
     :func:`~laser_corners.localise.run_localise` stops with "never found itself in this map"
-    (a recording of another place); 0: never give up."""
+    (a recording of another place); 0: never give up. A robot may start in a wing the map
+    never saw: aces' later visit from 40 % of the log first meets the map after 58 m."""
     engine: EngineOptions = EngineOptions()
     """The engine (``localise.engine``): the online estimates come from the SLAM in its
     frozen-map mode, placed by the fixes (``engine.enabled``; re-placed past
