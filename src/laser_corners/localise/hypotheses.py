@@ -39,8 +39,8 @@ def seen_share(mapped: float, support: Support, options: LocaliseOptions) -> flo
     A robot at the map's frontier sees much space the map never saw: at its right pose many
     beams end outside the map (``support.outside``) and its plain share ``mapped`` of points
     near a map point is low, while a look-alike that puts the whole scan inside the map
-    scores higher and can win a wrong fix (aces, the map from the first 40 % of the log: a
-    first fix 35.5 m off). A pose whose beams end partly outside the map
+    scores higher and can win a wrong fix (a hall alike every 5 m, mapped from one end:
+    ``tests/localise/test_search.py``). A pose whose beams end partly outside the map
     (``partly_outside < outside <= max_outside``) is therefore judged on the part the map
     saw: ``(mapped - conflict) / (1 - outside)``, at most 1 and never below ``mapped``.
     The beams contradicting the map's free space (``support.conflict``) are subtracted, so
@@ -60,7 +60,7 @@ def seen_share(mapped: float, support: Support, options: LocaliseOptions) -> flo
     Returns
     -------
     float
-        The agreement, in ``[mapped, 1]`` (``mapped`` when at least 1).
+        The agreement: at least ``mapped``, at most 1 (or ``mapped`` if more).
 
     Examples
     --------
