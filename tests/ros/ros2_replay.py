@@ -115,17 +115,6 @@ def probe(
     pytest.fail(f"timed out after {STARTUP_TIMEOUT:.0f} s waiting for {what}")
 
 
-def publish_paced(pub: Any, msgs: list[Any], published_at: dict[Key, float]) -> None:
-    period = 1.0 / RATE_HZ
-    start = time.perf_counter()
-    for i, msg in enumerate(msgs):
-        delay = start + i * period - time.perf_counter()
-        if delay > 0:
-            time.sleep(delay)
-        published_at[key_of(msg.header.stamp)] = time.perf_counter()
-        pub.publish(msg)
-
-
 def fr079_with_odometry(
     n: int,
 ) -> tuple[list[Any], list[tuple[float, Any]], tuple[float, float, float]]:

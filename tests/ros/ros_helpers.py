@@ -7,6 +7,7 @@
   process, also when pytest is killed with SIGKILL and no teardown runs;
 * :func:`wait_for`, :func:`stop`: bounded waits and teardown of the processes a test started;
 * :func:`check_poses`: a PoseArray (ROS 1 or ROS 2) carries the expected keypoints;
+* :func:`publish_paced`: publish messages at a fixed rate, noting when each went out;
 * :func:`isolated_message_packages`: ROS 1 (genpy) and ROS 2 (rosidl) message packages have the
   same names (``sensor_msgs``, ``geometry_msgs``, ...); a test module imports one family and
   hands ``sys.modules`` back without it, so both test modules can run in one pytest process.
@@ -168,3 +169,22 @@ def stamped_corner_scan() -> LaserScan:
         stamp=1234.5,
         frame_id="laser",
     )
+
+
+def publish_paced(
+    pub: Any,
+    msgs: list[Any],
+    published_at: dict[Any, float],
+    key: Callable[[Any], Any],
+    rate_hz: float,
+) -> None:
+    """Publish ``msgs`` on ``pub`` at ``rate_hz``, noting in ``published_at`` when each went
+    out (``time.perf_counter()``) under ``key(msg.header.stamp)``."""
+    period = 1.0 / rate_hz
+    start = time.perf_counter()
+    for i, msg in enumerate(msgs):
+        delay = start + i * period - time.perf_counter()
+        if delay > 0:
+            time.sleep(delay)
+        published_at[key(msg.header.stamp)] = time.perf_counter()
+        pub.publish(msg)

@@ -29,6 +29,7 @@ from ros_helpers import (
     check_poses,
     cli_command,
     isolated_message_packages,
+    publish_paced,
     skip_or_fail,
     spawn,
     stop,
@@ -290,14 +291,7 @@ def test_node_publishes_library_keypoints_for_every_scan(master: RosMaster) -> N
         bad.angle_increment = 0.0
         pub.publish(bad)
 
-        period = 1.0 / RATE_HZ
-        start = time.perf_counter()
-        for i, msg in enumerate(ros_msgs):
-            delay = start + i * period - time.perf_counter()
-            if delay > 0:
-                time.sleep(delay)
-            published_at[(msg.header.stamp.secs, msg.header.stamp.nsecs)] = time.perf_counter()
-            pub.publish(msg)
+        publish_paced(pub, ros_msgs, published_at, lambda s: (s.secs, s.nsecs), RATE_HZ)
         deadline = time.monotonic() + 20.0
         while time.monotonic() < deadline and (len(received) < N_SCANS or len(markers) < N_SCANS):
             time.sleep(0.05)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from ros2_replay import RATE_HZ, Key, Outputs, fr079_scans, key_of, probe, publish_paced, to_msg
+from ros2_replay import RATE_HZ, Key, Outputs, fr079_scans, key_of, probe, to_msg
 from ros2_tools import (
     REAL_DDS_MARKS,
     STARTUP_TIMEOUT,
@@ -36,6 +36,7 @@ from ros2_tools import (
 )
 from ros_helpers import (
     check_poses,
+    publish_paced,
     stop,
     wait_for,
 )
@@ -98,14 +99,14 @@ def test_node_answers_every_scan_with_library_keypoints(ros2: Ros2, tmp_path: Pa
         pub.publish(bad)
         half = N_SCANS // 2
         # 1) nobody subscribes corner_markers: the node must not build them
-        publish_paced(pub, msgs[:half], published_at)
+        publish_paced(pub, msgs[:half], published_at, key_of, RATE_HZ)
         wait_for(lambda: out.count(keys[:half]) == half, 30.0, "PoseArrays of phase 1", proc)
         # 2) with a marker subscriber
         marker_sub = node.create_subscription(
             MarkerArray, ros2.topic(name, "corner_markers"), out.on_markers, 2 * N_SCANS
         )
         n_probes = probe(pub, scans[0], 4, lambda k: k in out.markers, proc, "a MarkerArray")
-        publish_paced(pub, msgs[half:], published_at)
+        publish_paced(pub, msgs[half:], published_at, key_of, RATE_HZ)
         wait_for(
             lambda: out.count(keys) == N_SCANS and out.count(keys[half:], True) == half,
             30.0,
