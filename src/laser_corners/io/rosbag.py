@@ -453,6 +453,8 @@ class BagSource(_TopicChoice, _PoseReading, _LeanReading, ScanSource):
     ) -> None:
         super().__init__(path, topic)
         self.kind = kind
+        self.read_lean = False
+        """Whether the scans were read by the lean path (set once reading starts)."""
         self.stamps_ns: list[int] = []
         self.log_times_ns: list[int] = []
         self.mounts: dict[str, Pose2D | None] = {}
@@ -503,6 +505,7 @@ class BagSource(_TopicChoice, _PoseReading, _LeanReading, ScanSource):
                 for sample in self._tf_samples or []:  # the odometry from /tf, read first
                     track.add_odometry(*self.tf_odometry, sample)
             if self.lean and lean_readable(reader, topics, fast):
+                self.read_lean = True
                 yield from self._lean_scans(reader, topics, track)
                 return
             waiting: deque[RawScan] = deque()
