@@ -1,5 +1,6 @@
 """Hypotheses of the pose search (:mod:`laser_corners.localise.hypotheses`): the recent window,
-merging, and the fix rule (enough travel and scans, agreement, no conflict, a clear lead)."""
+merging, the fix rule (enough travel and scans, agreement, no conflict, a clear lead) and the
+global search's agreement of a pose partly outside the map (``seen_share``)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from laser_corners.localise.freespace import Support
-from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
+from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged, seen_share
 from laser_corners.localise.options import LocaliseOptions
 
 OPTIONS = LocaliseOptions(fix_travel=2.0, fix_scans=5, fix_agreement=0.7, fix_margin=0.05)
@@ -106,3 +107,22 @@ def test_a_lead_in_agreement_lost_in_free_space_conflict_is_no_lead() -> None:
     best = scored((0.0, 0.0, 0.0), [0.95] * 6, conflict=0.15)
     rival = scored((4.0, 0.0, 0.0), [0.89] * 6, conflict=0.05)
     assert choose_winner([best, rival], OPTIONS, travel=2.0) is None
+
+
+def test_seen_share_judges_a_pose_partly_outside_the_map_on_what_the_map_saw() -> None:
+    opt = LocaliseOptions(partly_outside=0.15, max_outside=0.5)
+    # in the band: the share of the beams the map could have seen, conflict not excused
+    partly = Support(outside=0.4, conflict=0.05)
+    assert seen_share(0.5, partly, opt) == pytest.approx((0.5 - 0.05) / (1.0 - 0.4))
+    assert seen_share(0.5, Support(outside=0.4, conflict=0.2), opt) < seen_share(0.5, partly, opt)
+    assert seen_share(0.5, Support(outside=0.5, conflict=0.0), opt) == pytest.approx(1.0)
+    assert seen_share(0.9, Support(outside=0.3, conflict=0.0), opt) == 1.0  # at most 1
+    # never below the plain share (conflict larger than what the outside beams excuse)
+    assert seen_share(0.6, Support(outside=0.2, conflict=0.3), opt) == 0.6
+    # out of the band: the plain share (hardly outside, or mostly outside the map)
+    for outside in (0.0, 0.15, 0.51, 1.0):
+        assert seen_share(0.5, Support(outside=outside, conflict=0.0), opt) == 0.5
+    # the band is the options'
+    wider = LocaliseOptions(partly_outside=0.05, max_outside=0.7)
+    assert seen_share(0.5, Support(outside=0.1, conflict=0.0), wider) > 0.5
+    assert seen_share(0.3, Support(outside=0.6, conflict=0.0), wider) == pytest.approx(0.75)

@@ -9,10 +9,10 @@ odometry (:meth:`SearchHistory.replay`), they serve twice:
 * a new hypothesis is *credited* with the past scans it explains: the place index often
   proposes the right pose only after a metre or more (few corners seen yet, or alike ones),
   and the scans before it are evidence for it as much as the scans after it. Its agreement
-  and free-space shares on them join its recent ones, its travel and scan count grow by
-  theirs, so the fix comes ``fix_travel`` after the search started rather than after the
-  proposal, while the margin over every rival and ``fix_followed_travel`` of following still
-  apply.
+  (scored as the global search scores a scan: ``hypotheses.seen_share``) and free-space
+  shares on them join its recent ones, its travel and scan count grow by theirs, so the fix
+  comes ``fix_travel`` after the search started rather than after the proposal, while the
+  margin over every rival and ``fix_followed_travel`` of following still apply.
 
 Cost: one ICP per replayed scan, at most ``fix_travel / HISTORY_STEP`` of them per credited
 hypothesis (10 by default), stopping at the first scan that does not fit.

@@ -30,7 +30,50 @@ from laser_corners.localise.freespace import Support
 from laser_corners.localise.options import LocaliseOptions
 from laser_corners.pose import poses_apart
 
-__all__ = ["Hypothesis", "choose_winner", "merged"]
+__all__ = ["Hypothesis", "choose_winner", "merged", "seen_share"]
+
+
+def seen_share(mapped: float, support: Support, options: LocaliseOptions) -> float:
+    """The global search's agreement of a pose: the share of the scan the map could have seen.
+
+    A robot at the map's frontier sees much space the map never saw: at its right pose many
+    beams end outside the map (``support.outside``) and its plain share ``mapped`` of points
+    near a map point is low, while a look-alike that puts the whole scan inside the map
+    scores higher and can win a wrong fix (a hall alike every 5 m, mapped from one end:
+    ``tests/localise/test_search.py``). A pose whose beams end partly outside the map
+    (``partly_outside < outside <= max_outside``) is therefore judged on the part the map
+    saw: ``(mapped - conflict) / (1 - outside)``, at most 1 and never below ``mapped``.
+    The beams contradicting the map's free space (``support.conflict``) are subtracted, so
+    that seeing through the map's walls is not excused: excusing only the outside beams
+    gave a new wrong fix at aces' split 0.6 (5.84 m off). Elsewhere it is ``mapped``. The
+    lost track's window has its own rule (``local.explained_share``).
+
+    Parameters
+    ----------
+    mapped : float
+        Share of the scan's points near a map point.
+    support : Support
+        The scan's free-space shares at the pose.
+    options : LocaliseOptions
+        ``partly_outside`` and ``max_outside`` bound the band.
+
+    Returns
+    -------
+    float
+        The agreement: at least ``mapped``, at most 1 (or ``mapped`` if more).
+
+    Examples
+    --------
+    >>> from laser_corners.localise import LocaliseOptions
+    >>> seen_share(0.5, Support(outside=0.4, conflict=0.05), LocaliseOptions())
+    0.75
+    >>> seen_share(0.5, Support(outside=0.1, conflict=0.0), LocaliseOptions())
+    0.5
+    """
+    outside = support.outside
+    if not options.partly_outside < outside <= options.max_outside:
+        return mapped
+    return max(mapped, min(1.0, (mapped - support.conflict) / max(1.0 - outside, 0.05)))
 
 
 @dataclass

@@ -10,7 +10,9 @@ search over the whole map
 judged on the scan searched and carried to the current one by the odometry. Each pose becomes a
 hypothesis (``localise.hypotheses``), refined by ICP against the map's points and credited with
 the search's past scans it explains (``localise.history``). Every scan, every hypothesis is
-moved by the odometry step, aligned again and scored by its *agreement*; the winner
+moved by the odometry step, aligned again and scored by its *agreement* (the share of the
+scan the map could have seen, :func:`~laser_corners.localise.hypotheses.seen_share`: a pose
+at the map's frontier is judged on the part of its scan the map saw); the winner
 (:func:`~laser_corners.localise.hypotheses.choose_winner`) must also not contradict the map's
 free space over the search's past scans chained back from it.
 
@@ -31,8 +33,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from laser_corners.localise.estimate import timing_record
+from laser_corners.localise.freespace import Support
 from laser_corners.localise.history import SearchHistory
-from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged
+from laser_corners.localise.hypotheses import Hypothesis, choose_winner, merged, seen_share
 from laser_corners.localise.local import LocalMap, explained_share
 from laser_corners.localise.mapmodel import MapModel
 from laser_corners.localise.matcher import MapMatcher
@@ -157,16 +160,16 @@ class GlobalSearch:
             for h in self.hypotheses:  # scored from now on as the global search scores
                 h.recent.clear()
 
-    def _agreement(self, xy: NDArray, pose: NDArray, mapped: float) -> float:
-        """A hypothesis's agreement: ``mapped`` (the share of the scan's points near a map
-        point); inside a lost track's window, where the robot often sees space the map does
-        not cover, the share among the points the map could explain when more than
-        ``partly_outside`` of them are far from every map point, as a tracked scan is
-        judged (``Fit.explained``). The global search keeps the plain share: among the
-        explainable points only, a look-alike that puts the scan off the map would gain."""
-        if self.window is None or len(xy) == 0:
-            return mapped
-        unmapped = float(np.mean(self.local.unexplained(transform(xy, pose))))
+    def _agreement(self, xy: NDArray, pose: NDArray, mapped: float, support: Support) -> float:
+        """A hypothesis's agreement from ``mapped`` (the share of the scan's points near a
+        map point) and its free-space ``support``: in the global search :func:`seen_share`
+        (the share of the scan the map could have seen); inside a lost track's window,
+        where the robot often sees space the map does not cover, the share among the points
+        the map could explain when more than ``partly_outside`` of them are far from every
+        map point, as a tracked scan is judged (``Fit.explained``)."""
+        if self.window is None:
+            return seen_share(mapped, support, self.options)
+        unmapped = float(np.mean(self.local.unexplained(transform(xy, pose)))) if len(xy) else 0.0
         return explained_share(mapped, 0.0, unmapped, self.options.partly_outside)
 
     def _follow(self, xy: NDArray, delta: NDArray, step: float) -> None:
@@ -176,8 +179,8 @@ class GlobalSearch:
         for h in self.hypotheses:
             aligned, agreement = self.matcher.align(xy, compose_many(h.pose, delta), prior)
             h.pose = aligned.pose
-            agreement = self._agreement(xy, h.pose, agreement)
-            h.remember(agreement, self.matcher.support(h.pose, xy), opt.recent_scans)
+            support = self.matcher.support(h.pose, xy)
+            h.remember(self._agreement(xy, h.pose, agreement, support), support, opt.recent_scans)
             h.travel += step
             h.followed += step
             h.scans += 1
@@ -248,8 +251,7 @@ class GlobalSearch:
         self.hypotheses = merged(self.hypotheses + fresh, self.options)
 
     def _spawn(self, guesses: list[NDArray], xy: NDArray, odo: NDArray, index: int) -> None:
-        """Hypotheses from the guesses on this scan (:meth:`_fresh`), merged with those
-        alive."""
+        """Hypotheses from the guesses on this scan (:meth:`_fresh`), merged with those alive."""
         poses = [h.pose for h in self.hypotheses]
         fresh = self._fresh(guesses, poses, xy, odo, index, self.travel)
         self.hypotheses = merged(self.hypotheses + fresh, self.options)
@@ -285,20 +287,21 @@ class GlobalSearch:
             h = Hypothesis(aligned.pose, index)
             if self.window is None:
                 self._credit(h, odo, index, travel)
-            h.remember(self._agreement(xy, h.pose, agreement), support, opt.recent_scans)
+            h.remember(self._agreement(xy, h.pose, agreement, support), support, opt.recent_scans)
             fresh.append(h)
         return fresh
 
     def _credit(self, h: Hypothesis, odo: NDArray, index: int, travel: float) -> None:
         """Credit a new hypothesis of the global search at scan ``index`` (the search's
         ``travel`` then) with the past scans it explains (``SearchHistory.explained``):
-        their agreements and shares join its recent ones, their travel and scans its own
-        (``localise.history``)."""
+        their agreements (:func:`seen_share`) and shares join its recent ones, their travel
+        and scans its own (``localise.history``)."""
         credited = self.history.explained(self.matcher, h.pose, odo, travel, index)
         if not credited:
             return
-        for past in reversed(credited):
-            h.remember(past.agreement, past.support, self.options.recent_scans)
+        opt, keep = self.options, self.options.recent_scans
+        for past in reversed(credited):  # scored as the global search scores a scan
+            h.remember(seen_share(past.agreement, past.support, opt), past.support, keep)
         h.travel = travel - credited[-1].scan.travel
         h.scans = index - credited[-1].scan.index
         self.counts["credited"] += 1
