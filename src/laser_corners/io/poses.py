@@ -218,15 +218,7 @@ class StreamingTrack:
 
     def __init__(self) -> None:
         self.odom_frame = self.base_frame = ""
-        self._samples: list[OdomSample] = []
-        self._t: list[float] = []
-        self._x: list[float] = []
-        self._y: list[float] = []
-        self._yaw: list[float] = []  # unwrapped
-        self._correction = 0.0  # the running sum of np.unwrap's corrections
-        self._first_correction = 0.0  # np.unwrap's running correction at _samples[0], exact
-        self._forgotten = 0  # samples dropped by forget_before
-        self._rebuild = False
+        self.restart()  # no samples yet
         self._candidates: dict[str, tuple[str, Pose2D, bool]] = {}
         self._mount: dict[str, Pose2D | None] = {}
         self._tree: PoseTrack | None = None  # the transforms (no samples), for mounts
@@ -268,9 +260,14 @@ class StreamingTrack:
     def restart(self) -> None:
         """Forget every odometry sample, keep the transforms (the clock jumped back: a bag
         played again, a simulation restarted)."""
-        self._samples, self._t, self._x, self._y, self._yaw = [], [], [], [], []
-        self._correction = self._first_correction = 0.0
-        self._forgotten = 0
+        self._samples: list[OdomSample] = []
+        self._t: list[float] = []
+        self._x: list[float] = []
+        self._y: list[float] = []
+        self._yaw: list[float] = []  # unwrapped
+        self._correction = 0.0  # the running sum of np.unwrap's corrections
+        self._first_correction = 0.0  # np.unwrap's running correction at _samples[0], exact
+        self._forgotten = 0  # samples dropped by forget_before
         self._rebuild = False
 
     @property
@@ -282,6 +279,11 @@ class StreamingTrack:
     def first_stamp(self) -> float | None:
         """The stamp of the oldest sample held, None without samples."""
         return self._samples[0][0] if self._samples else None
+
+    @property
+    def last_stamp(self) -> float | None:
+        """The stamp of the newest sample held, None without samples."""
+        return self._samples[-1][0] if self._samples else None
 
     def forget_before(self, stamp: float) -> int:
         """Drop the samples older than ``stamp`` but the newest at or before it.

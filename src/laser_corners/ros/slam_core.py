@@ -110,9 +110,6 @@ class OdometryBook:
         than those kept (the clock jumped back: a bag played in a loop)."""
         self.on_input: Callable[[str, str], None] = lambda parent, child: None
         """Called with the frames of every odometry-like input (the watch counts them)."""
-        self.span: tuple[float, float] | None = None
-        """First and last stamp of the odometry samples kept (the first moves on as
-        :meth:`forget_before` drops old samples)."""
 
     def add_odometry(
         self, odom_frame: str, base_frame: str, stamp: float, pose: tuple[float, float, float]
@@ -131,14 +128,18 @@ class OdometryBook:
                 return  # a stray late sample: forgotten
             self.track.restart()  # the clock jumped back: start anew, as tf2 does
             self._stamps.clear()
-            self.span = None
             self.clock_jumps += 1
             self.track.add_odometry(odom, base, sample)
         self._stale = 0
         self._stamps.add(stamp)
         self.n_odometry += 1
-        first, last = self.span if self.span is not None else (stamp, stamp)
-        self.span = (min(first, float(stamp)), max(last, float(stamp)))
+
+    @property
+    def span(self) -> tuple[float, float] | None:
+        """First and last stamp of the odometry samples kept (the first moves on as
+        :meth:`forget_before` drops old samples), None without samples."""
+        first, last = self.track.first_stamp, self.track.last_stamp
+        return None if first is None or last is None else (first, last)
 
     @property
     def n_kept(self) -> int:
@@ -152,9 +153,8 @@ class OdometryBook:
         samples kept there is none. Returns how many were dropped."""
         dropped = self.track.forget_before(stamp)
         first = self.track.first_stamp
-        if dropped and first is not None and self.span is not None:
+        if dropped and first is not None:
             self._stamps = {kept for kept in self._stamps if kept >= first}
-            self.span = (first, self.span[1])
         return dropped
 
     def add_transforms(
