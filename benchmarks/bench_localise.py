@@ -71,7 +71,6 @@ Timings are of this machine under whatever else runs on it (2 cores shared).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import math
 import os
@@ -84,9 +83,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-import laser_corners
 from laser_corners.eval.relations import read_relations, relation_metrics
 from laser_corners.io.trajectory import read_tum
+from laser_corners.kernel_cache import source_key
 from laser_corners.localise import LocaliseOptions, Localiser
 from laser_corners.localise.run import smoothing_slam
 from laser_corners.localise.smooth import smooth
@@ -121,22 +120,13 @@ def read_log(path: Path) -> tuple[list, np.ndarray, np.ndarray]:
     return scans, np.array(odo), np.array(stamps)
 
 
-def source_fingerprint() -> str:
-    """A hash of the installed package's Python sources: what made a cached map."""
-    root = Path(laser_corners.__file__).resolve().parent
-    digest = hashlib.sha256()
-    for file in sorted(root.rglob("*.py")):
-        digest.update(str(file.relative_to(root)).encode() + b"\0" + file.read_bytes())
-    return digest.hexdigest()[:16]
-
-
 def cached_map(path: Path, folder: Path, stop_scan: int | None) -> Path:
     """A ``slam`` output folder for ``path``, made once per version of the sources: a map
     cached by other code is made again: the figures must come from the code that reports
     them (until 2026-12-08 a cached map was kept whatever made it; intel's later visit scored
     1.44 on maps cached by earlier code, 1.55 on maps made by the code of that day)."""
     stamp = folder / "made-by.txt"
-    made_by = source_fingerprint()
+    made_by = source_key()  # the package imported, all its sources
     if (folder / "keyframes.npz").is_file() and stamp.is_file():
         if stamp.read_text().strip() == made_by:
             return folder

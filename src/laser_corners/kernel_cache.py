@@ -31,7 +31,7 @@ import sys
 import zlib
 from pathlib import Path
 
-__all__ = ["PREFIX", "kernel_key", "use_keyed_cache"]
+__all__ = ["PREFIX", "kernel_key", "source_key", "use_keyed_cache"]
 
 PREFIX = "laser-corners-"
 """Name prefix of the keyed cache folders (a ``NUMBA_CACHE_DIR`` ending in one, inherited
@@ -56,6 +56,13 @@ def _sources(folder: str, prefix: str = "") -> list[tuple[str, os.DirEntry]]:
 def kernel_key(package: Path = PACKAGE) -> str:
     """Hash of the contents of the package's source files that import numba, with their
     paths relative to the package, and the Python version (16 hex digits)."""
+    return source_key(package, kernels_only=True)
+
+
+def source_key(package: Path = PACKAGE, kernels_only: bool = False) -> str:
+    """Hash of the contents of the package's source files (``kernels_only``: those that import
+    numba), with their paths relative to the package, and the Python version (16 hex
+    digits): what a cached result was made by."""
     import hashlib  # only when the memo misses (importing hashlib costs milliseconds)
 
     digest = hashlib.blake2b(digest_size=8)
@@ -63,7 +70,8 @@ def kernel_key(package: Path = PACKAGE) -> str:
     for name, entry in _sources(str(package)):
         with open(entry.path, "rb") as source:
             data = source.read()
-        if b"import numba" in data or b"from numba" in data:  # a kernel file, not a mention
+        kernel = b"import numba" in data or b"from numba" in data  # a kernel file, not a mention
+        if kernel or not kernels_only:
             digest.update(name.encode() + b"\0" + data + b"\0")
     return digest.hexdigest()
 
