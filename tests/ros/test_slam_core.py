@@ -339,6 +339,24 @@ def test_a_long_run_keeps_a_bounded_odometry_store() -> None:
     assert core.book.span is not None and core.book.span[1] == (200_000 - 1) / ODOM_RATE
 
 
+def test_the_odometry_store_stays_bounded_when_the_laser_stops() -> None:
+    """The laser stops (a cable, a driver crash) while the odometry goes on for an hour,
+    each sample followed by ``release`` as the node does: the book keeps about twice
+    ``ODOMETRY_KEPT_S`` before the newest sample, not the hour."""
+    core = _core(mount=list(MOUNT))
+    _standing(core, 3_000, 20.0)  # 60 s with scans
+    truth, _ = _drive(1)
+    held = []
+    for i in range(3_000, 3_000 + 180_000):  # 60 minutes without a scan
+        core.book.add_odometry("odom", "base_link", i / ODOM_RATE, truth[0])
+        core.release()
+        held.append(core.book.n_kept)
+    bound = 2 * 2 * ODOMETRY_KEPT_S * ODOM_RATE + FORGET_BATCH  # forget_before's
+    assert max(held) <= bound, max(held)
+    first, last = core.book.span
+    assert last - first >= 2 * ODOMETRY_KEPT_S  # what a lagging scan needs is still there
+
+
 def test_a_scan_older_than_the_odometry_kept_is_dropped() -> None:
     """A scan stamped before the odometry kept is dropped and counted as without odometry,
     and the watch's warning names its stamp and the odometry in hand."""

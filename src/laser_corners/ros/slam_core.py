@@ -8,7 +8,8 @@ without ROS:
 * :class:`OdometryBook`: odometry (``odom -> base`` from ``/tf`` or ``nav_msgs/Odometry``) and
   the static transforms, kept per stamp (:class:`~laser_corners.io.poses.StreamingTrack`:
   linear interpolation at the scan stamp, the laser mount from the static tree), the last
-  :data:`ODOMETRY_KEPT_S` seconds before the last processed scan (a node runs for days);
+  :data:`ODOMETRY_KEPT_S` seconds before the last processed scan, at most twice that before
+  the newest sample (a node runs for days);
 * :class:`MappingCore`: pairs each scan with the odometry at its stamp (a scan waits until
   odometry after its stamp is in, at most ``tf_wait`` seconds after it arrived), runs
   :class:`~laser_corners.slam.Slam` or the ``Localiser`` on it and computes ``map -> odom``
@@ -60,8 +61,10 @@ __all__ = [
 ]
 
 ODOMETRY_KEPT_S = 60.0
-"""Seconds of odometry kept at least before the stamp of the last processed scan (the book
-forgets in batches: it holds up to about twice this, see ``StreamingTrack.forget_before``).
+"""Seconds of odometry kept at least before the stamp of the last processed scan, and at
+most twice this before the newest odometry sample, so the store stays bounded when the laser
+stops while the odometry goes on (the book forgets in batches: it holds up to about twice
+this, see ``StreamingTrack.forget_before``).
 Far beyond ROS's default 10 s tf buffer: scans come out in arrival order, so a later scan
 stamped a minute before the last processed one is a clock jump or a bag replayed again; a
 scan older than the odometry kept is dropped and counted as without odometry, and odometry
@@ -407,6 +410,9 @@ class MappingCore(MapViews):
             self.book.forget_before(scan.stamp - ODOMETRY_KEPT_S)  # slam and localise
             if update is not None:
                 out.append(update)
+        span = self.book.span
+        if span is not None:  # the laser may have stopped while the odometry goes on
+            self.book.forget_before(span[1] - 2 * ODOMETRY_KEPT_S)
         return out
 
     def _process(self, scan: LaserScan, odom: NDArray[np.float64]) -> Update | None:
