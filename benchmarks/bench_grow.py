@@ -20,7 +20,7 @@ in OLD; the grown run's for the second half) and the one-run SLAM's are scored w
 relation metric on the relations with a stamp in the second half (the ones that reach it);
 *ratio* = grown / one-run mean translation error (and rotation). The real-time factor is the
 second half's duration over the grow run's wall time (this machine, 2 cores shared with
-other work).
+other work; the kernels compiled before anything is timed, as ``laser-corners warmup`` does).
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from laser_corners.cli.kernels import warm_slam_kernels
 from laser_corners.eval.relations import read_relations, relation_metrics
 from laser_corners.pose import compose_many, invert_many
 from laser_corners.slam import SlamOptions, SlamResult, run_slam
@@ -169,6 +170,7 @@ def main() -> None:
     parser.add_argument("--table", type=Path, help="write the markdown table here")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
+    warm_slam_kernels()  # no compiling inside a timed run
     rows = []
     for name in args.logs:
         rows.append(grow_log(name, args.out, args.split))

@@ -9,7 +9,10 @@ LOG defaults to ``fr079.bag``, ``aces.bag`` and ``intel.bag`` in ``../shared/dat
 is read with the ``.relations`` file beside it (``fr079.bag`` -> ``fr079.relations``). Every
 log runs in a child process of its own (so its peak resident memory, ``getrusage``, is its
 own) with :func:`laser_corners.slam.run_slam`; the wall time is the run only (imports and the
-numba cache load before it are not counted). Prints a markdown table:
+numba cache load before it are not counted; the kernels are compiled first, by
+:func:`laser_corners.cli.kernels.warm_slam_kernels`, as ``laser-corners warmup`` does: a
+fresh checkout would otherwise count a minute of compiling in its first log's first scans).
+Prints a markdown table:
 
 log | scans | duration s | wall s | real-time factor | ms/scan mean / p95 | peak RSS MB |
 relation error trans m (ours, odometry) | rot deg (ours, odometry) | closures proposed /
@@ -39,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from laser_corners.cli.kernels import warm_slam_kernels
 from laser_corners.viz.slam import plot_ms_per_scan, save_figure
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -164,6 +168,7 @@ def main() -> None:
         return
     logs = args.logs or [DATA / name for name in DEFAULT_LOGS]
     args.out.mkdir(parents=True, exist_ok=True)
+    warm_slam_kernels()  # compiled (or loaded) once here: the workers load them from the cache
     records, series = [], []
     with tempfile.TemporaryDirectory() as scratch:
         for i, log in enumerate(logs):
