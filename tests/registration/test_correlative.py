@@ -73,3 +73,29 @@ def test_a_floor_prunes_what_cannot_beat_it_and_keeps_what_can(seed: int) -> Non
     above, center = search(grid, pts, guess, 0.4, 0.12, yaw_step=0.02, floor=best + 1e-3)
     assert above == pytest.approx(best + 1e-3, abs=1e-9)
     np.testing.assert_allclose(center, guess)
+
+
+@pytest.mark.parametrize(("resolution", "sigma"), [(0.05, 0.05), (0.15, 0.15), (0.1, 0.2)])
+@pytest.mark.parametrize("stamp_cost", [1e9, 0.0])  # every grid stamped / transformed
+def test_the_grid_scores_the_distance_to_the_nearest_point_either_way(
+    monkeypatch: pytest.MonkeyPatch, resolution: float, sigma: float, stamp_cost: float
+) -> None:
+    """Stamped point by point or through the distance transform, every cell scores
+    ``exp(-d² / 2σ²)`` (float32) of its distance to the nearest cell holding a point, bit for
+    bit as scoring the transform's distances directly (far cells 0 where float32 is)."""
+    from scipy.ndimage import distance_transform_edt
+
+    from laser_corners.registration import correlative
+
+    monkeypatch.setattr(correlative, "STAMP_COST", stamp_cost)
+    rng = np.random.default_rng(int(resolution * 1000 + sigma * 100))
+    for n in (1, 7, 300):
+        xy = np.concatenate([rng.uniform(-3, 9, (n, 2)), rng.normal(4, 0.3, (n, 2))])
+        grid = ScoreGrid.build(xy, resolution, sigma, 1.5)
+        cells = np.floor((xy - grid.origin) / resolution).astype(int)
+        empty = np.ones(grid.score.shape, dtype=bool)
+        empty[cells[:, 1], cells[:, 0]] = False
+        distance = distance_transform_edt(empty) * resolution
+        want = np.exp(-0.5 * (distance / sigma) ** 2).astype(np.float32)
+        np.testing.assert_array_equal(grid.score, want)
+        assert grid.score.dtype == np.float32 and (grid.score == 0).any()

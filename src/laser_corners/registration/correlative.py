@@ -36,17 +36,33 @@ class ScoreGrid:
     def build(
         cls, xy: NDArray[np.float64], resolution: float, sigma: float, margin: float
     ) -> ScoreGrid:
-        """The grid of points ``xy`` (map frame) padded by ``margin`` (m)."""
+        """The grid of points ``xy`` (map frame) padded by ``margin`` (m).
+
+        A cell scores ``exp(-d² / 2σ²)`` (float32) by the distance ``d`` between its centre
+        and the nearest cell holding a point; the scores of the squared distances (whole
+        cells) are tabulated up to where float32 rounds them to 0. Each cell holding a point
+        stamps the table around it (cost: cells holding a point x the table's disc), or,
+        where that would cost more, a Euclidean distance transform of the whole grid looks
+        them up: the same scores either way. On a front end's local map of a long-range
+        scanner (edmonton: 0.7-1.1 M cells at 0.05 m) the transform took 60-130 ms a build.
+        """
         lo = xy.min(axis=0) - margin
         hi = xy.max(axis=0) + margin
         if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
             raise ValueError("ScoreGrid: map points must be finite")
         shape = (np.ceil((hi - lo) / resolution).astype(int) + 1)[::-1]
-        occupied = np.ones(shape, dtype=bool)
         cells = np.floor((xy - lo) / resolution).astype(int)
-        occupied[cells[:, 1], cells[:, 0]] = False
-        dist = distance_transform_edt(occupied) * resolution
-        score = np.exp(-0.5 * (dist / sigma) ** 2).astype(np.float32)
+        table = _score_table(resolution, sigma)
+        holding = np.zeros(shape, dtype=bool)
+        holding[cells[:, 1], cells[:, 0]] = True
+        rows, cols = np.nonzero(holding)
+        reach = math.isqrt(len(table) - 1)
+        if len(rows) * (2 * reach + 1) ** 2 < STAMP_COST * holding.size:
+            score = np.zeros(shape, dtype=np.float32)
+            _stamp(rows, cols, table, reach, score)
+        else:
+            squared = np.rint(distance_transform_edt(~holding) ** 2).astype(np.int64)
+            score = table[np.minimum(squared, len(table) - 1)]
         return cls(score, lo, resolution)
 
     def at(self, xy: NDArray[np.float64], outside: float) -> NDArray[np.float64]:
@@ -58,6 +74,47 @@ class ScoreGrid:
         score = np.full(len(xy), outside, dtype=np.float64)
         score[inside] = self.score[ix[inside, 1], ix[inside, 0]]
         return score
+
+
+STAMP_COST = 8.0
+"""A grid is stamped point by point (:func:`_stamp`) when that visits fewer than this many
+cells per grid cell; else the distance transform (about this many operations a cell)."""
+
+
+def _score_table(resolution: float, sigma: float) -> NDArray[np.float32]:
+    """``table[k]``: the score ``exp(-d² / 2σ²)`` (float32) of a cell ``d = √k`` cells from
+    the nearest point, for ``k`` up to the last one float32 does not round to 0 (then a 0)."""
+    cells = 15.0 * sigma / resolution + 2.0  # exp(-15² / 2) underflows float32
+    k = np.arange(int(cells * cells) + 1, dtype=np.float64)
+    table = np.exp(-0.5 * ((np.sqrt(k) * resolution) / sigma) ** 2).astype(np.float32)
+    last = int(np.flatnonzero(table)[-1])
+    return np.append(table[: last + 1], np.float32(0.0))
+
+
+@numba.njit(cache=True)
+def _stamp(
+    rows: NDArray[np.int64],
+    cols: NDArray[np.int64],
+    table: NDArray[np.float32],
+    reach: int,
+    score: NDArray[np.float32],
+) -> None:
+    """Raise every cell within ``reach`` of a cell holding a point (``rows``, ``cols``) to the
+    table's score of its squared distance: the score of the nearest such cell."""
+    ny, nx = score.shape
+    top = table.shape[0] - 1
+    for p in range(rows.shape[0]):
+        for dr in range(-reach, reach + 1):
+            r = rows[p] + dr
+            if r < 0 or r >= ny:
+                continue
+            for dc in range(-reach, reach + 1):
+                c = cols[p] + dc
+                d2 = dr * dr + dc * dc
+                if c < 0 or c >= nx or d2 >= top:
+                    continue
+                if table[d2] > score[r, c]:
+                    score[r, c] = table[d2]
 
 
 @numba.njit(cache=True)
