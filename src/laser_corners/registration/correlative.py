@@ -76,9 +76,11 @@ class ScoreGrid:
         return score
 
 
-STAMP_COST = 8.0
+STAMP_COST = 30.0
 """A grid is stamped point by point (:func:`_stamp`) when that visits fewer than this many
-cells per grid cell; else the distance transform (about this many operations a cell)."""
+cells per grid cell; else the distance transform. Measured on intel's half map (0.05 m
+grid, 391 k cells, 6.8 k holding a point, 841 visits each): stamping 12 ms (about 2 ns a
+visit), the transform 52 ms (about 130 ns a cell)."""
 
 
 def _score_table(resolution: float, sigma: float) -> NDArray[np.float32]:
