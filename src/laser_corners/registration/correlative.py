@@ -55,11 +55,10 @@ class ScoreGrid:
         table = _score_table(resolution, sigma)
         holding = np.zeros(shape, dtype=bool)
         holding[cells[:, 1], cells[:, 0]] = True
-        rows, cols = np.nonzero(holding)
         reach = math.isqrt(len(table) - 1)
-        if len(rows) * (2 * reach + 1) ** 2 < STAMP_COST * holding.size:
+        if np.count_nonzero(holding) * (2 * reach + 1) ** 2 < STAMP_COST * holding.size:
             score = np.zeros(shape, dtype=np.float32)
-            _stamp(rows, cols, table, reach, score)
+            _stamp(*np.nonzero(holding), table, reach, score)
         else:
             squared = np.rint(distance_transform_edt(~holding) ** 2).astype(np.int64)
             score = table[np.minimum(squared, len(table) - 1)]
